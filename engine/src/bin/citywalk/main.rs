@@ -1,0 +1,3 @@
+//! `citywalk`: the command line for everything.
+
+fn main() {}

@@ -1,0 +1,3 @@
+//! citywalk preprocessing: the offline geometry that turns a [`citywalk_scenes::City`] into a
+//! scene package — virtual occluders (Germs & Jansen), the legibility cluster tree (Chang et
+//! al., Yang et al.), urban blocks and the B-Quadtree (Pina et al.).

@@ -1,0 +1,277 @@
+//! The one city model every loader produces and every later stage consumes.
+//!
+//! Coordinates are in a local metric frame (east, north, up; metres) whose geographic origin is
+//! kept in [`Frame`]. Footprints are `geo` polygons in f64 (exact predicates want f64); meshes are
+//! f32 (`glam::Vec3`), which is ample within a few tens of kilometres of the origin.
+
+use std::collections::BTreeMap;
+
+use geo::{Area, BoundingRect, MultiPolygon};
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+
+use crate::frame::Frame;
+use crate::report::LoadReport;
+
+/// Index of a building in [`City::buildings`]; stable for a given input and loader options.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+pub struct BuildingId(pub u32);
+
+impl BuildingId {
+    /// The index into [`City::buildings`].
+    pub fn index(self) -> usize {
+        self.0 as usize
+    }
+}
+
+/// A triangle mesh in the local frame (z up), counter-clockwise seen from outside.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct TriangleMesh {
+    pub positions: Vec<Vec3>,
+    /// Three indices per triangle into `positions`.
+    pub indices: Vec<u32>,
+}
+
+impl TriangleMesh {
+    pub fn triangle_count(&self) -> usize {
+        self.indices.len() / 3
+    }
+
+    /// Iterates over the triangles as corner triples.
+    pub fn triangles(&self) -> impl Iterator<Item = [Vec3; 3]> + '_ {
+        self.indices.chunks_exact(3).map(|t| {
+            [
+                self.positions[t[0] as usize],
+                self.positions[t[1] as usize],
+                self.positions[t[2] as usize],
+            ]
+        })
+    }
+
+    /// Appends `other`, re-basing its indices.
+    pub fn append(&mut self, other: &TriangleMesh) {
+        let base = self.positions.len() as u32;
+        self.positions.extend_from_slice(&other.positions);
+        self.indices.extend(other.indices.iter().map(|i| i + base));
+    }
+
+    /// Axis-aligned bounds `(min, max)`, or `None` for an empty mesh.
+    pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
+        let first = *self.positions.first()?;
+        Some(
+            self.positions
+                .iter()
+                .fold((first, first), |(lo, hi), p| (lo.min(*p), hi.max(*p))),
+        )
+    }
+}
+
+/// One vertical extrusion of a building: a footprint between two heights.
+///
+/// 2.5D inputs (GeoJSON, OSM) describe a building by one part (its outline) or, following the
+/// OSM Simple 3D Buildings rules, by the `building:part` areas that replace the outline.
+/// Mesh inputs (CityJSON, glTF) have one part per source part, with the footprint derived
+/// from its mesh.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BuildingPart {
+    /// Identifier of the part in its source (for example `way/123`), or of the building itself
+    /// when the building has no separate parts.
+    pub source_id: String,
+    /// Footprint in the local frame: one or more polygons, holes kept. Valid (see
+    /// [`crate::validate`]): finite, simple rings, positive area.
+    pub footprint: MultiPolygon<f64>,
+    /// Height of the bottom of the part above the frame's ground (metres).
+    pub base_m: f32,
+    /// Height of the top of the part (metres).
+    pub top_m: f32,
+}
+
+/// Where a building's heights came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum HeightSource {
+    /// A height tag or property in metres.
+    Tagged,
+    /// Derived from a number of levels times a level height.
+    Levels,
+    /// Measured from 3D geometry.
+    Geometry,
+    /// No height was given: a documented default was used ([`crate::load::LoadOptions`]).
+    Estimated,
+}
+
+/// One building of the city.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Building {
+    pub id: BuildingId,
+    /// Identifier in the source (OSM `way/123`, CityJSON object id, glTF feature id, ...).
+    pub source_id: String,
+    /// Outline of the whole building in the local frame (the union of its parts' outlines).
+    pub footprint: MultiPolygon<f64>,
+    /// The vertical parts; never empty.
+    pub parts: Vec<BuildingPart>,
+    /// Lowest base over all parts (metres).
+    pub base_m: f32,
+    /// Highest top over all parts (metres).
+    pub top_m: f32,
+    pub height_source: HeightSource,
+    /// The source's own geometry when it has true 3D geometry (CityJSON, glTF).
+    pub mesh: Option<TriangleMesh>,
+    /// Source attributes / tags, as strings.
+    pub tags: BTreeMap<String, String>,
+}
+
+impl Building {
+    /// Footprint area in square metres.
+    pub fn footprint_area_m2(&self) -> f64 {
+        self.footprint.unsigned_area()
+    }
+
+    /// Height of the top above the base (metres).
+    pub fn height_m(&self) -> f32 {
+        self.top_m - self.base_m
+    }
+
+    /// Axis-aligned bounds in the local frame.
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        let (mut lo, mut hi) = match self.footprint.bounding_rect() {
+            Some(r) => (
+                Vec3::new(r.min().x as f32, r.min().y as f32, self.base_m),
+                Vec3::new(r.max().x as f32, r.max().y as f32, self.top_m),
+            ),
+            None => (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
+        };
+        if let Some((mlo, mhi)) = self.mesh.as_ref().and_then(TriangleMesh::bounds) {
+            lo = lo.min(mlo);
+            hi = hi.max(mhi);
+        }
+        (lo, hi)
+    }
+}
+
+/// Classification of a street, from OSM `highway=*` or the generator.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum StreetClass {
+    Major,
+    Minor,
+    Residential,
+    Service,
+    Pedestrian,
+    Other,
+}
+
+impl StreetClass {
+    /// Maps an OSM `highway=*` value to a class.
+    pub fn from_osm_highway(value: &str) -> StreetClass {
+        match value {
+            "motorway" | "trunk" | "primary" | "secondary" | "motorway_link" | "trunk_link"
+            | "primary_link" | "secondary_link" => StreetClass::Major,
+            "tertiary" | "tertiary_link" | "unclassified" => StreetClass::Minor,
+            "residential" | "living_street" => StreetClass::Residential,
+            "service" => StreetClass::Service,
+            "pedestrian" | "footway" | "path" | "steps" | "cycleway" => StreetClass::Pedestrian,
+            _ => StreetClass::Other,
+        }
+    }
+
+    /// Whether streets of this class separate urban blocks (Lynch's paths). Footways and
+    /// service roads run inside blocks and do not.
+    pub fn bounds_blocks(self) -> bool {
+        matches!(
+            self,
+            StreetClass::Major | StreetClass::Minor | StreetClass::Residential
+        )
+    }
+
+    /// A short stable name, used in files.
+    pub fn name(self) -> &'static str {
+        match self {
+            StreetClass::Major => "major",
+            StreetClass::Minor => "minor",
+            StreetClass::Residential => "residential",
+            StreetClass::Service => "service",
+            StreetClass::Pedestrian => "pedestrian",
+            StreetClass::Other => "other",
+        }
+    }
+
+    /// Inverse of [`StreetClass::name`].
+    pub fn from_name(name: &str) -> Option<StreetClass> {
+        [
+            StreetClass::Major,
+            StreetClass::Minor,
+            StreetClass::Residential,
+            StreetClass::Service,
+            StreetClass::Pedestrian,
+            StreetClass::Other,
+        ]
+        .into_iter()
+        .find(|c| c.name() == name)
+    }
+}
+
+/// A street centre line in the local frame.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Street {
+    pub source_id: String,
+    pub class: StreetClass,
+    pub name: Option<String>,
+    pub line: geo::LineString<f64>,
+}
+
+/// A loaded city: buildings and streets in one local frame, with the load report.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct City {
+    pub frame: Frame,
+    pub buildings: Vec<Building>,
+    pub streets: Vec<Street>,
+    pub report: LoadReport,
+}
+
+impl City {
+    /// Bounds of all buildings `(min, max)`, or `None` for an empty city.
+    pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
+        self.buildings
+            .iter()
+            .map(Building::bounds)
+            .reduce(|(alo, ahi), (blo, bhi)| (alo.min(blo), ahi.max(bhi)))
+    }
+
+    /// Renumbers building ids to their positions; loaders call this after filtering.
+    pub fn renumber(&mut self) {
+        for (i, b) in self.buildings.iter_mut().enumerate() {
+            b.id = BuildingId(i as u32);
+        }
+    }
+
+    /// Checks the model's invariants: ids are positions, every building has parts, heights are
+    /// ordered and finite, footprints are valid. Returns the first violation found.
+    pub fn check_invariants(&self) -> Result<(), String> {
+        for (i, b) in self.buildings.iter().enumerate() {
+            if b.id.index() != i {
+                return Err(format!("building {} has id {:?}", i, b.id));
+            }
+            if b.parts.is_empty() {
+                return Err(format!("building {} has no parts", b.source_id));
+            }
+            if !(b.base_m.is_finite() && b.top_m.is_finite() && b.top_m > b.base_m) {
+                return Err(format!(
+                    "building {} has heights {}..{}",
+                    b.source_id, b.base_m, b.top_m
+                ));
+            }
+            crate::validate::check_multipolygon(&b.footprint)
+                .map_err(|r| format!("building {}: footprint {r}", b.source_id))?;
+            for p in &b.parts {
+                crate::validate::check_multipolygon(&p.footprint)
+                    .map_err(|r| format!("part {}: footprint {r}", p.source_id))?;
+                if !(p.top_m > p.base_m) || p.base_m < b.base_m || p.top_m > b.top_m {
+                    return Err(format!(
+                        "part {} heights {}..{} outside building {}..{}",
+                        p.source_id, p.base_m, p.top_m, b.base_m, b.top_m
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+}

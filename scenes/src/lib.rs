@@ -1,0 +1,18 @@
+//! citywalk scenes: the [`City`] model, its loaders (OSM PBF, GeoJSON, CityJSON, glTF),
+//! procedural cities, camera paths and the scene-package format.
+//!
+//! Every loader turns one input into the same [`City`] in a local metric frame
+//! (east, north, up), with a [`LoadReport`] in which `loaded + rejected = found`.
+
+pub mod city;
+pub mod frame;
+pub mod load;
+pub mod report;
+pub mod validate;
+
+pub use city::{
+    Building, BuildingId, BuildingPart, City, HeightSource, Street, StreetClass, TriangleMesh,
+};
+pub use frame::{Crs, Frame};
+pub use load::{LoadOptions, load_city, load_cities};
+pub use report::{LoadError, LoadReport, LoadWarning, RejectReason, Rejection};

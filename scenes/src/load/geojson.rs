@@ -1,0 +1,15 @@
+//! Placeholder until the geojson loader lands in this session.
+
+use std::path::Path;
+
+use super::LoadOptions;
+use crate::city::City;
+use crate::report::LoadError;
+
+/// Loads a geojson file.
+pub fn load(path: &Path, _options: &LoadOptions) -> Result<City, LoadError> {
+    Err(LoadError::Unsupported {
+        path: path.to_path_buf(),
+        reason: "loader not built yet".into(),
+    })
+}

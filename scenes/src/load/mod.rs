@@ -1,0 +1,177 @@
+//! Loading any supported input into a [`City`].
+//!
+//! The format is chosen by file extension, and for `.json` by content (CityJSON has
+//! `"type": "CityJSON"`, GeoJSON `"type": "FeatureCollection"`).
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use crate::city::City;
+use crate::report::LoadError;
+
+pub mod cityjson;
+pub mod geojson;
+pub mod gltf;
+pub mod osm;
+
+/// Options shared by the loaders.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LoadOptions {
+    /// Height of one storey, for `building:levels` / `levels` (metres). 3 m is the OSM
+    /// Simple 3D Buildings convention.
+    pub level_height_m: f32,
+    /// Height given to a building with no height information (metres), marked
+    /// [`crate::HeightSource::Estimated`]: three storeys of [`LoadOptions::level_height_m`].
+    pub default_height_m: f32,
+    /// GeoJSON: a property to read the height (metres) from before the standard ones
+    /// (`height`, `render_height_m`, `levels`).
+    pub height_property: Option<String>,
+    /// Whether to load streets (OSM `highway=*` ways) as well as buildings.
+    pub load_streets: bool,
+}
+
+impl Default for LoadOptions {
+    fn default() -> Self {
+        LoadOptions {
+            level_height_m: 3.0,
+            default_height_m: 9.0,
+            height_property: None,
+            load_streets: true,
+        }
+    }
+}
+
+/// The input formats citywalk reads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum InputFormat {
+    OsmPbf,
+    GeoJson,
+    CityJson,
+    Gltf,
+}
+
+/// Detects the format of `path` from its extension and, for `.json`, its first bytes.
+pub fn detect_format(path: &Path) -> Result<InputFormat, LoadError> {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_lowercase())
+        .unwrap_or_default();
+    if name.ends_with(".osm.pbf") || name.ends_with(".pbf") {
+        return Ok(InputFormat::OsmPbf);
+    }
+    if name.ends_with(".geojson") {
+        return Ok(InputFormat::GeoJson);
+    }
+    if name.ends_with(".glb") || name.ends_with(".gltf") {
+        return Ok(InputFormat::Gltf);
+    }
+    if name.ends_with(".city.json") || name.ends_with(".cityjson") {
+        return Ok(InputFormat::CityJson);
+    }
+    if name.ends_with(".json") {
+        let head = read_head(path, 4096)?;
+        let head = String::from_utf8_lossy(&head);
+        if head.contains("\"CityJSON\"") {
+            return Ok(InputFormat::CityJson);
+        }
+        if head.contains("\"FeatureCollection\"") || head.contains("\"Feature\"") {
+            return Ok(InputFormat::GeoJson);
+        }
+        return Err(LoadError::Unsupported {
+            path: path.to_path_buf(),
+            reason: "JSON that is neither CityJSON nor a GeoJSON FeatureCollection".into(),
+        });
+    }
+    Err(LoadError::Unsupported {
+        path: path.to_path_buf(),
+        reason: "unknown extension (expected .osm.pbf, .geojson, .json, .city.json, .glb, .gltf)"
+            .into(),
+    })
+}
+
+fn read_head(path: &Path, len: usize) -> Result<Vec<u8>, LoadError> {
+    use std::io::Read;
+    let file = std::fs::File::open(path).map_err(|source| LoadError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let mut head = Vec::with_capacity(len);
+    file.take(len as u64)
+        .read_to_end(&mut head)
+        .map_err(|source| LoadError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+    Ok(head)
+}
+
+/// Loads one input file into a city.
+pub fn load_city(path: &Path, options: &LoadOptions) -> Result<City, LoadError> {
+    let city = match detect_format(path)? {
+        InputFormat::OsmPbf => osm::load(path, options)?,
+        InputFormat::GeoJson => geojson::load(path, options)?,
+        InputFormat::CityJson => cityjson::load(path, options)?,
+        InputFormat::Gltf => gltf::load(path, options)?,
+    };
+    debug_assert!(city.report.is_balanced());
+    Ok(city)
+}
+
+/// Loads several input files into one city, in the frame of the first. All inputs must share
+/// one coordinate reference system.
+pub fn load_cities(paths: &[PathBuf], options: &LoadOptions) -> Result<City, LoadError> {
+    let (first, rest) = paths.split_first().ok_or_else(|| LoadError::Unsupported {
+        path: PathBuf::new(),
+        reason: "no input file given".into(),
+    })?;
+    let mut city = load_city(first, options)?;
+    for path in rest {
+        let other = load_city(path, options)?;
+        merge_into(&mut city, other, path)?;
+    }
+    city.renumber();
+    Ok(city)
+}
+
+/// Moves `other` into `city`'s frame and appends its buildings and streets.
+fn merge_into(city: &mut City, other: City, path: &Path) -> Result<(), LoadError> {
+    use glam::DVec3;
+    if std::mem::discriminant(&city.frame.crs) != std::mem::discriminant(&other.frame.crs) {
+        return Err(LoadError::Unsupported {
+            path: path.to_path_buf(),
+            reason: format!(
+                "its CRS {:?} differs from the first input's {:?}",
+                other.frame.crs, city.frame.crs
+            ),
+        });
+    }
+    let (from, to) = (other.frame.clone(), city.frame.clone());
+    let move_xy = |x: f64, y: f64| {
+        let p = to.to_local(from.to_source(DVec3::new(x, y, 0.0)));
+        (p.x, p.y)
+    };
+    let move_z = |p: glam::Vec3| {
+        let q = to.to_local(from.to_source(p.as_dvec3()));
+        q.as_vec3()
+    };
+    use geo::MapCoordsInPlace;
+    for mut b in other.buildings {
+        b.footprint
+            .map_coords_in_place(|c| move_xy(c.x, c.y).into());
+        for part in &mut b.parts {
+            part.footprint
+                .map_coords_in_place(|c| move_xy(c.x, c.y).into());
+        }
+        if let Some(mesh) = &mut b.mesh {
+            mesh.positions.iter_mut().for_each(|p| *p = move_z(*p));
+        }
+        city.buildings.push(b);
+    }
+    for mut s in other.streets {
+        s.line.map_coords_in_place(|c| move_xy(c.x, c.y).into());
+        city.streets.push(s);
+    }
+    city.report.merge(other.report);
+    Ok(())
+}

@@ -1,0 +1,1 @@
+//! Shared helpers for citywalk's end-to-end and GPU integration tests.
