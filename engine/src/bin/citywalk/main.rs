@@ -1,3 +1,50 @@
-//! `citywalk`: the command line for everything.
+//! `citywalk`: the command line for everything — generate, preprocess, inspect, render, view,
+//! bench and demo. Library code reports typed errors; this binary turns them into messages.
 
-fn main() {}
+use clap::{Parser, Subcommand};
+
+mod generate;
+mod inspect;
+mod preprocess;
+mod render;
+mod view;
+
+/// citywalk: an occlusion-aware urban walkthrough engine.
+#[derive(Debug, Parser)]
+#[command(name = "citywalk", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Generate a procedural city as GeoJSON (buildings and streets).
+    Generate(generate::Args),
+    /// Preprocess inputs into a scene package (.cwk).
+    Preprocess(preprocess::Args),
+    /// Summarise and check a scene or package.
+    Inspect(inspect::Args),
+    /// Render frames of a scene to PNG, headless.
+    Render(render::Args),
+    /// Open a window to walk or fly through a scene.
+    View(view::Args),
+}
+
+fn main() -> anyhow::Result<()> {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info,wgpu_core=warn,wgpu_hal=warn,naga=warn")),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+    let cli = Cli::parse();
+    match cli.command {
+        Command::Generate(args) => generate::run(args),
+        Command::Preprocess(args) => preprocess::run(args),
+        Command::Inspect(args) => inspect::run(args),
+        Command::Render(args) => render::run(args),
+        Command::View(args) => view::run(args),
+    }
+}
