@@ -1,9 +1,37 @@
-//! `citywalk inspect` (placeholder until it lands in this session).
+//! `citywalk inspect`: summaries and invariant checks of scenes and packages.
+//!
+//! `citywalk inspect SCENE [--json] [--check]` summarises a package or input;
+//! `citywalk inspect occluders SCENE` reports virtual-occluder quality;
+//! `citywalk inspect tree SCENE --level K -o map.png` draws the cluster tree at one level.
+
+use clap::Subcommand;
+
+mod occluders;
+mod summary;
+mod tree;
 
 /// Arguments of `citywalk inspect`.
 #[derive(Debug, clap::Args)]
-pub struct Args {}
+#[command(args_conflicts_with_subcommands = true)]
+pub struct Args {
+    #[command(subcommand)]
+    what: Option<What>,
+    #[command(flatten)]
+    summary: summary::Args,
+}
 
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`citywalk inspect` is not built yet")
+#[derive(Debug, Subcommand)]
+enum What {
+    /// Virtual occluders: polygon counts, area gain and occlusion-preserving quality.
+    Occluders(occluders::Args),
+    /// The legibility cluster tree: a top-down map of one level.
+    Tree(tree::Args),
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    match args.what {
+        Some(What::Occluders(a)) => occluders::run(a),
+        Some(What::Tree(a)) => tree::run(a),
+        None => summary::run(args.summary),
+    }
 }

@@ -1,0 +1,9 @@
+//! `citywalk inspect` (tree; placeholder until it lands in this session).
+
+/// Arguments of this inspection.
+#[derive(Debug, clap::Args)]
+pub struct Args {}
+
+pub fn run(_args: Args) -> anyhow::Result<()> {
+    anyhow::bail!("`citywalk inspect` (tree) is not built yet")
+}
