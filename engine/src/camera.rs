@@ -28,7 +28,9 @@ pub struct Camera {
 /// Why a camera string could not be parsed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum CameraParseError {
-    #[error("camera {input:?}: expected five comma-separated numbers X,Y,Z,YAW,PITCH (metres, degrees), got {count}")]
+    #[error(
+        "camera {input:?}: expected five comma-separated numbers X,Y,Z,YAW,PITCH (metres, degrees), got {count}"
+    )]
     Count { input: String, count: usize },
     #[error("camera {input:?}: {field} is not a finite number ({value:?})")]
     NotANumber {
@@ -113,21 +115,94 @@ impl Camera {
     }
 
     /// The default view of a city whose bounds are `(bounds_min, bounds_max)`: from the
-    /// south-west, looking north-east at the centre, 45° down, far enough that the whole bounds
-    /// fit in a 60° (vertical) view at a 16:9 aspect.
+    /// south-west, looking north-east, 45° down, framed so that all eight corners of the bounds
+    /// fit in a 60° (vertical) view at a 16:9 aspect with a small margin, roughly centred.
     pub fn overview(bounds_min: Vec3, bounds_max: Vec3) -> Camera {
+        const ASPECT: f32 = 16.0 / 9.0;
+        const MARGIN_NDC: f32 = 0.92;
+        let corners: [Vec3; 8] = std::array::from_fn(|i| {
+            Vec3::new(
+                if i & 1 == 0 {
+                    bounds_min.x
+                } else {
+                    bounds_max.x
+                },
+                if i & 2 == 0 {
+                    bounds_min.y
+                } else {
+                    bounds_max.y
+                },
+                if i & 4 == 0 {
+                    bounds_min.z
+                } else {
+                    bounds_max.z
+                },
+            )
+        });
         let centre = (bounds_min + bounds_max) * 0.5;
         let radius = ((bounds_max - bounds_min) * 0.5).length().max(1.0);
-        let yaw_rad = 45.0_f32.to_radians();
-        let pitch_rad = -45.0_f32.to_radians();
-        let fov_y_rad = Self::DEFAULT_FOV_Y_RAD;
-        // Distance at which a sphere of `radius` fits in the vertical field of view (the
-        // horizontal one is wider at any landscape aspect).
-        let distance_m = radius / (fov_y_rad * 0.5).sin();
-        let mut camera = Camera::new(Vec3::ZERO, yaw_rad, pitch_rad);
-        camera.position = centre - camera.forward() * distance_m;
-        camera.near_m = (distance_m * 1e-3).max(Self::DEFAULT_NEAR_M);
-        camera
+        let base = Camera::new(Vec3::ZERO, 45f32.to_radians(), -45f32.to_radians());
+        let (forward, right) = (base.forward(), base.right());
+        let up = right.cross(forward);
+        // The camera looking at `target` from `distance_m`.
+        let at = |target: Vec3, distance_m: f32| {
+            let mut c = base;
+            c.position = target - forward * distance_m;
+            c.near_m = (distance_m * 1e-3).max(Self::DEFAULT_NEAR_M);
+            c
+        };
+        // NDC bounding box of the corners, or None when one is behind the near plane.
+        let ndc_box = |c: &Camera| {
+            let vp = c.view_proj(ASPECT);
+            let mut lo = glam::Vec2::splat(f32::INFINITY);
+            let mut hi = glam::Vec2::splat(f32::NEG_INFINITY);
+            for corner in corners {
+                let clip = vp * corner.extend(1.0);
+                if clip.w <= c.near_m {
+                    return None;
+                }
+                let p = glam::Vec2::new(clip.x, clip.y) / clip.w;
+                lo = lo.min(p);
+                hi = hi.max(p);
+            }
+            Some((lo, hi))
+        };
+        let fits = |c: &Camera| {
+            ndc_box(c).is_some_and(|(lo, hi)| {
+                lo.cmpge(-glam::Vec2::splat(MARGIN_NDC)).all()
+                    && hi.cmple(glam::Vec2::splat(MARGIN_NDC)).all()
+            })
+        };
+        // The bounding sphere always fits at radius / sin(fov / 2) (with margin); search the
+        // distance down from there, then shift the aim to centre the box, and repeat.
+        let far_m = radius / (Self::DEFAULT_FOV_Y_RAD * 0.5).sin() / MARGIN_NDC;
+        let mut target = centre;
+        let mut distance_m = far_m;
+        for _ in 0..6 {
+            let (mut lo, mut hi) = (0.0_f32, far_m * 2.0);
+            if !fits(&at(target, hi)) {
+                break;
+            }
+            for _ in 0..40 {
+                let mid = 0.5 * (lo + hi);
+                if fits(&at(target, mid)) {
+                    hi = mid;
+                } else {
+                    lo = mid;
+                }
+            }
+            distance_m = hi;
+            let Some((blo, bhi)) = ndc_box(&at(target, distance_m)) else {
+                break;
+            };
+            let offset = (blo + bhi) * 0.5;
+            let half_h = distance_m * (Self::DEFAULT_FOV_Y_RAD * 0.5).tan();
+            target += right * offset.x * half_h * ASPECT * 0.8 + up * offset.y * half_h * 0.8;
+        }
+        if !fits(&at(target, distance_m)) {
+            (target, distance_m) = (centre, far_m);
+        }
+        at(target, distance_m)
     }
 
     /// Unit view direction.
@@ -180,7 +255,11 @@ mod tests {
         let near = ndc(vp, cam.position + cam.forward() * cam.near_m);
         assert!((near.z - 1.0).abs() < 1e-5, "near plane depth {}", near.z);
         let mid = ndc(vp, cam.position + cam.forward() * 100.0);
-        assert!((mid.z - cam.near_m / 100.0).abs() < 1e-6, "depth at 100 m {}", mid.z);
+        assert!(
+            (mid.z - cam.near_m / 100.0).abs() < 1e-6,
+            "depth at 100 m {}",
+            mid.z
+        );
         let far = ndc(vp, cam.position + cam.forward() * 1.0e7);
         assert!(far.z > 0.0 && far.z < 1e-6, "depth at 10 000 km {}", far.z);
         // Depth decreases monotonically with distance.
@@ -218,18 +297,30 @@ mod tests {
         assert!((cam.pitch_rad + 30.0_f32.to_radians()).abs() < 1e-6);
         let round = Camera::parse(&cam.to_arg_string()).expect("round trip");
         assert!((round.position - cam.position).length() < 1e-2);
-        assert!(matches!(Camera::parse("1,2,3"), Err(CameraParseError::Count { .. })));
+        assert!(matches!(
+            Camera::parse("1,2,3"),
+            Err(CameraParseError::Count { .. })
+        ));
         assert!(matches!(
             Camera::parse("1,2,x,0,0"),
             Err(CameraParseError::NotANumber { field: "Z", .. })
         ));
-        assert!(matches!(Camera::parse("1,2,3,0,NaN"), Err(CameraParseError::NotANumber { .. })));
-        assert!(matches!(Camera::parse("1,2,3,0,90"), Err(CameraParseError::Pitch { .. })));
+        assert!(matches!(
+            Camera::parse("1,2,3,0,NaN"),
+            Err(CameraParseError::NotANumber { .. })
+        ));
+        assert!(matches!(
+            Camera::parse("1,2,3,0,90"),
+            Err(CameraParseError::Pitch { .. })
+        ));
     }
 
     #[test]
     fn overview_sees_every_corner_of_the_bounds() {
-        let (lo, hi) = (Vec3::new(-800.0, -300.0, 0.0), Vec3::new(1200.0, 900.0, 120.0));
+        let (lo, hi) = (
+            Vec3::new(-800.0, -300.0, 0.0),
+            Vec3::new(1200.0, 900.0, 120.0),
+        );
         let cam = Camera::overview(lo, hi);
         assert!(cam.pitch_rad < 0.0);
         let centre = (lo + hi) * 0.5;

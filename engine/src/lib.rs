@@ -1,2 +1,12 @@
 //! citywalk engine: the runtime renderer (wgpu), culling, level of detail, cameras, the viewer
 //! and the benchmark. The `citywalk` binary is the command line for everything.
+
+pub mod bench;
+pub mod camera;
+pub mod controller;
+pub mod gpu;
+pub mod hzb;
+pub mod oracle;
+pub mod render;
+pub mod scene_gpu;
+pub mod viewer;

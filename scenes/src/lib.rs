@@ -4,9 +4,19 @@
 //! Every loader turns one input into the same [`City`] in a local metric frame
 //! (east, north, up), with a [`LoadReport`] in which `loaded + rejected = found`.
 
+pub mod blocks;
+pub mod camera_path;
 pub mod city;
+pub mod extrude;
+pub mod cluster_tree;
 pub mod frame;
+pub mod frustum;
+pub mod generate;
 pub mod load;
+pub mod mesh_footprint;
+pub mod occluder;
+pub mod package;
+pub mod quadtree;
 pub mod report;
 pub mod validate;
 

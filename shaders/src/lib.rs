@@ -1,2 +1,45 @@
 //! citywalk shaders: the WGSL sources (validated by naga in `build.rs`, so a broken shader
 //! breaks the build) and the `#[repr(C)]` Pod twins of every struct the GPU reads.
+//!
+//! Each `*_WGSL` constant is the composed source of one shader: the constants of
+//! [`constants`] emitted as WGSL, then every `wgsl/shared/*.wgsl`, then the shader's own file.
+
+/// Constants shared by Rust and WGSL, defined once (emitted into WGSL by `build.rs`).
+pub mod constants {
+    include!("constants.rs");
+}
+
+mod hzb;
+mod types;
+
+pub use constants::{GROUND_ID, ID_BACKGROUND, ID_OFFSET};
+pub use hzb::HzbCullParams;
+pub use types::{BuildingRecord, DrawIndexedIndirectArgs, SceneVertex, ViewUniforms};
+
+/// Flat-shaded scene pass (`wgsl/scene.wgsl`): entry points `vs_main`, `fs_main`; group 0
+/// binding 0 is the [`ViewUniforms`] uniform; vertex buffer of [`SceneVertex`].
+pub const SCENE_WGSL: &str = include_str!(concat!(env!("OUT_DIR"), "/scene.wgsl"));
+
+/// Building-id pass (`wgsl/ids.wgsl`): like [`SCENE_WGSL`] but writes `id + ID_OFFSET` to an
+/// `R32Uint` target, [`ID_BACKGROUND`] for the ground.
+pub const IDS_WGSL: &str = include_str!(concat!(env!("OUT_DIR"), "/ids.wgsl"));
+
+/// Hierarchical-Z pyramid build (`wgsl/hzb_build.wgsl`): entry point `copy_depth` (group 0:
+/// binding 0 the depth buffer as unfilterable `texture_2d<f32>`, binding 1 level 0 as a write-only
+/// `r32float` storage texture) and `reduce` (binding 2 level l read-only, binding 3 level l + 1
+/// write-only, binding 4 a `vec4<u32>` uniform: logical sizes of level l (xy) and l + 1 (zw)).
+pub const HZB_BUILD_WGSL: &str = include_str!(concat!(env!("OUT_DIR"), "/hzb_build.wgsl"));
+
+/// Hierarchical-Z occlusion cull (`wgsl/hzb_cull.wgsl`): entry point `cull`; group 0: binding 0
+/// the [`HzbCullParams`] uniform, 1 the [`BuildingRecord`]s, 2 the pyramid (unfilterable
+/// `texture_2d<f32>`, all levels), 3 the per-box status (`u32`), 4 the appended
+/// [`DrawIndexedIndirectArgs`], 5 their count (atomic `u32`).
+pub const HZB_CULL_WGSL: &str = include_str!(concat!(env!("OUT_DIR"), "/hzb_cull.wgsl"));
+
+/// Every composed shader by file name, for tests that validate or inspect them all.
+pub const ALL_WGSL: &[(&str, &str)] = &[
+    ("scene.wgsl", SCENE_WGSL),
+    ("ids.wgsl", IDS_WGSL),
+    ("hzb_build.wgsl", HZB_BUILD_WGSL),
+    ("hzb_cull.wgsl", HZB_CULL_WGSL),
+];

@@ -1,1 +1,4 @@
 //! Shared helpers for citywalk's end-to-end and GPU integration tests.
+
+pub mod city_builder;
+pub mod gpu;

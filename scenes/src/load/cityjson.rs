@@ -1,15 +1,471 @@
-//! Placeholder until the cityjson loader lands in this session.
+//! CityJSON 1.0, 1.1 and 2.0 (<https://www.cityjson.org/specs/>), LoD1 and LoD2 buildings.
+//!
+//! * Vertices are integers scaled and translated by `transform` (mandatory in 1.1 and 2.0,
+//!   optional in 1.0, where vertices may be plain reals).
+//! * Every `Building` becomes one [`crate::Building`]. Its parts are its own geometry (when it
+//!   has any) and its `BuildingPart` children (followed through `children`, recursively); each
+//!   part's mesh is triangulated from the chosen geometry's surfaces, its footprint derived from
+//!   the mesh ([`crate::mesh_footprint`]) and its base and top are the mesh's z extent. The
+//!   building's mesh is the concatenation of its parts' meshes. A `BuildingPart` that no
+//!   `Building` claims becomes a building of its own (counted in `buildings_found` and
+//!   `parts_found`, with a warning). Other city objects (terrain, roads, ...) are ignored.
+//! * Per object the geometry with the highest LoD below 3 is used (`lod` is a number in 1.0 and
+//!   a string such as `"2.2"` in 1.1+); of surface types, `MultiSurface`, `CompositeSurface`,
+//!   `Solid` (its outer shell), `MultiSolid` and `CompositeSolid` are read.
+//! * Frame: the CRS from `metadata.referenceSystem` (for example `EPSG:7415`), origin at the
+//!   centre of the vertices' xy extent and at z = 0: heights stay absolute in the source's
+//!   vertical datum (NAP for the Dutch data), so a building's `base_m` is its ground height in
+//!   that datum and `height_m()` its height above ground.
+//!
+//! Malformed files (bad JSON, wrong type or version, missing transform, a vertex or boundary
+//! index out of range, wrongly nested boundaries) are a [`LoadError`]; malformed buildings are
+//! rejections (see [`super::mesh_building`]).
 
+use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::path::Path;
 
-use super::LoadOptions;
-use crate::city::City;
-use crate::report::LoadError;
+use glam::{DVec3, Vec3};
+use serde_json::{Map, Value};
 
-/// Loads a cityjson file.
+use super::LoadOptions;
+use super::mesh_building::{MeshBuilding, MeshPart, assemble};
+use crate::city::{City, TriangleMesh};
+use crate::frame::{Crs, Frame};
+use crate::mesh_footprint::triangulate_planar_polygon;
+use crate::report::{LoadError, LoadReport, LoadWarning, RejectReason};
+use crate::validate::MAX_LOCAL_COORDINATE_M;
+
+const FORMAT: &str = "CityJSON";
+
+/// Geometries with `lod` at or above this are not read (LoD3 facade detail is not needed).
+const MAX_LOD_EXCLUSIVE: f64 = 3.0;
+
+/// Loads a CityJSON file.
 pub fn load(path: &Path, _options: &LoadOptions) -> Result<City, LoadError> {
-    Err(LoadError::Unsupported {
+    let bytes = std::fs::read(path).map_err(|source| LoadError::Io {
         path: path.to_path_buf(),
-        reason: "loader not built yet".into(),
+        source,
+    })?;
+    load_bytes(path, &bytes)
+}
+
+/// Loads CityJSON from bytes; `path` names the source in errors and the report.
+pub fn load_bytes(path: &Path, bytes: &[u8]) -> Result<City, LoadError> {
+    let malformed = |reason: String| LoadError::Malformed {
+        path: path.to_path_buf(),
+        format: FORMAT,
+        reason,
+    };
+    let root: Value =
+        serde_json::from_slice(bytes).map_err(|e| malformed(format!("invalid JSON: {e}")))?;
+    let root = root
+        .as_object()
+        .ok_or_else(|| malformed("top level is not an object".into()))?;
+    if root.get("type").and_then(Value::as_str) != Some("CityJSON") {
+        return Err(malformed("\"type\" is not \"CityJSON\"".into()));
+    }
+    let version = root
+        .get("version")
+        .and_then(Value::as_str)
+        .ok_or_else(|| malformed("no \"version\"".into()))?;
+    let major_minor = supported_version(version).ok_or_else(|| LoadError::Unsupported {
+        path: path.to_path_buf(),
+        reason: format!("CityJSON version {version:?} (1.0, 1.1 and 2.0 are supported)"),
+    })?;
+
+    let transform = match root.get("transform") {
+        Some(t) => Some(parse_transform(t).map_err(malformed)?),
+        None if major_minor != (1, 0) => {
+            return Err(malformed(format!(
+                "no \"transform\" (mandatory in CityJSON {version})"
+            )));
+        }
+        None => None,
+    };
+    let vertices = parse_vertices(root.get("vertices"), transform.as_ref()).map_err(malformed)?;
+    let objects = root
+        .get("CityObjects")
+        .and_then(Value::as_object)
+        .ok_or_else(|| malformed("no \"CityObjects\" object".into()))?;
+
+    let crs = reference_system(root).map_err(|reason| LoadError::Unsupported {
+        path: path.to_path_buf(),
+        reason,
+    })?;
+    let origin = xy_extent_centre(&vertices);
+    let frame = match crs {
+        Some(name) => Frame::projected(name, origin),
+        None => Frame {
+            crs: Crs::Local,
+            origin,
+        },
+    };
+    let origin = DVec3::from_array(origin);
+
+    let mut report = LoadReport {
+        files: vec![path.to_path_buf()],
+        ..LoadReport::default()
+    };
+    report.parts_found = objects
+        .values()
+        .filter(|o| object_type(o) == Some("BuildingPart"))
+        .count();
+
+    let reader = Reader {
+        objects,
+        vertices: &vertices,
+        origin,
+    };
+    let mut claimed: BTreeSet<&str> = BTreeSet::new();
+    let mut buildings = Vec::new();
+    for (id, object) in objects {
+        if object_type(object) != Some("Building") {
+            continue;
+        }
+        let mut part_ids = Vec::new();
+        reader.collect_parts(id, &mut part_ids, &mut claimed, 0);
+        buildings.push(reader.building(id, object, &part_ids).map_err(malformed)?);
+    }
+    for (id, object) in objects {
+        if object_type(object) == Some("BuildingPart") && !claimed.contains(id.as_str()) {
+            report.warnings.push(LoadWarning {
+                file: path.to_path_buf(),
+                source_id: id.clone(),
+                message: "BuildingPart of no Building: loaded as a building of its own".into(),
+            });
+            buildings.push(reader.building(id, object, &[]).map_err(malformed)?);
+        }
+    }
+    assemble(path, FORMAT, frame, buildings, report)
+}
+
+/// `(major, minor)` of a supported version string (`"1.0"`, `"1.0.3"`, `"1.1"`, `"2.0"`).
+fn supported_version(version: &str) -> Option<(u32, u32)> {
+    let mut it = version.split('.');
+    let major = it.next()?.parse().ok()?;
+    let minor = it.next()?.parse().ok()?;
+    matches!((major, minor), (1, 0) | (1, 1) | (2, 0)).then_some((major, minor))
+}
+
+struct Transform {
+    scale: DVec3,
+    translate: DVec3,
+}
+
+fn parse_transform(t: &Value) -> Result<Transform, String> {
+    let vec3 = |key: &str| -> Result<DVec3, String> {
+        let v = t
+            .get(key)
+            .and_then(Value::as_array)
+            .ok_or_else(|| format!("\"transform\" has no \"{key}\" array"))?;
+        let p = number3(v).ok_or_else(|| format!("\"transform.{key}\" is not 3 numbers"))?;
+        if !p.is_finite() {
+            return Err(format!("\"transform.{key}\" is not finite"));
+        }
+        Ok(p)
+    };
+    Ok(Transform {
+        scale: vec3("scale")?,
+        translate: vec3("translate")?,
     })
+}
+
+fn number3(v: &[Value]) -> Option<DVec3> {
+    match v {
+        [x, y, z] => Some(DVec3::new(x.as_f64()?, y.as_f64()?, z.as_f64()?)),
+        _ => None,
+    }
+}
+
+/// The vertices in source coordinates (transform applied). Non-finite results are kept and
+/// rejected with the buildings that use them.
+fn parse_vertices(v: Option<&Value>, transform: Option<&Transform>) -> Result<Vec<DVec3>, String> {
+    let list = v
+        .and_then(Value::as_array)
+        .ok_or_else(|| "no \"vertices\" array".to_string())?;
+    list.iter()
+        .enumerate()
+        .map(|(i, v)| {
+            let p = v
+                .as_array()
+                .and_then(|a| number3(a))
+                .ok_or_else(|| format!("vertex {i} is not [x, y, z]"))?;
+            Ok(match transform {
+                Some(t) => p * t.scale + t.translate,
+                None => p,
+            })
+        })
+        .collect()
+}
+
+/// `EPSG:NNNN` from `metadata.referenceSystem` (`urn:ogc:def:crs:EPSG::7415` in 1.0,
+/// `https://www.opengis.net/def/crs/EPSG/0/7415` in 1.1+), `None` if absent. Geographic CRSs
+/// (degrees) are refused: CityJSON buildings are expected in metres.
+fn reference_system(root: &Map<String, Value>) -> Result<Option<String>, String> {
+    let Some(rs) = root
+        .get("metadata")
+        .and_then(|m| m.get("referenceSystem"))
+        .and_then(Value::as_str)
+    else {
+        return Ok(None);
+    };
+    let code = rs
+        .rsplit([':', '/'])
+        .find(|s| !s.is_empty())
+        .and_then(|s| s.parse::<u32>().ok());
+    match code {
+        Some(4326 | 4979 | 4258 | 4937 | 7912 | 4289) => Err(format!(
+            "geographic reference system {rs} (CityJSON in degrees is not supported)"
+        )),
+        Some(code) if rs.to_ascii_uppercase().contains("EPSG") => Ok(Some(format!("EPSG:{code}"))),
+        _ => Ok(Some(rs.to_string())),
+    }
+}
+
+/// Centre of the vertices' xy extent, z = 0. An outlier further than the local range from the
+/// bulk of the data would drag the centre away from every building, so when the extent is
+/// wider than that the per-axis median is used instead.
+fn xy_extent_centre(vertices: &[DVec3]) -> [f64; 3] {
+    let finite: Vec<DVec3> = vertices.iter().copied().filter(|p| p.is_finite()).collect();
+    let Some(&first) = finite.first() else {
+        return [0.0; 3];
+    };
+    let (lo, hi) = finite
+        .iter()
+        .fold((first, first), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+    let span = hi - lo;
+    if span.x.max(span.y) <= MAX_LOCAL_COORDINATE_M {
+        let c = (lo + hi) * 0.5;
+        return [c.x.round(), c.y.round(), 0.0];
+    }
+    let median = |f: fn(&DVec3) -> f64| {
+        let mut v: Vec<f64> = finite.iter().map(f).collect();
+        v.sort_by(f64::total_cmp);
+        v.get(v.len() / 2).copied().unwrap_or(0.0)
+    };
+    [median(|p| p.x).round(), median(|p| p.y).round(), 0.0]
+}
+
+fn object_type(object: &Value) -> Option<&str> {
+    object.get("type").and_then(Value::as_str)
+}
+
+/// Reads city objects into mesh buildings.
+struct Reader<'a> {
+    objects: &'a Map<String, Value>,
+    vertices: &'a [DVec3],
+    origin: DVec3,
+}
+
+/// Children deeper than this are not followed (a guard against cyclic `children` links).
+const MAX_PART_DEPTH: usize = 16;
+
+impl<'a> Reader<'a> {
+    /// The `BuildingPart` descendants of `id`, each once.
+    fn collect_parts(
+        &self,
+        id: &str,
+        out: &mut Vec<&'a str>,
+        claimed: &mut BTreeSet<&'a str>,
+        depth: usize,
+    ) {
+        if depth > MAX_PART_DEPTH {
+            return;
+        }
+        let Some(children) = self
+            .objects
+            .get(id)
+            .and_then(|o| o.get("children"))
+            .and_then(Value::as_array)
+        else {
+            return;
+        };
+        for child in children.iter().filter_map(Value::as_str) {
+            let Some((key, object)) = self.objects.get_key_value(child) else {
+                continue;
+            };
+            if object_type(object) == Some("BuildingPart") && claimed.insert(key.as_str()) {
+                out.push(key.as_str());
+                self.collect_parts(key, out, claimed, depth + 1);
+            }
+        }
+    }
+
+    fn building(
+        &self,
+        id: &str,
+        object: &Value,
+        part_ids: &[&str],
+    ) -> Result<MeshBuilding, String> {
+        let mut parts = Vec::with_capacity(part_ids.len() + 1);
+        let own = self.part_mesh(id, object)?;
+        let has_own = !matches!(own, Err(RejectReason::MissingGeometry(_)));
+        if has_own || part_ids.is_empty() {
+            parts.push(MeshPart {
+                source_id: id.to_string(),
+                mesh: own,
+            });
+        }
+        for part_id in part_ids {
+            if let Some(part) = self.objects.get(*part_id) {
+                parts.push(MeshPart {
+                    source_id: (*part_id).to_string(),
+                    mesh: self.part_mesh(part_id, part)?,
+                });
+            }
+        }
+        let mut tags = BTreeMap::new();
+        if let Some(t) = object_type(object) {
+            tags.insert("cityjson:type".to_string(), t.to_string());
+        }
+        if let Some(attributes) = object.get("attributes").and_then(Value::as_object) {
+            for (k, v) in attributes {
+                let s = match v {
+                    Value::String(s) => s.clone(),
+                    Value::Null => continue,
+                    other => other.to_string(),
+                };
+                tags.insert(k.clone(), s);
+            }
+        }
+        Ok(MeshBuilding {
+            source_id: id.to_string(),
+            parts,
+            tags,
+        })
+    }
+
+    /// The mesh of one object's best geometry. `Err(String)` is a malformed file (bad index
+    /// or nesting); the inner `Err(RejectReason)` a problem of this object only.
+    fn part_mesh(
+        &self,
+        id: &str,
+        object: &Value,
+    ) -> Result<Result<TriangleMesh, RejectReason>, String> {
+        let Some(geometry) = best_geometry(object) else {
+            return Ok(Err(RejectReason::MissingGeometry(
+                "no MultiSurface, CompositeSurface, Solid, MultiSolid or CompositeSolid below \
+                 LoD3"
+                    .into(),
+            )));
+        };
+        let kind = geometry.get("type").and_then(Value::as_str).unwrap_or("");
+        let boundaries = geometry
+            .get("boundaries")
+            .ok_or_else(|| format!("CityObject {id}: geometry without \"boundaries\""))?;
+        let mut surfaces: Vec<&Value> = Vec::new();
+        match kind {
+            "MultiSurface" | "CompositeSurface" => {
+                surfaces.extend(nested_array(boundaries, id, kind, "surface list")?);
+            }
+            "Solid" => {
+                if let Some(outer) = nested_array(boundaries, id, kind, "shell list")?.first() {
+                    surfaces.extend(nested_array(outer, id, kind, "shell")?);
+                }
+            }
+            _ => {
+                for solid in nested_array(boundaries, id, kind, "solid list")? {
+                    if let Some(outer) = nested_array(solid, id, kind, "shell list")?.first() {
+                        surfaces.extend(nested_array(outer, id, kind, "shell")?);
+                    }
+                }
+            }
+        }
+        let mut mesh = TriangleMesh::default();
+        let mut local_index: HashMap<usize, u32> = HashMap::new();
+        let mut non_finite = false;
+        let mut rings: Vec<Vec<DVec3>> = Vec::new();
+        let mut ids: Vec<usize> = Vec::new();
+        for surface in surfaces {
+            rings.clear();
+            ids.clear();
+            for ring in nested_array(surface, id, kind, "surface")? {
+                let mut points = Vec::new();
+                for index in nested_array(ring, id, kind, "ring")? {
+                    let i = index
+                        .as_u64()
+                        .and_then(|i| usize::try_from(i).ok())
+                        .filter(|&i| i < self.vertices.len())
+                        .ok_or_else(|| {
+                            format!(
+                                "CityObject {id}: vertex index {index} out of range ({} vertices)",
+                                self.vertices.len()
+                            )
+                        })?;
+                    let p = self.vertices[i] - self.origin;
+                    non_finite |= !p.is_finite();
+                    points.push(p);
+                    ids.push(i);
+                }
+                rings.push(points);
+            }
+            if non_finite {
+                continue;
+            }
+            // Degenerate surfaces (slivers, repeated points) carry no area: skipped.
+            let Ok(triangles) = triangulate_planar_polygon(&rings) else {
+                continue;
+            };
+            for t in triangles {
+                for flat in t {
+                    let Some(&vertex) = ids.get(flat) else {
+                        continue;
+                    };
+                    let next = mesh.positions.len() as u32;
+                    let local = *local_index.entry(vertex).or_insert_with(|| {
+                        let p = self.vertices[vertex] - self.origin;
+                        mesh.positions
+                            .push(Vec3::new(p.x as f32, p.y as f32, p.z as f32));
+                        next
+                    });
+                    mesh.indices.push(local);
+                }
+            }
+        }
+        if non_finite {
+            return Ok(Err(RejectReason::NonFiniteCoordinate));
+        }
+        if mesh.indices.is_empty() {
+            return Ok(Err(RejectReason::ZeroArea));
+        }
+        Ok(Ok(mesh))
+    }
+}
+
+/// `v` as an array, or a description of the broken nesting.
+fn nested_array<'v>(
+    v: &'v Value,
+    id: &str,
+    kind: &str,
+    what: &str,
+) -> Result<&'v Vec<Value>, String> {
+    v.as_array()
+        .ok_or_else(|| format!("CityObject {id}: {kind} boundaries: {what} is not an array"))
+}
+
+/// The geometry with the highest LoD below 3 among the surface types read.
+fn best_geometry(object: &Value) -> Option<&Value> {
+    let list = object.get("geometry")?.as_array()?;
+    let mut best: Option<(f64, &Value)> = None;
+    for g in list {
+        let kind = g.get("type").and_then(Value::as_str);
+        if !matches!(
+            kind,
+            Some("MultiSurface" | "CompositeSurface" | "Solid" | "MultiSolid" | "CompositeSolid")
+        ) {
+            continue;
+        }
+        let lod = match g.get("lod") {
+            Some(Value::Number(n)) => n.as_f64(),
+            Some(Value::String(s)) => s.trim().parse::<f64>().ok(),
+            _ => None,
+        };
+        let Some(lod) = lod.filter(|l| l.is_finite() && *l < MAX_LOD_EXCLUSIVE) else {
+            continue;
+        };
+        if best.is_none_or(|(b, _)| lod > b) {
+            best = Some((lod, g));
+        }
+    }
+    best.map(|(_, g)| g)
 }

@@ -10,9 +10,12 @@ use serde::{Deserialize, Serialize};
 use crate::city::City;
 use crate::report::LoadError;
 
+mod assemble;
 pub mod cityjson;
 pub mod geojson;
 pub mod gltf;
+pub mod heights;
+mod mesh_building;
 pub mod osm;
 
 /// Options shared by the loaders.
@@ -63,7 +66,7 @@ pub fn detect_format(path: &Path) -> Result<InputFormat, LoadError> {
     if name.ends_with(".geojson") {
         return Ok(InputFormat::GeoJson);
     }
-    if name.ends_with(".glb") || name.ends_with(".gltf") {
+    if name.ends_with(".glb") || name.ends_with(".gltf") || name.ends_with(".b3dm") {
         return Ok(InputFormat::Gltf);
     }
     if name.ends_with(".city.json") || name.ends_with(".cityjson") {
@@ -77,6 +80,10 @@ pub fn detect_format(path: &Path) -> Result<InputFormat, LoadError> {
         }
         if head.contains("\"FeatureCollection\"") || head.contains("\"Feature\"") {
             return Ok(InputFormat::GeoJson);
+        }
+        // A 3D Tiles tileset (its tiles hold glTF).
+        if name == "tileset.json" || head.contains("\"geometricError\"") {
+            return Ok(InputFormat::Gltf);
         }
         return Err(LoadError::Unsupported {
             path: path.to_path_buf(),

@@ -1,15 +1,337 @@
-//! Placeholder until the osm loader lands in this session.
+//! OpenStreetMap PBF loader: buildings, building parts and streets.
+//!
+//! What is read (OSM Simple 3D Buildings, <https://wiki.openstreetmap.org/wiki/Simple_3D_Buildings>):
+//! - buildings: closed ways and `type=multipolygon` relations tagged `building=*` (not
+//!   `building=no`);
+//! - parts: the same, tagged `building:part=*` (not `no`) and not `building=*`; attached to the
+//!   building whose outline contains them (see [`super::assemble`]);
+//! - streets: ways tagged `highway=*` (not buildings), as polylines.
+//!
+//! Heights come from `height`, `min_height`, `building:levels`, `building:min_level`,
+//! `roof:height` and `roof:levels` ([`super::heights`]).
+//!
+//! The file is read in three passes, so that only the nodes that are needed are kept:
+//! relations (to learn which untagged ways are multipolygon members), ways, then nodes.
+//! A building with a missing node or member way (cut by the extract) is rejected, as is an
+//! unclosed building way or a relation whose rings cannot be joined.
+//!
+//! `osmpbf` can panic on some corrupt blocks (an unknown relation member type); the passes run
+//! under `catch_unwind` so that a corrupt file is a [`LoadError`], never a crash.
 
+mod multipolygon;
+
+use std::collections::{BTreeMap, HashMap, HashSet};
+use std::fs::File;
+use std::io::BufReader;
+use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::Path;
 
-use super::LoadOptions;
-use crate::city::City;
-use crate::report::LoadError;
+use geo::Coord;
+use osmpbf::{Element, ElementReader, RelMemberType};
 
-/// Loads a osm file.
-pub fn load(path: &Path, _options: &LoadOptions) -> Result<City, LoadError> {
-    Err(LoadError::Unsupported {
+use super::LoadOptions;
+use super::assemble::{AreaKind, RawArea, RawCity, RawPolygons, RawStreet, SourceCrs, assemble};
+use super::heights::{HeightKeys, TaggedHeights};
+use crate::city::{City, StreetClass};
+use crate::report::{LoadError, LoadWarning, RejectReason};
+
+const FORMAT: &str = "OSM PBF";
+
+/// Loads buildings, parts and streets from an OSM PBF file.
+pub fn load(path: &Path, options: &LoadOptions) -> Result<City, LoadError> {
+    let raw = read(path, options)?;
+    let city = assemble(path, raw, options)?;
+    tracing::info!("{}: {}", path.display(), city.report);
+    Ok(city)
+}
+
+/// Whether tags make an element a building, a part, or neither.
+fn classify<'a>(tags: impl Iterator<Item = (&'a str, &'a str)>) -> Option<AreaKind> {
+    let mut part = false;
+    let mut building = false;
+    for (k, v) in tags {
+        match k {
+            "building" if v != "no" => building = true,
+            "building:part" if v != "no" => part = true,
+            _ => {}
+        }
+    }
+    if building {
+        Some(AreaKind::Building)
+    } else if part {
+        Some(AreaKind::Part)
+    } else {
+        None
+    }
+}
+
+fn tag_map<'a>(tags: impl Iterator<Item = (&'a str, &'a str)>) -> BTreeMap<String, String> {
+    tags.map(|(k, v)| (k.to_string(), v.to_string())).collect()
+}
+
+fn read_heights(tags: &BTreeMap<String, String>, options: &LoadOptions) -> TaggedHeights {
+    TaggedHeights::read(
+        |k| tags.get(k).map(String::as_str),
+        &HeightKeys::osm(),
+        options,
+    )
+}
+
+/// A multipolygon relation to assemble.
+struct Relation {
+    id: i64,
+    kind: AreaKind,
+    tags: BTreeMap<String, String>,
+    /// Member ways and whether each is an inner ring.
+    members: Vec<(i64, bool)>,
+}
+
+/// A tagged way (building, part or street).
+struct Way {
+    id: i64,
+    kind: Option<AreaKind>,
+    tags: BTreeMap<String, String>,
+    refs: Vec<i64>,
+}
+
+/// Runs one pass over the file's elements.
+fn pass(path: &Path, f: &mut dyn FnMut(Element<'_>)) -> Result<(), LoadError> {
+    let file = File::open(path).map_err(|source| LoadError::Io {
         path: path.to_path_buf(),
-        reason: "loader not built yet".into(),
+        source,
+    })?;
+    let reader = ElementReader::new(BufReader::new(file));
+    let result = catch_unwind(AssertUnwindSafe(|| reader.for_each(f)));
+    match result {
+        Ok(Ok(())) => Ok(()),
+        Ok(Err(e)) => Err(LoadError::Malformed {
+            path: path.to_path_buf(),
+            format: FORMAT,
+            reason: e.to_string(),
+        }),
+        Err(_) => Err(LoadError::Malformed {
+            path: path.to_path_buf(),
+            format: FORMAT,
+            reason: "corrupt block (the decoder gave up)".into(),
+        }),
+    }
+}
+
+/// Reads the file into raw areas and streets in lon/lat.
+fn read(path: &Path, options: &LoadOptions) -> Result<RawCity, LoadError> {
+    let len = std::fs::metadata(path)
+        .map_err(|source| LoadError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?
+        .len();
+    if len == 0 {
+        return Err(LoadError::Malformed {
+            path: path.to_path_buf(),
+            format: FORMAT,
+            reason: "empty file".into(),
+        });
+    }
+
+    // Pass 1: multipolygon relations that are buildings or parts.
+    let mut relations: Vec<Relation> = Vec::new();
+    pass(path, &mut |e| {
+        if let Element::Relation(r) = e {
+            let is_mp = r.tags().any(|(k, v)| k == "type" && v == "multipolygon");
+            if !is_mp {
+                return;
+            }
+            let Some(kind) = classify(r.tags()) else {
+                return;
+            };
+            let members = r
+                .members()
+                .filter(|m| m.member_type == RelMemberType::Way)
+                .map(|m| (m.member_id, m.role().is_ok_and(|role| role == "inner")))
+                .collect();
+            relations.push(Relation {
+                id: r.id(),
+                kind,
+                tags: tag_map(r.tags()),
+                members,
+            });
+        }
+    })?;
+    let member_ways: HashSet<i64> = relations
+        .iter()
+        .flat_map(|r| r.members.iter().map(|m| m.0))
+        .collect();
+
+    // Pass 2: tagged ways and member ways.
+    let mut ways: Vec<Way> = Vec::new();
+    let mut member_refs: HashMap<i64, Vec<i64>> = HashMap::new();
+    let mut saw_any = false;
+    pass(path, &mut |e| {
+        saw_any = true;
+        if let Element::Way(w) = e {
+            let kind = classify(w.tags());
+            let is_street =
+                kind.is_none() && options.load_streets && w.tags().any(|(k, _)| k == "highway");
+            let is_member = member_ways.contains(&w.id());
+            if kind.is_none() && !is_street && !is_member {
+                return;
+            }
+            let refs: Vec<i64> = w.refs().collect();
+            if is_member {
+                member_refs.insert(w.id(), refs.clone());
+            }
+            if kind.is_some() || is_street {
+                ways.push(Way {
+                    id: w.id(),
+                    kind,
+                    tags: tag_map(w.tags()),
+                    refs,
+                });
+            }
+        }
+    })?;
+    if !saw_any {
+        return Err(LoadError::Malformed {
+            path: path.to_path_buf(),
+            format: FORMAT,
+            reason: "no OSM data blocks".into(),
+        });
+    }
+
+    // Pass 3: the nodes those ways use. PBF coordinates are integers, never NaN, so NaN marks
+    // a node that is not in the file.
+    const MISSING: Coord<f64> = Coord {
+        x: f64::NAN,
+        y: f64::NAN,
+    };
+    let mut nodes: HashMap<i64, Coord<f64>> = HashMap::new();
+    let needed = ways
+        .iter()
+        .map(|w| &w.refs)
+        .chain(member_refs.values())
+        .flatten();
+    for &n in needed {
+        nodes.insert(n, MISSING);
+    }
+    pass(path, &mut |e| {
+        let (id, lon, lat) = match e {
+            Element::Node(n) => (n.id(), n.lon(), n.lat()),
+            Element::DenseNode(n) => (n.id(), n.lon(), n.lat()),
+            _ => return,
+        };
+        if let Some(c) = nodes.get_mut(&id) {
+            *c = Coord { x: lon, y: lat };
+        }
+    })?;
+    let node = |n: &i64| nodes.get(n).copied().filter(|c| !c.x.is_nan());
+    let coords = |refs: &[i64]| -> Result<Vec<Coord<f64>>, RejectReason> {
+        refs.iter()
+            .map(|n| {
+                node(n).ok_or_else(|| {
+                    RejectReason::MissingGeometry(format!("node/{n} is not in the file"))
+                })
+            })
+            .collect()
+    };
+
+    let mut areas = Vec::new();
+    let mut streets = Vec::new();
+    let mut warnings = Vec::new();
+    for w in ways {
+        let source_id = format!("way/{}", w.id);
+        match w.kind {
+            Some(kind) => {
+                let polygons = if w.refs.len() < 2 || w.refs.first() != w.refs.last() {
+                    Err(RejectReason::InvalidGeometry("way is not closed".into()))
+                } else {
+                    coords(&w.refs).map(|ring| vec![vec![ring]])
+                };
+                areas.push(RawArea {
+                    source_id,
+                    kind,
+                    polygons,
+                    heights: read_heights(&w.tags, options),
+                    tags: w.tags,
+                    link_ids: Vec::new(),
+                    part_of: None,
+                });
+            }
+            None => {
+                let points: Vec<Coord<f64>> = w.refs.iter().filter_map(node).collect();
+                let class =
+                    StreetClass::from_osm_highway(w.tags.get("highway").map_or("", String::as_str));
+                streets.push(RawStreet {
+                    source_id,
+                    class,
+                    name: w.tags.get("name").cloned(),
+                    points,
+                });
+            }
+        }
+    }
+    for r in relations {
+        let source_id = format!("relation/{}", r.id);
+        let polygons = assemble_relation(&r, &member_refs, &coords);
+        let polygons = polygons.map(|(polys, dropped)| {
+            if dropped > 0 {
+                warnings.push(LoadWarning {
+                    file: path.to_path_buf(),
+                    source_id: source_id.clone(),
+                    message: format!("{dropped} inner ring(s) inside no outer ring dropped"),
+                });
+            }
+            polys
+        });
+        areas.push(RawArea {
+            source_id,
+            kind: r.kind,
+            polygons,
+            heights: read_heights(&r.tags, options),
+            tags: r.tags,
+            link_ids: Vec::new(),
+            part_of: None,
+        });
+    }
+    Ok(RawCity {
+        crs: SourceCrs::Wgs84,
+        areas,
+        streets,
+        warnings,
     })
+}
+
+/// Joins a relation's member ways into rings and groups them into polygons.
+fn assemble_relation(
+    r: &Relation,
+    member_refs: &HashMap<i64, Vec<i64>>,
+    coords: &impl Fn(&[i64]) -> Result<Vec<Coord<f64>>, RejectReason>,
+) -> Result<(RawPolygons, usize), RejectReason> {
+    let mut outer_ways = Vec::new();
+    let mut inner_ways = Vec::new();
+    for &(way, inner) in &r.members {
+        let Some(refs) = member_refs.get(&way) else {
+            return Err(RejectReason::MissingGeometry(format!(
+                "member way/{way} is not in the file"
+            )));
+        };
+        if inner {
+            inner_ways.push(refs.clone());
+        } else {
+            outer_ways.push(refs.clone());
+        }
+    }
+    if outer_ways.is_empty() {
+        return Err(RejectReason::MissingGeometry(
+            "multipolygon without outer member".into(),
+        ));
+    }
+    let join = |ways| {
+        multipolygon::join_rings(ways)
+            .map_err(|e| RejectReason::InvalidGeometry(format!("multipolygon not assembled: {e}")))
+    };
+    let outers = join(outer_ways)?;
+    let inners = join(inner_ways)?;
+    let outers: Result<Vec<_>, _> = outers.iter().map(|r| coords(r)).collect();
+    let inners: Result<Vec<_>, _> = inners.iter().map(|r| coords(r)).collect();
+    Ok(multipolygon::group_polygons(outers?, inners?))
 }

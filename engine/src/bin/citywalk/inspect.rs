@@ -13,6 +13,7 @@ mod tree;
 /// Arguments of `citywalk inspect`.
 #[derive(Debug, clap::Args)]
 #[command(args_conflicts_with_subcommands = true)]
+#[group(skip)]
 pub struct Args {
     #[command(subcommand)]
     what: Option<What>,

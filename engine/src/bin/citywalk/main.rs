@@ -3,10 +3,13 @@
 
 use clap::{Parser, Subcommand};
 
+mod bench;
+mod demo;
 mod generate;
 mod inspect;
 mod preprocess;
 mod render;
+mod scene_input;
 mod view;
 
 /// citywalk: an occlusion-aware urban walkthrough engine.
@@ -19,6 +22,8 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
+    /// The main job: preprocess the bundled Chelsea extract and benchmark a walk and a flyover.
+    Demo(demo::Args),
     /// Generate a procedural city as GeoJSON (buildings and streets).
     Generate(generate::Args),
     /// Preprocess inputs into a scene package (.cwk).
@@ -29,6 +34,8 @@ enum Command {
     Render(render::Args),
     /// Open a window to walk or fly through a scene.
     View(view::Args),
+    /// The occlusion benchmark: scenes x camera paths x culling modes, checked by the oracle.
+    Bench(bench::Args),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -46,5 +53,7 @@ fn main() -> anyhow::Result<()> {
         Command::Inspect(args) => inspect::run(args),
         Command::Render(args) => render::run(args),
         Command::View(args) => view::run(args),
+        Command::Bench(args) => bench::run(args),
+        Command::Demo(args) => demo::run(args),
     }
 }

@@ -1,9 +1,235 @@
-//! `citywalk preprocess` (placeholder until it lands in this session).
+//! `citywalk preprocess INPUT... -o city.cwk [--json]`: loads the inputs into one city, runs
+//! the preprocessing pipeline (blocks, occluders, cluster tree, B-Quadtree) with a progress
+//! line per stage, writes the scene package and prints a summary.
+
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use anyhow::Context;
+use citywalk_preprocess::pipeline::{PreprocessParams, ProgressSink, Stage, preprocess};
+use citywalk_scenes::package::{ScenePackage, WriteOptions};
+use citywalk_scenes::{LoadOptions, load_cities};
+use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
+use serde::Serialize;
 
 /// Arguments of `citywalk preprocess`.
 #[derive(Debug, clap::Args)]
-pub struct Args {}
+pub struct Args {
+    /// Input files (OSM PBF, GeoJSON, CityJSON, glTF/GLB), merged into one city.
+    #[arg(required = true)]
+    inputs: Vec<PathBuf>,
+    /// The scene package to write.
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Print the summary as JSON on stdout.
+    #[arg(long)]
+    json: bool,
+    /// Leave out the virtual occluders.
+    #[arg(long)]
+    no_occluders: bool,
+    /// Leave out the cluster tree.
+    #[arg(long)]
+    no_cluster_tree: bool,
+    /// Also store the stage timings in the package (then the file is no longer byte-for-byte
+    /// reproducible).
+    #[arg(long)]
+    store_timings: bool,
+}
 
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`citywalk preprocess` is not built yet")
+/// One spinner per stage.
+struct Bars {
+    multi: MultiProgress,
+    bars: std::cell::RefCell<Vec<(Stage, ProgressBar)>>,
+}
+
+impl std::fmt::Debug for Bars {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("Bars")
+    }
+}
+
+impl ProgressSink for Bars {
+    fn stage_started(&self, stage: Stage) {
+        let bar = self.multi.add(ProgressBar::new_spinner());
+        if let Ok(style) = ProgressStyle::with_template("{spinner} {msg} {elapsed}") {
+            bar.set_style(style);
+        }
+        bar.set_message(stage.name().to_string());
+        bar.enable_steady_tick(Duration::from_millis(120));
+        self.bars.borrow_mut().push((stage, bar));
+    }
+
+    fn stage_finished(&self, stage: Stage, seconds: f64, summary: &str) {
+        if let Some((_, bar)) = self.bars.borrow().iter().find(|(s, _)| *s == stage) {
+            bar.finish_with_message(format!("{}: {summary} ({seconds:.2} s)", stage.name()));
+        }
+    }
+}
+
+/// The summary printed at the end (and as JSON with `--json`).
+#[derive(Debug, Serialize)]
+struct Summary {
+    output: String,
+    package_bytes: u64,
+    buildings_found: usize,
+    buildings_loaded: usize,
+    buildings_rejected: usize,
+    streets: usize,
+    occluders: Option<usize>,
+    occluder_triangles: Option<usize>,
+    cluster_tree_nodes: Option<usize>,
+    cluster_tree_depth: Option<u32>,
+    blocks: usize,
+    buildings_per_block_min_median_max: Option<(usize, usize, usize)>,
+    quadtree_nodes: usize,
+    quadtree_leaves: usize,
+    quadtree_depth: u32,
+    load_seconds: f64,
+    stage_seconds: Vec<(String, f64)>,
+    write_seconds: f64,
+    total_seconds: f64,
+    peak_memory_bytes: Option<u64>,
+    warnings: Vec<String>,
+    skipped_stages: Vec<String>,
+}
+
+/// Peak resident memory (VmHWM from /proc/self/status), on Linux.
+pub fn peak_memory_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let start = Instant::now();
+    let load = ProgressBar::new_spinner();
+    if let Ok(style) = ProgressStyle::with_template("{spinner} {msg} {elapsed}") {
+        load.set_style(style);
+    }
+    load.set_message(format!("loading {} input(s)", args.inputs.len()));
+    load.enable_steady_tick(Duration::from_millis(120));
+    let city =
+        load_cities(&args.inputs, &LoadOptions::default()).context("cannot load the inputs")?;
+    let load_seconds = start.elapsed().as_secs_f64();
+    load.finish_with_message(format!("load: {} ({load_seconds:.2} s)", city.report));
+
+    let params = PreprocessParams {
+        build_occluders: !args.no_occluders,
+        build_cluster_tree: !args.no_cluster_tree,
+        ..PreprocessParams::default()
+    };
+    let bars = Bars {
+        multi: MultiProgress::new(),
+        bars: Default::default(),
+    };
+    let package = preprocess(city, &params, &bars).context("preprocessing failed")?;
+    let write_start = Instant::now();
+    let bytes = package
+        .write(
+            &args.output,
+            WriteOptions {
+                include_timings: args.store_timings,
+            },
+        )
+        .with_context(|| format!("cannot write {}", args.output.display()))?;
+    let write_seconds = write_start.elapsed().as_secs_f64();
+
+    let summary = summarise(&package, &args, bytes, load_seconds, write_seconds, start);
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&summary)?);
+    } else {
+        print_summary(&summary);
+    }
+    Ok(())
+}
+
+fn summarise(
+    package: &ScenePackage,
+    args: &Args,
+    package_bytes: u64,
+    load_seconds: f64,
+    write_seconds: f64,
+    start: Instant,
+) -> Summary {
+    let report = &package.provenance.load_report;
+    Summary {
+        output: args.output.display().to_string(),
+        package_bytes,
+        buildings_found: report.buildings_found,
+        buildings_loaded: report.buildings_loaded,
+        buildings_rejected: report.rejected.len(),
+        streets: package.streets.len(),
+        occluders: package.occluders.as_ref().map(|o| o.occluders.len()),
+        occluder_triangles: package.occluders.as_ref().map(|o| o.triangle_count()),
+        cluster_tree_nodes: package.cluster_tree.as_ref().map(|t| t.nodes.len()),
+        cluster_tree_depth: package.cluster_tree.as_ref().map(|t| t.max_depth()),
+        blocks: package.blocks.blocks.len(),
+        buildings_per_block_min_median_max: package.blocks.size_stats(),
+        quadtree_nodes: package.quadtree.nodes.len(),
+        quadtree_leaves: package.quadtree.leaf_count(),
+        quadtree_depth: package.quadtree.max_depth(),
+        load_seconds,
+        stage_seconds: package
+            .timings
+            .iter()
+            .map(|t| (t.stage.clone(), t.seconds))
+            .collect(),
+        write_seconds,
+        total_seconds: start.elapsed().as_secs_f64(),
+        peak_memory_bytes: peak_memory_bytes(),
+        warnings: package.provenance.warnings.clone(),
+        skipped_stages: package.provenance.skipped_stages.clone(),
+    }
+}
+
+fn print_summary(s: &Summary) {
+    let opt = |v: Option<usize>| v.map_or("not built".to_string(), |v| v.to_string());
+    println!(
+        "wrote {} ({:.1} MiB)",
+        s.output,
+        s.package_bytes as f64 / 1048576.0
+    );
+    println!(
+        "buildings: {} found, {} loaded, {} rejected; {} streets",
+        s.buildings_found, s.buildings_loaded, s.buildings_rejected, s.streets
+    );
+    println!(
+        "occluders: {} ({} triangles)",
+        opt(s.occluders),
+        opt(s.occluder_triangles)
+    );
+    println!(
+        "cluster tree: {} nodes, depth {}",
+        opt(s.cluster_tree_nodes),
+        s.cluster_tree_depth.map_or("-".into(), |d| d.to_string())
+    );
+    match s.buildings_per_block_min_median_max {
+        Some((lo, med, hi)) => println!(
+            "blocks: {} (buildings per block: min {lo}, median {med}, max {hi})",
+            s.blocks
+        ),
+        None => println!("blocks: {}", s.blocks),
+    }
+    println!(
+        "quadtree: {} nodes, {} leaves, depth {}",
+        s.quadtree_nodes, s.quadtree_leaves, s.quadtree_depth
+    );
+    print!("time: load {:.2} s", s.load_seconds);
+    for (stage, seconds) in &s.stage_seconds {
+        print!(", {stage} {seconds:.2} s");
+    }
+    println!(
+        ", write {:.2} s; total {:.2} s",
+        s.write_seconds, s.total_seconds
+    );
+    if let Some(peak) = s.peak_memory_bytes {
+        println!("peak memory: {:.0} MiB", peak as f64 / 1048576.0);
+    }
+    for w in &s.warnings {
+        println!("warning: {w}");
+    }
+    for k in &s.skipped_stages {
+        println!("skipped: {k}");
+    }
 }

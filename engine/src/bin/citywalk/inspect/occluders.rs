@@ -1,9 +1,177 @@
-//! `citywalk inspect` (occluders; placeholder until it lands in this session).
+//! `citywalk inspect occluders SCENE [--json] [--views N] [--per-building] [--gltf out.glb]`:
+//! builds the virtual occluders of an input (Germs & Jansen) and reports polygon counts,
+//! average polygon area gain and the occlusion-preserving quality of §4.1 (per building and
+//! in total: mean, min, p5/p25/p50, histogram), plus throughput. `--gltf` writes the
+//! occluders as a GLB for inspection in any glTF viewer.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::Context;
+use citywalk_preprocess::occluders::gltf_out::occluders_to_glb;
+use citywalk_preprocess::occluders::quality::{
+    BuildingQuality, QualityParams, QualitySummary, measure_city, summarise,
+};
+use citywalk_preprocess::occluders::{OccluderParams, build_occluders};
+use citywalk_scenes::occluder::FacadeKind;
+use citywalk_scenes::{LoadOptions, load_city};
+use serde::Serialize;
 
 /// Arguments of this inspection.
 #[derive(Debug, clap::Args)]
-pub struct Args {}
+pub struct Args {
+    /// Any input citywalk loads (OSM PBF, GeoJSON, CityJSON, glTF/GLB).
+    scene: PathBuf,
+    /// Print the report as JSON on stdout.
+    #[arg(long)]
+    json: bool,
+    /// Viewpoints on the circle for the quality measure (§4.1).
+    #[arg(long, default_value_t = 16)]
+    views: u32,
+    /// Width and height of each quality image (pixels).
+    #[arg(long, default_value_t = 128)]
+    resolution: u32,
+    /// Print one line per building.
+    #[arg(long)]
+    per_building: bool,
+    /// Facade type: open, closed or wall-oriented.
+    #[arg(long, default_value = "wall-oriented")]
+    facade: String,
+    /// Write the occluders to this GLB file.
+    #[arg(long)]
+    gltf: Option<PathBuf>,
+}
 
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`citywalk inspect` (occluders) is not built yet")
+#[derive(Debug, Serialize)]
+struct Report<'a> {
+    scene: String,
+    facade: &'static str,
+    parameters: &'a OccluderParams,
+    quality_parameters: QualityParams,
+    build_seconds: f64,
+    buildings_per_second: f64,
+    summary: QualitySummary,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    per_building: Option<&'a [BuildingQuality]>,
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let facade = FacadeKind::from_name(&args.facade).with_context(|| {
+        format!(
+            "unknown facade `{}` (open, closed, wall-oriented)",
+            args.facade
+        )
+    })?;
+    let city = load_city(&args.scene, &LoadOptions::default())
+        .with_context(|| format!("cannot load {}", args.scene.display()))?;
+    let params = OccluderParams {
+        facade,
+        ..OccluderParams::default()
+    };
+    let start = Instant::now();
+    let set = build_occluders(&city, &params);
+    let build_seconds = start.elapsed().as_secs_f64();
+    if let Err(e) = set.check_invariants() {
+        anyhow::bail!("occluder invariants violated: {e}");
+    }
+    let quality_params = QualityParams {
+        views: args.views.max(1),
+        resolution_px: args.resolution.clamp(8, 1024),
+        ..QualityParams::default()
+    };
+    let rows = measure_city(&city, &set, &quality_params);
+    let summary = summarise(&rows);
+    if let Some(path) = &args.gltf {
+        let bytes = occluders_to_glb(&set)?;
+        std::fs::write(path, bytes).with_context(|| format!("cannot write {}", path.display()))?;
+    }
+    let report = Report {
+        scene: args.scene.display().to_string(),
+        facade: facade.name(),
+        parameters: &params,
+        quality_parameters: quality_params,
+        build_seconds,
+        buildings_per_second: city.buildings.len() as f64 / build_seconds.max(1e-9),
+        summary,
+        per_building: args.per_building.then_some(&rows[..]),
+    };
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        print_text(&report, &rows, args.per_building);
+        if let Some(path) = &args.gltf {
+            println!("wrote {}", path.display());
+        }
+    }
+    Ok(())
+}
+
+fn print_text(report: &Report<'_>, rows: &[BuildingQuality], per_building: bool) {
+    let s = &report.summary;
+    if per_building {
+        println!("building  source_id  occluders  polygons(src→occ)  area_gain  quality  reason");
+        for r in rows {
+            let gain = if r.source_mean_polygon_area_m2 > 0.0 {
+                r.occluder_mean_polygon_area_m2 / r.source_mean_polygon_area_m2
+            } else {
+                0.0
+            };
+            println!(
+                "{:>6}  {}  {}  {}→{}  {:.2}×  {}  {}",
+                r.building,
+                r.source_id,
+                r.occluders,
+                r.source_polygons,
+                r.occluder_polygons,
+                gain,
+                r.quality
+                    .map_or_else(|| "-".to_owned(), |q| format!("{:.1} %", q * 100.0)),
+                r.reason_if_none.as_deref().unwrap_or("")
+            );
+        }
+        println!();
+    }
+    println!("scene: {} ({} facades)", report.scene, report.facade);
+    println!(
+        "buildings: {} ({} with occluders), occluders: {}",
+        s.buildings, s.buildings_with_occluders, s.occluders
+    );
+    println!(
+        "polygons (triangles): {} → {} ({:.2}× fewer), mean polygon area gain {:.2}×",
+        s.source_polygons, s.occluder_polygons, s.polygon_reduction, s.mean_polygon_area_gain
+    );
+    println!(
+        "quality: mean {:.1} %, min {:.1} %, p5 {:.1} %, p25 {:.1} %, p50 {:.1} % ({} views, {} px)",
+        s.quality_mean * 100.0,
+        s.quality_min * 100.0,
+        s.quality_p5 * 100.0,
+        s.quality_p25 * 100.0,
+        s.quality_p50 * 100.0,
+        report.quality_parameters.views,
+        report.quality_parameters.resolution_px
+    );
+    println!("histogram (per 10 %):");
+    let most = s
+        .quality_histogram
+        .iter()
+        .copied()
+        .max()
+        .unwrap_or(0)
+        .max(1);
+    for (i, n) in s.quality_histogram.iter().enumerate() {
+        let label = if i == 10 {
+            " >100 %".to_owned()
+        } else {
+            format!("{:>3}–{:<3}%", i * 10, i * 10 + 10)
+        };
+        println!("  {label} {:>6} {}", n, "#".repeat(n * 50 / most));
+    }
+    println!(
+        "leak (facade pixels outside the building): {:.4} %",
+        s.leak_fraction * 100.0
+    );
+    println!(
+        "throughput: {:.0} buildings/s ({:.3} s)",
+        report.buildings_per_second, report.build_seconds
+    );
 }

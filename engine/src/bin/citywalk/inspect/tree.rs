@@ -1,9 +1,247 @@
-//! `citywalk inspect` (tree; placeholder until it lands in this session).
+//! `citywalk inspect tree SCENE --level K -o map.png`: builds the legibility cluster tree of
+//! an input (Chang et al. 2008, Yang et al. 2011) and draws one level of it top-down, like
+//! Chang's Figure 11: each cluster's hull filled in its own colour, the buildings drawn in a
+//! darker shade of their cluster's colour, streets as grey lines.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::Context;
+use citywalk_preprocess::blocks::build_blocks;
+use citywalk_preprocess::cluster::build_cluster_tree;
+use citywalk_scenes::cluster_tree::{
+    ClusterDistance, ClusterParams, ClusterTree, HullMerge, HullSimplify,
+};
+use citywalk_scenes::{City, LoadOptions, load_city};
+use image::{Rgb, RgbImage};
 
 /// Arguments of this inspection.
 #[derive(Debug, clap::Args)]
-pub struct Args {}
+pub struct Args {
+    /// Any input citywalk loads (OSM PBF, GeoJSON, CityJSON, glTF/GLB).
+    scene: PathBuf,
+    /// Tree level to draw (0 = root); leaves shallower than it are drawn as they are.
+    #[arg(long, default_value_t = 2)]
+    level: u32,
+    /// Output PNG.
+    #[arg(short = 'o', long = "output", default_value = "tree.png")]
+    output: PathBuf,
+    /// Width of the longer image side (pixels).
+    #[arg(long, default_value_t = 1600)]
+    size: u32,
+    /// Use Chang et al.'s choices (size-weighted distance, four-case merging, smallest-area
+    /// simplification) instead of Yang et al.'s.
+    #[arg(long)]
+    chang: bool,
+    /// Keep the binary merge tree (no depth reduction).
+    #[arg(long)]
+    binary: bool,
+}
 
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`citywalk inspect` (tree) is not built yet")
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let city = load_city(&args.scene, &LoadOptions::default())
+        .with_context(|| format!("cannot load {}", args.scene.display()))?;
+    let blocks = build_blocks(&city);
+    let mut params = ClusterParams::default();
+    if args.chang {
+        params.distance = ClusterDistance::ChangSizeWeighted;
+        params.merge = HullMerge::ChangCases;
+        params.simplify = HullSimplify::ChangSmallestArea;
+    }
+    if args.binary {
+        params.depth_lambda = None;
+    }
+    let start = Instant::now();
+    let tree = build_cluster_tree(&city, &blocks.block_of_building, &params)
+        .with_context(|| format!("cluster tree of {}", args.scene.display()))?;
+    let seconds = start.elapsed().as_secs_f64();
+    if let Err(e) = tree.check_invariants(&city) {
+        anyhow::bail!("cluster tree invariants violated: {e}");
+    }
+    let cut = tree.cut_at_level(args.level);
+    let image = draw(&city, &tree, &cut, args.size.clamp(64, 16_384));
+    image
+        .save(&args.output)
+        .with_context(|| format!("cannot write {}", args.output.display()))?;
+    println!(
+        "{} buildings, {} blocks, {} nodes, depth {}, {} clusters at level {}, built in {:.3} s \
+         ({:.0} buildings/s), {} merge fallbacks -> {}",
+        city.buildings.len(),
+        blocks.blocks.len(),
+        tree.nodes.len(),
+        tree.max_depth(),
+        cut.len(),
+        args.level,
+        seconds,
+        city.buildings.len() as f64 / seconds.max(1e-9),
+        tree.stats.merge_fallbacks,
+        args.output.display()
+    );
+    Ok(())
+}
+
+/// World-to-pixel mapping (y up in the world, down in the image).
+struct View {
+    min: [f64; 2],
+    scale: f64,
+    height: u32,
+}
+
+impl View {
+    fn px(&self, p: [f64; 2]) -> [f64; 2] {
+        [
+            (p[0] - self.min[0]) * self.scale,
+            f64::from(self.height) - (p[1] - self.min[1]) * self.scale,
+        ]
+    }
+}
+
+/// A distinct colour per index (golden-ratio hue steps), light for hulls.
+fn colour(i: usize, dark: bool) -> Rgb<u8> {
+    let h = (i as f64 * 0.618_033_988_75).fract() * 6.0;
+    let (s, v) = if dark { (0.75, 0.55) } else { (0.45, 0.95) };
+    let c = v * s;
+    let x = c * (1.0 - (h % 2.0 - 1.0).abs());
+    let (r, g, b) = match h as u32 {
+        0 => (c, x, 0.0),
+        1 => (x, c, 0.0),
+        2 => (0.0, c, x),
+        3 => (0.0, x, c),
+        4 => (x, 0.0, c),
+        _ => (c, 0.0, x),
+    };
+    let m = v - c;
+    let to = |f: f64| ((f + m) * 255.0).round().clamp(0.0, 255.0) as u8;
+    Rgb([to(r), to(g), to(b)])
+}
+
+/// Even-odd scanline fill of polygons given as pixel-space rings.
+fn fill(img: &mut RgbImage, rings: &[Vec<[f64; 2]>], c: Rgb<u8>) {
+    let (w, h) = img.dimensions();
+    let (mut ylo, mut yhi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for p in rings.iter().flatten() {
+        ylo = ylo.min(p[1]);
+        yhi = yhi.max(p[1]);
+    }
+    if !ylo.is_finite() {
+        return;
+    }
+    let y0 = ylo.floor().max(0.0) as u32;
+    let y1 = (yhi.ceil().max(0.0) as u32).min(h);
+    let mut xs = Vec::new();
+    for y in y0..y1 {
+        let yc = f64::from(y) + 0.5;
+        xs.clear();
+        for ring in rings {
+            let n = ring.len();
+            for i in 0..n {
+                let (a, b) = (ring[i], ring[(i + 1) % n]);
+                if (a[1] <= yc) != (b[1] <= yc) {
+                    xs.push(a[0] + (yc - a[1]) / (b[1] - a[1]) * (b[0] - a[0]));
+                }
+            }
+        }
+        xs.sort_by(f64::total_cmp);
+        for pair in xs.chunks_exact(2) {
+            let xa = (pair[0] - 0.5).ceil().max(0.0) as u32;
+            let xb = ((pair[1] - 0.5).floor() + 1.0).clamp(0.0, f64::from(w)) as u32;
+            for x in xa..xb {
+                img.put_pixel(x, y, c);
+            }
+        }
+    }
+}
+
+/// A one-pixel line (DDA).
+fn line(img: &mut RgbImage, a: [f64; 2], b: [f64; 2], c: Rgb<u8>) {
+    let (w, h) = img.dimensions();
+    let steps = (b[0] - a[0])
+        .abs()
+        .max((b[1] - a[1]).abs())
+        .ceil()
+        .clamp(1.0, 100_000.0) as u32;
+    for s in 0..=steps {
+        let t = f64::from(s) / f64::from(steps);
+        let (x, y) = (a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]));
+        if x >= 0.0 && y >= 0.0 && (x as u32) < w && (y as u32) < h {
+            img.put_pixel(x as u32, y as u32, c);
+        }
+    }
+}
+
+fn draw(city: &City, tree: &ClusterTree, cut: &[u32], size: u32) -> RgbImage {
+    let root = &tree.nodes[tree.root as usize];
+    let (lo, hi) = (root.bounds_min, root.bounds_max);
+    let margin = 0.03
+        * f64::from(hi[0] - lo[0])
+            .max(f64::from(hi[1] - lo[1]))
+            .max(1.0);
+    let min = [f64::from(lo[0]) - margin, f64::from(lo[1]) - margin];
+    let ext = [
+        f64::from(hi[0] - lo[0]) + 2.0 * margin,
+        f64::from(hi[1] - lo[1]) + 2.0 * margin,
+    ];
+    let scale = f64::from(size) / ext[0].max(ext[1]);
+    let (w, h) = (
+        ((ext[0] * scale).ceil() as u32).max(1),
+        ((ext[1] * scale).ceil() as u32).max(1),
+    );
+    let view = View {
+        min,
+        scale,
+        height: h,
+    };
+    let mut img = RgbImage::from_pixel(w, h, Rgb([255, 255, 255]));
+    for (k, &n) in cut.iter().enumerate() {
+        let node = &tree.nodes[n as usize];
+        let rings: Vec<Vec<[f64; 2]>> = node
+            .footprint
+            .iter()
+            .map(|r| {
+                tree.ring_coords(r)
+                    .into_iter()
+                    .map(|p| view.px(p))
+                    .collect()
+            })
+            .collect();
+        fill(&mut img, &rings, colour(k, false));
+    }
+    for s in &city.streets {
+        for seg in s.line.0.windows(2) {
+            let (a, b) = (view.px([seg[0].x, seg[0].y]), view.px([seg[1].x, seg[1].y]));
+            line(&mut img, a, b, Rgb([110, 110, 110]));
+        }
+    }
+    for (k, &n) in cut.iter().enumerate() {
+        let node = &tree.nodes[n as usize];
+        let dark = colour(k, true);
+        for b in &tree.building_order[node.buildings.0 as usize..node.buildings.1 as usize] {
+            let Some(building) = city.buildings.get(b.index()) else {
+                continue;
+            };
+            for poly in &building.footprint.0 {
+                let rings: Vec<Vec<[f64; 2]>> = std::iter::once(poly.exterior())
+                    .chain(poly.interiors())
+                    .map(|r| r.0.iter().map(|c| view.px([c.x, c.y])).collect())
+                    .collect();
+                fill(&mut img, &rings, dark);
+            }
+        }
+        for r in &node.footprint {
+            let pts: Vec<[f64; 2]> = tree
+                .ring_coords(r)
+                .into_iter()
+                .map(|p| view.px(p))
+                .collect();
+            for i in 0..pts.len() {
+                line(
+                    &mut img,
+                    pts[i],
+                    pts[(i + 1) % pts.len()],
+                    Rgb([40, 40, 40]),
+                );
+            }
+        }
+    }
+    img
 }

@@ -1,0 +1,190 @@
+//! Culling modes of the benchmark and the CPU selection each makes.
+//!
+//! Modes build on each other: `brute` draws everything; `frustum` tests every building's box
+//! against the view frustum; `quadtree` culls whole urban blocks top-down through the
+//! B-Quadtree (Pina et al. 2013, §3-4: hierarchical frustum culling of blocks). The GPU
+//! occlusion modes (`hzb`, `occluders`, `lod`, `all`) are named so the command line can refuse
+//! them clearly until the runtime implements them.
+
+use std::fmt;
+
+use citywalk_scenes::blocks::UrbanBlocks;
+use citywalk_scenes::frustum::{Containment, Frustum};
+use citywalk_scenes::quadtree::BQuadtree;
+use glam::{Mat4, Vec3};
+
+use crate::scene_gpu::SceneGpu;
+
+/// A culling configuration measured by the benchmark.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Mode {
+    /// Everything, no culling: the reference.
+    Brute,
+    /// Per-building view-frustum culling.
+    Frustum,
+    /// B-Quadtree hierarchical frustum culling of urban blocks.
+    Quadtree,
+    /// + hierarchical-Z occlusion culling without occluders.
+    Hzb,
+    /// + the virtual-occluder pre-pass.
+    Occluders,
+    /// + screen-space-error level of detail.
+    Lod,
+    /// Everything on.
+    All,
+    /// Test-only: brute force minus the first building the oracle sees, so tests can prove
+    /// that the benchmark catches a false cull. Not reachable from the command line.
+    DropOneVisibleForTest,
+}
+
+impl Mode {
+    /// The modes the command line knows, in order.
+    pub const NAMED: [Mode; 7] = [
+        Mode::Brute,
+        Mode::Frustum,
+        Mode::Quadtree,
+        Mode::Hzb,
+        Mode::Occluders,
+        Mode::Lod,
+        Mode::All,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Mode::Brute => "brute",
+            Mode::Frustum => "frustum",
+            Mode::Quadtree => "quadtree",
+            Mode::Hzb => "hzb",
+            Mode::Occluders => "occluders",
+            Mode::Lod => "lod",
+            Mode::All => "all",
+            Mode::DropOneVisibleForTest => "drop-one-visible-for-test",
+        }
+    }
+
+    /// Whether the runtime implements this mode yet.
+    pub fn is_available(self) -> bool {
+        matches!(
+            self,
+            Mode::Brute | Mode::Frustum | Mode::Quadtree | Mode::DropOneVisibleForTest
+        )
+    }
+
+    /// Parses a comma-separated list, refusing unknown modes and modes that do not exist yet.
+    pub fn parse_list(list: &str) -> Result<Vec<Mode>, String> {
+        let mut modes = Vec::new();
+        for word in list.split(',').map(str::trim).filter(|w| !w.is_empty()) {
+            let mode = Mode::NAMED
+                .into_iter()
+                .find(|m| m.name() == word)
+                .ok_or_else(|| {
+                    format!(
+                        "unknown mode '{word}' (modes: {})",
+                        Mode::NAMED.map(Mode::name).join(", ")
+                    )
+                })?;
+            if !mode.is_available() {
+                return Err(format!(
+                    "mode '{word}' is not implemented yet: the GPU occlusion culling, occluder \
+                     pre-pass and LOD cut are still being built; available modes: {}",
+                    Mode::NAMED
+                        .into_iter()
+                        .filter(|m| m.is_available())
+                        .map(Mode::name)
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ));
+            }
+            if !modes.contains(&mode) {
+                modes.push(mode);
+            }
+        }
+        if modes.is_empty() {
+            return Err("no mode given".into());
+        }
+        Ok(modes)
+    }
+}
+
+impl fmt::Display for Mode {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// What a mode needs to select buildings on the CPU.
+#[derive(Debug)]
+pub struct CullingData<'a> {
+    pub scene: &'a SceneGpu,
+    pub blocks: &'a UrbanBlocks,
+    pub quadtree: &'a BQuadtree,
+}
+
+/// The buildings `mode` draws for a camera with `view_proj`, in id order, or `None` for a mode
+/// the runtime does not implement yet. `visible_first` is the first building of the oracle's
+/// visible set, used only by the test-only mode.
+pub fn select(
+    mode: Mode,
+    data: &CullingData<'_>,
+    view_proj: Mat4,
+    visible_first: Option<u32>,
+) -> Option<Vec<u32>> {
+    let all = || (0..data.scene.building_count() as u32).collect::<Vec<u32>>();
+    Some(match mode {
+        Mode::Brute => all(),
+        Mode::DropOneVisibleForTest => {
+            let mut v = all();
+            v.retain(|&b| Some(b) != visible_first);
+            v
+        }
+        Mode::Frustum => {
+            let frustum = Frustum::from_view_proj(view_proj);
+            data.scene
+                .records
+                .iter()
+                .enumerate()
+                .filter(|(_, r)| {
+                    frustum.classify_aabb(
+                        Vec3::from_array(r.bounds_min_m),
+                        Vec3::from_array(r.bounds_max_m),
+                    ) != Containment::Outside
+                })
+                .map(|(i, _)| i as u32)
+                .collect()
+        }
+        Mode::Quadtree => {
+            let frustum = Frustum::from_view_proj(view_proj);
+            let mut out: Vec<u32> = data
+                .quadtree
+                .cull(&frustum)
+                .into_iter()
+                .filter_map(|block| data.blocks.blocks.get(block as usize))
+                .flat_map(|block| block.buildings.iter().map(|b| b.0))
+                .collect();
+            out.sort_unstable();
+            out
+        }
+        Mode::Hzb | Mode::Occluders | Mode::Lod | Mode::All => return None,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parse_refuses_unknown_and_unbuilt_modes() {
+        assert_eq!(
+            Mode::parse_list("brute, frustum,brute").unwrap(),
+            vec![Mode::Brute, Mode::Frustum]
+        );
+        assert!(Mode::parse_list("fast").unwrap_err().contains("unknown mode"));
+        assert!(
+            Mode::parse_list("brute,hzb")
+                .unwrap_err()
+                .contains("not implemented yet")
+        );
+        assert!(Mode::parse_list("").is_err());
+        assert!(Mode::parse_list("drop-one-visible-for-test").is_err());
+    }
+}

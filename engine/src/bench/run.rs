@@ -1,0 +1,271 @@
+//! Runs camera paths through every culling mode, checking every frame against the exact
+//! ID-buffer oracle and measuring cost and image error against the brute-force frame.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use citywalk_scenes::blocks::UrbanBlocks;
+use citywalk_scenes::camera_path::CameraPath;
+use citywalk_scenes::quadtree::BQuadtree;
+
+use crate::bench::mode::{CullingData, Mode, select};
+use crate::bench::pixel_error::pixel_error;
+use crate::camera::Camera;
+use crate::gpu::GpuContext;
+use crate::oracle::Oracle;
+use crate::render::selected::SelectedRenderer;
+use crate::render::targets::{OffscreenTarget, ReadbackError};
+use crate::render::BruteRenderer;
+use crate::scene_gpu::SceneGpu;
+
+/// One scene ready for benchmarking: its geometry on the GPU and its culling structures.
+#[derive(Debug)]
+pub struct BenchScene {
+    pub name: String,
+    pub gpu_scene: SceneGpu,
+    pub blocks: UrbanBlocks,
+    pub quadtree: BQuadtree,
+}
+
+/// What to measure.
+#[derive(Debug, Clone)]
+pub struct BenchConfig {
+    pub modes: Vec<Mode>,
+    pub width: u32,
+    pub height: u32,
+    /// Where to write PNG frames (every `png_every`-th frame of each path and mode), if at all.
+    pub frames_dir: Option<PathBuf>,
+    pub png_every: usize,
+}
+
+/// The measurements of one frame in one mode.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct FrameRecord {
+    pub scene: String,
+    pub path: String,
+    pub mode: String,
+    pub frame: usize,
+    /// Buildings with at least one visible pixel in the full-detail, unculled scene.
+    pub visible: usize,
+    /// Buildings drawn (themselves; clusters do not exist in these modes yet).
+    pub drawn: usize,
+    /// Visible buildings that were not drawn. Must be zero.
+    pub false_culls: usize,
+    /// Share of the scene's buildings not drawn.
+    pub culled_fraction: f64,
+    pub triangles: u64,
+    pub draw_calls: u32,
+    /// CPU time of the culling selection (ms).
+    pub select_ms: f64,
+    /// CPU wall time of selection, recording, submission and GPU completion (ms).
+    pub frame_ms: f64,
+    /// Chang et al. §9: share of pixels whose grey level differs from the brute-force frame.
+    pub pixel_error_grey: f64,
+    /// Chang et al. §9: share of pixels differing by more than 40 in a channel.
+    pub pixel_error_colour: f64,
+}
+
+/// Why a benchmark run stopped.
+#[derive(Debug, thiserror::Error)]
+pub enum BenchError {
+    #[error("reading a frame back from the GPU failed: {0}")]
+    Readback(#[from] ReadbackError),
+    #[error("mode '{0}' is not implemented yet")]
+    ModeNotAvailable(Mode),
+    #[error("writing {path}: {reason}")]
+    Write { path: PathBuf, reason: String },
+}
+
+/// The renderers a run reuses across frames.
+#[derive(Debug)]
+pub struct BenchRenderers {
+    brute: BruteRenderer,
+    selected: SelectedRenderer,
+    oracle: Oracle,
+}
+
+impl BenchRenderers {
+    pub fn new(gpu: &GpuContext) -> BenchRenderers {
+        BenchRenderers {
+            brute: BruteRenderer::new(gpu, BruteRenderer::PNG_FORMAT),
+            selected: SelectedRenderer::new(gpu, BruteRenderer::PNG_FORMAT),
+            oracle: Oracle::new(gpu),
+        }
+    }
+}
+
+/// The camera of a path pose.
+pub fn pose_camera(path: &CameraPath, i: usize) -> Camera {
+    let pose = path.poses[i];
+    let mut camera = Camera::new(
+        pose.position,
+        pose.yaw_deg.to_radians(),
+        pose.pitch_deg.to_radians(),
+    );
+    camera.fov_y_rad = path.fov_y_deg.to_radians();
+    camera
+}
+
+/// Renders one frame of `mode` into `target`; returns (drawn buildings, draw calls, select ms,
+/// frame ms).
+fn render_mode(
+    gpu: &GpuContext,
+    renderers: &mut BenchRenderers,
+    scene: &BenchScene,
+    mode: Mode,
+    camera: &Camera,
+    visible_first: Option<u32>,
+    target: &OffscreenTarget,
+) -> Result<(Vec<u32>, u32, f64, f64), BenchError> {
+    let aspect = target.width as f32 / target.height as f32;
+    let data = CullingData {
+        scene: &scene.gpu_scene,
+        blocks: &scene.blocks,
+        quadtree: &scene.quadtree,
+    };
+    let start = Instant::now();
+    let mut encoder = gpu
+        .device
+        .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("bench frame"),
+        });
+    let (drawn, draw_calls, select_ms) = if mode == Mode::Brute {
+        renderers.brute.encode(
+            gpu,
+            &mut encoder,
+            &scene.gpu_scene,
+            camera,
+            &target.colour_view,
+            &target.depth,
+        );
+        let n = scene.gpu_scene.building_count() as u32;
+        ((0..n).collect(), n + 1, 0.0)
+    } else {
+        let drawn = select(mode, &data, camera.view_proj(aspect), visible_first)
+            .ok_or(BenchError::ModeNotAvailable(mode))?;
+        let select_ms = start.elapsed().as_secs_f64() * 1e3;
+        let calls = renderers.selected.encode(
+            gpu,
+            &mut encoder,
+            &scene.gpu_scene,
+            camera,
+            &drawn,
+            &target.colour_view,
+            &target.depth,
+        );
+        (drawn, calls, select_ms)
+    };
+    gpu.queue.submit([encoder.finish()]);
+    gpu.wait_idle();
+    let frame_ms = start.elapsed().as_secs_f64() * 1e3;
+    Ok((drawn, draw_calls, select_ms, frame_ms))
+}
+
+/// Runs one path of one scene through every configured mode. Each mode renders the path's
+/// first pose once before timing (shader compilation, buffer growth).
+pub fn run_path(
+    gpu: &GpuContext,
+    renderers: &mut BenchRenderers,
+    scene: &BenchScene,
+    path: &CameraPath,
+    config: &BenchConfig,
+) -> Result<Vec<FrameRecord>, BenchError> {
+    let (w, h) = (config.width, config.height);
+    let target = OffscreenTarget::new(gpu, w, h, BruteRenderer::PNG_FORMAT)?;
+    let reference = OffscreenTarget::new(gpu, w, h, BruteRenderer::PNG_FORMAT)?;
+    let total = scene.gpu_scene.building_count();
+    let mut records = Vec::new();
+    if path.poses.is_empty() {
+        return Ok(records);
+    }
+    let warm_camera = pose_camera(path, 0);
+    for &mode in &config.modes {
+        render_mode(gpu, renderers, scene, mode, &warm_camera, None, &target)?;
+    }
+    for i in 0..path.poses.len() {
+        let camera = pose_camera(path, i);
+        let visible = renderers
+            .oracle
+            .visible_set(gpu, &scene.gpu_scene, &camera, w, h)?;
+        let visible_ids: Vec<u32> = (0..total as u32)
+            .filter(|&b| visible.contains(citywalk_scenes::BuildingId(b)))
+            .collect();
+        let mut encoder = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("bench reference"),
+            });
+        renderers.brute.encode(
+            gpu,
+            &mut encoder,
+            &scene.gpu_scene,
+            &camera,
+            &reference.colour_view,
+            &reference.depth,
+        );
+        gpu.queue.submit([encoder.finish()]);
+        let reference_rgba = reference.read_colour(gpu)?;
+        for &mode in &config.modes {
+            let (drawn, draw_calls, select_ms, frame_ms) = render_mode(
+                gpu,
+                renderers,
+                scene,
+                mode,
+                &camera,
+                visible_ids.first().copied(),
+                &target,
+            )?;
+            let rgba = target.read_colour(gpu)?;
+            let error = pixel_error(&reference_rgba, &rgba);
+            let false_culls = visible_ids
+                .iter()
+                .filter(|b| drawn.binary_search(b).is_err())
+                .count();
+            let triangles = drawn
+                .iter()
+                .filter_map(|&b| scene.gpu_scene.records.get(b as usize))
+                .map(|r| u64::from(r.index_count / 3))
+                .sum();
+            if let Some(dir) = &config.frames_dir
+                && config.png_every > 0
+                && i % config.png_every == 0
+            {
+                let file = dir.join(format!(
+                    "{}-{}-{}-{:04}.png",
+                    scene.name, path.name, mode, i
+                ));
+                save_png(&file, w, h, rgba)?;
+            }
+            records.push(FrameRecord {
+                scene: scene.name.clone(),
+                path: path.name.clone(),
+                mode: mode.name().to_string(),
+                frame: i,
+                visible: visible_ids.len(),
+                drawn: drawn.len(),
+                false_culls,
+                culled_fraction: if total == 0 {
+                    0.0
+                } else {
+                    1.0 - drawn.len() as f64 / total as f64
+                },
+                triangles,
+                draw_calls,
+                select_ms,
+                frame_ms,
+                pixel_error_grey: error.grey_fraction,
+                pixel_error_colour: error.colour_fraction,
+            });
+        }
+    }
+    Ok(records)
+}
+
+fn save_png(file: &std::path::Path, w: u32, h: u32, rgba: Vec<u8>) -> Result<(), BenchError> {
+    let err = |reason: String| BenchError::Write {
+        path: file.to_path_buf(),
+        reason,
+    };
+    let image = image::RgbaImage::from_raw(w, h, rgba).ok_or_else(|| err("bad size".into()))?;
+    image.save(file).map_err(|e| err(e.to_string()))
+}

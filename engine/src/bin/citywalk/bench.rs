@@ -1,0 +1,180 @@
+//! `citywalk bench SCENE... --out DIR`: the occlusion benchmark. Every frame of every path and
+//! mode is checked against the exact visibility oracle; the process exits non-zero if any
+//! visible building was culled, after writing all outputs.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::Context;
+use citywalk_engine::bench::{
+    AdapterSummary, BenchConfig, BenchRenderers, BenchReport, BenchScene, FrameRecord, Mode,
+    run_path, summarise, write_outputs,
+};
+use citywalk_engine::gpu::GpuContext;
+use citywalk_engine::scene_gpu::SceneGpu;
+use citywalk_scenes::camera_path::{self, CameraPath};
+
+use crate::scene_input::load_scene;
+
+/// Arguments of `citywalk bench`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Scenes: packages (.cwk) or any loadable input (preprocessed on the fly).
+    #[arg(required = true)]
+    pub scenes: Vec<PathBuf>,
+    /// Output folder for frames.csv, bench.json, summary.md, path files and PNG frames.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Camera paths generated per scene: street, flyover, dive.
+    #[arg(long, default_value = "street,flyover,dive")]
+    pub paths: String,
+    /// Path files to replay in addition to (or, with --paths "", instead of) generated ones.
+    #[arg(long = "path-file")]
+    pub path_files: Vec<PathBuf>,
+    /// Culling modes: brute, frustum, quadtree (hzb, occluders, lod, all are not built yet).
+    #[arg(long, default_value = "brute,frustum,quadtree")]
+    pub modes: String,
+    /// Frames per generated path.
+    #[arg(long, default_value_t = 60)]
+    pub frames: usize,
+    /// Viewport in pixels, WIDTHxHEIGHT.
+    #[arg(long, default_value = "1280x720", value_parser = crate::render::parse_size)]
+    pub size: (u32, u32),
+    /// Write a PNG of every N-th frame of each path and mode (0: none).
+    #[arg(long, default_value_t = 0)]
+    pub png_every: usize,
+    /// Print bench.json to standard output as well.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let modes = Mode::parse_list(&args.modes).map_err(anyhow::Error::msg)?;
+    let config = BenchConfig {
+        modes,
+        width: args.size.0,
+        height: args.size.1,
+        frames_dir: (args.png_every > 0).then(|| args.out.clone()),
+        png_every: args.png_every,
+    };
+    let path_kinds = parse_path_kinds(&args.paths)?;
+    let replayed: Vec<CameraPath> = args
+        .path_files
+        .iter()
+        .map(|p| CameraPath::read(p).with_context(|| format!("reading path {}", p.display())))
+        .collect::<Result<_, _>>()?;
+    let report = run_benchmark(
+        &args.scenes,
+        &args.out,
+        &path_kinds,
+        &replayed,
+        args.frames,
+        &config,
+    )?;
+    print!("{}", citywalk_engine::bench::output::summary_markdown(&report));
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    }
+    println!("wrote {}", args.out.display());
+    let false_culls = report.false_culls();
+    if false_culls > 0 {
+        anyhow::bail!(
+            "{false_culls} false culls: visible buildings were culled (see {}/frames.csv)",
+            args.out.display()
+        );
+    }
+    Ok(())
+}
+
+/// The generated path kinds, in order.
+pub fn parse_path_kinds(list: &str) -> anyhow::Result<Vec<String>> {
+    let mut kinds = Vec::new();
+    for word in list.split(',').map(str::trim).filter(|w| !w.is_empty()) {
+        if !["street", "flyover", "dive"].contains(&word) {
+            anyhow::bail!("unknown path '{word}' (paths: street, flyover, dive)");
+        }
+        kinds.push(word.to_string());
+    }
+    Ok(kinds)
+}
+
+/// Runs the benchmark over `scenes` and writes every output into `out`; returns the report.
+pub fn run_benchmark(
+    scenes: &[PathBuf],
+    out: &Path,
+    path_kinds: &[String],
+    replayed: &[CameraPath],
+    frames: usize,
+    config: &BenchConfig,
+) -> anyhow::Result<BenchReport> {
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    let gpu = GpuContext::headless()?;
+    eprintln!("adapter: {}", gpu.adapter_summary());
+    let mut renderers = BenchRenderers::new(&gpu);
+    let mut records: Vec<FrameRecord> = Vec::new();
+    for scene_path in scenes {
+        let started = Instant::now();
+        let package = load_scene(scene_path)?;
+        let city = package.city();
+        let name = scene_name(scene_path);
+        let scene = BenchScene {
+            name: name.clone(),
+            gpu_scene: SceneGpu::upload_city(&gpu, &city),
+            blocks: package.blocks.clone(),
+            quadtree: package.quadtree.clone(),
+        };
+        eprintln!(
+            "{name}: {} buildings, {} triangles, ready in {:.1} s",
+            scene.gpu_scene.building_count(),
+            scene.gpu_scene.triangle_count,
+            started.elapsed().as_secs_f64()
+        );
+        let mut paths: Vec<CameraPath> = path_kinds
+            .iter()
+            .map(|kind| match kind.as_str() {
+                "street" => camera_path::street_walk(&city, frames),
+                "flyover" => camera_path::flyover(&city, frames),
+                _ => camera_path::dive(&city, frames),
+            })
+            .collect();
+        paths.extend(replayed.iter().cloned());
+        for path in &paths {
+            let file = out.join(format!("{name}-{}.path", path.name));
+            path.write(&file)
+                .with_context(|| format!("writing {}", file.display()))?;
+            let started = Instant::now();
+            let rows = run_path(&gpu, &mut renderers, &scene, path, config)
+                .with_context(|| format!("{name}, path {}", path.name))?;
+            let false_culls: usize = rows.iter().map(|r| r.false_culls).sum();
+            eprintln!(
+                "{name} / {}: {} frames × {} modes in {:.1} s, {false_culls} false culls",
+                path.name,
+                path.poses.len(),
+                config.modes.len(),
+                started.elapsed().as_secs_f64()
+            );
+            records.extend(rows);
+        }
+    }
+    let info = &gpu.adapter_info;
+    let report = BenchReport {
+        adapter: AdapterSummary {
+            name: info.name.clone(),
+            backend: format!("{:?}", info.backend),
+            device_type: format!("{:?}", info.device_type),
+        },
+        size: [config.width, config.height],
+        entries: summarise(&records),
+    };
+    write_outputs(out, &records, &report)?;
+    Ok(report)
+}
+
+/// A short scene name from its file name: `chelsea.osm.pbf` → `chelsea`.
+pub fn scene_name(path: &Path) -> String {
+    let file = path
+        .file_name()
+        .map(|f| f.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "scene".into());
+    file.split('.').next().unwrap_or("scene").to_string()
+}

@@ -1,0 +1,46 @@
+//! One way for every command to open a scene: a scene package is read as it is; any other
+//! input (OSM PBF, GeoJSON, CityJSON, glTF) is loaded and preprocessed on the fly.
+
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use citywalk_preprocess::pipeline::{NoProgress, PreprocessParams, preprocess};
+use citywalk_scenes::package::{MAGIC, ScenePackage};
+use citywalk_scenes::{LoadOptions, load_cities};
+
+/// Whether `path` is a scene package, judged by its first bytes (the magic), not its name.
+pub fn is_package(path: &Path) -> anyhow::Result<bool> {
+    let mut file =
+        std::fs::File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
+    let mut head = [0u8; 4];
+    let mut read = 0;
+    while read < head.len() {
+        let n = file
+            .read(&mut head[read..])
+            .with_context(|| format!("cannot read {}", path.display()))?;
+        if n == 0 {
+            break;
+        }
+        read += n;
+    }
+    Ok(read == head.len() && head == MAGIC)
+}
+
+/// Opens a scene: the package at `path` (a file starting with the package magic, or named
+/// `*.cwk`, which then must be a valid package), or the input at `path` preprocessed with the
+/// default parameters (no progress bars; logs through `tracing`).
+pub fn load_scene(path: &Path) -> anyhow::Result<ScenePackage> {
+    let named_package = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("cwk"));
+    if is_package(path)? || named_package {
+        return ScenePackage::read(path)
+            .with_context(|| format!("cannot read the scene package {}", path.display()));
+    }
+    tracing::info!(input = %path.display(), "not a scene package: loading and preprocessing it");
+    let city = load_cities(&[PathBuf::from(path)], &LoadOptions::default())
+        .with_context(|| format!("cannot load {}", path.display()))?;
+    preprocess(city, &PreprocessParams::default(), &NoProgress)
+        .with_context(|| format!("cannot preprocess {}", path.display()))
+}

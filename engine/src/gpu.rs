@@ -1,0 +1,178 @@
+//! The GPU context: instance, adapter, device and queue, chosen the same way for the headless
+//! renderer, the tests and the windowed viewer.
+//!
+//! Backends come from the environment (`WGPU_BACKEND=vulkan|gl|...`); a hardware adapter is
+//! preferred, else the software one (lavapipe / llvmpipe). Optional features are requested as
+//! `adapter.features() & wanted` and every user keeps a path for their absence.
+
+use thiserror::Error;
+
+/// Why no GPU context could be made.
+#[derive(Debug, Error)]
+pub enum GpuError {
+    #[error(
+        "no GPU adapter found (backends: {backends:?}); on Debian/Ubuntu install a software \
+         Vulkan driver with `apt-get install mesa-vulkan-drivers libvulkan1` (and `libegl1 \
+         libegl-mesa0 libgl1-mesa-dri` for WGPU_BACKEND=gl)"
+    )]
+    NoAdapter { backends: wgpu::Backends },
+    #[error("no GPU adapter can present to this window's surface (adapters seen: {seen})")]
+    NoSurfaceAdapter { seen: String },
+    #[error("requesting a device from adapter {adapter:?}: {source}")]
+    RequestDevice {
+        adapter: String,
+        #[source]
+        source: wgpu::RequestDeviceError,
+    },
+}
+
+/// The optional features citywalk uses when the adapter has them.
+pub const WANTED_FEATURES: wgpu::Features = wgpu::Features::TIMESTAMP_QUERY
+    .union(wgpu::Features::INDIRECT_FIRST_INSTANCE)
+    .union(wgpu::Features::MULTI_DRAW_INDIRECT_COUNT);
+
+/// Everything needed to talk to one GPU.
+#[derive(Debug)]
+pub struct GpuContext {
+    pub instance: wgpu::Instance,
+    pub adapter: wgpu::Adapter,
+    pub device: wgpu::Device,
+    pub queue: wgpu::Queue,
+    /// Name, backend, device type and driver of the adapter in use.
+    pub adapter_info: wgpu::AdapterInfo,
+    /// The optional features actually enabled: `adapter.features() & WANTED_FEATURES`.
+    pub features: wgpu::Features,
+}
+
+impl GpuContext {
+    /// An instance with backends and flags from the environment (`WGPU_BACKEND`, ...), without a
+    /// display handle. The viewer creates its surface from this instance and then calls
+    /// [`GpuContext::for_surface`].
+    pub fn instance_from_env() -> wgpu::Instance {
+        wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env())
+    }
+
+    /// A context with no surface, for offscreen rendering, the oracle, tests and benchmarks.
+    pub fn headless() -> Result<GpuContext, GpuError> {
+        pollster::block_on(Self::headless_async())
+    }
+
+    /// Async form of [`GpuContext::headless`].
+    pub async fn headless_async() -> Result<GpuContext, GpuError> {
+        let instance = Self::instance_from_env();
+        let adapters = instance.enumerate_adapters(wgpu::Backends::all()).await;
+        let adapter = adapters
+            .into_iter()
+            .max_by_key(|a| adapter_rank(&a.get_info()))
+            .ok_or(GpuError::NoAdapter {
+                backends: wgpu::Backends::from_env().unwrap_or(wgpu::Backends::all()),
+            })?;
+        Self::from_adapter(instance, adapter).await
+    }
+
+    /// A context whose adapter can present to `surface` (created from `instance`, which must
+    /// come from [`GpuContext::instance_from_env`] or an equivalent instance).
+    pub fn for_surface(
+        instance: wgpu::Instance,
+        surface: &wgpu::Surface<'_>,
+    ) -> Result<GpuContext, GpuError> {
+        pollster::block_on(async {
+            let adapters = instance.enumerate_adapters(wgpu::Backends::all()).await;
+            let seen = adapters
+                .iter()
+                .map(|a| {
+                    let i = a.get_info();
+                    format!("{} ({:?})", i.name, i.backend)
+                })
+                .collect::<Vec<_>>()
+                .join(", ");
+            let adapter = adapters
+                .into_iter()
+                .filter(|a| a.is_surface_supported(surface))
+                .max_by_key(|a| adapter_rank(&a.get_info()))
+                .ok_or(GpuError::NoSurfaceAdapter { seen })?;
+            Self::from_adapter(instance, adapter).await
+        })
+    }
+
+    async fn from_adapter(
+        instance: wgpu::Instance,
+        adapter: wgpu::Adapter,
+    ) -> Result<GpuContext, GpuError> {
+        let adapter_info = adapter.get_info();
+        let features = adapter.features() & WANTED_FEATURES;
+        let (device, queue) = adapter
+            .request_device(&wgpu::DeviceDescriptor {
+                label: Some("citywalk device"),
+                required_features: features,
+                required_limits: adapter.limits(),
+                experimental_features: wgpu::ExperimentalFeatures::disabled(),
+                memory_hints: wgpu::MemoryHints::Performance,
+                trace: wgpu::Trace::Off,
+            })
+            .await
+            .map_err(|source| GpuError::RequestDevice {
+                adapter: adapter_info.name.clone(),
+                source,
+            })?;
+        tracing::info!(
+            adapter = %adapter_info.name,
+            backend = ?adapter_info.backend,
+            device_type = ?adapter_info.device_type,
+            driver = %adapter_info.driver_info,
+            features = ?features,
+            "GPU adapter"
+        );
+        Ok(GpuContext {
+            instance,
+            adapter,
+            device,
+            queue,
+            adapter_info,
+            features,
+        })
+    }
+
+    /// One line naming the adapter: `"llvmpipe (LLVM 15.0.6, 256 bits) (Vulkan, Cpu)"`.
+    pub fn adapter_summary(&self) -> String {
+        format!(
+            "{} ({:?}, {:?})",
+            self.adapter_info.name, self.adapter_info.backend, self.adapter_info.device_type
+        )
+    }
+
+    /// Whether the adapter is a software rasteriser (lavapipe, llvmpipe, WARP).
+    pub fn is_software(&self) -> bool {
+        self.adapter_info.device_type == wgpu::DeviceType::Cpu
+    }
+
+    /// Whether `feature` (one of [`WANTED_FEATURES`]) is enabled on this device.
+    pub fn has(&self, feature: wgpu::Features) -> bool {
+        self.features.contains(feature)
+    }
+
+    /// Blocks until all submitted work has finished.
+    pub fn wait_idle(&self) {
+        // An error here means the device was lost; later calls report it.
+        if let Err(e) = self.device.poll(wgpu::PollType::wait_indefinitely()) {
+            tracing::warn!("device poll failed: {e}");
+        }
+    }
+}
+
+/// Preference order of adapters: hardware first, software last; Vulkan before GL among equals.
+fn adapter_rank(info: &wgpu::AdapterInfo) -> (u8, u8) {
+    let device = match info.device_type {
+        wgpu::DeviceType::DiscreteGpu => 4,
+        wgpu::DeviceType::IntegratedGpu => 3,
+        wgpu::DeviceType::VirtualGpu => 2,
+        wgpu::DeviceType::Other => 1,
+        wgpu::DeviceType::Cpu => 0,
+    };
+    let backend = match info.backend {
+        wgpu::Backend::Vulkan | wgpu::Backend::Metal | wgpu::Backend::Dx12 => 2,
+        wgpu::Backend::Gl => 1,
+        _ => 0,
+    };
+    (device, backend)
+}

@@ -1,0 +1,332 @@
+//! The GPU hierarchical-Z occlusion cull: one invocation per box (a [`BuildingRecord`]) projects
+//! its 8 corners, picks the pyramid level and reads at most 2×2 texels, as
+//! [`super::reference::project_box`], [`super::reference::select_level`] and
+//! [`super::reference::DepthPyramid::is_occluded`] do. Each box gets a status
+//! ([`CULL_VISIBLE`], [`CULL_FRUSTUM_OUTSIDE`], [`CULL_OCCLUDED`]) and each visible box appends
+//! its [`DrawIndexedIndirectArgs`] behind an atomic counter (`shaders/wgsl/hzb_cull.wgsl`).
+//!
+//! Conservative rounding: every comparison is widened towards "visible" by a bound on the
+//! difference between the GPU's and the CPU's float rounding ([`HZB_ROUNDING_REL`]), so the GPU
+//! never culls a box the CPU reference keeps; it may keep a few more.
+//!
+//! The command buffer is cleared before each cull, so it can be drawn either with
+//! `multi_draw_indexed_indirect_count` (count from [`HzbCull::count_buffer`], when
+//! `MULTI_DRAW_INDIRECT_COUNT` is available) or with `multi_draw_indexed_indirect` of
+//! `box_count` commands, where the unused tail is zero draws.
+
+use citywalk_shaders::constants::HZB_CULL_WORKGROUP;
+pub use citywalk_shaders::constants::{
+    CULL_FRUSTUM_OUTSIDE, CULL_OCCLUDED, CULL_VISIBLE, HZB_ROUNDING_REL,
+};
+use citywalk_shaders::{BuildingRecord, DrawIndexedIndirectArgs, HZB_CULL_WGSL, HzbCullParams};
+use glam::Mat4;
+
+use super::build::{HzbPyramid, map_read};
+use crate::gpu::GpuContext;
+use crate::render::targets::ReadbackError;
+
+/// Why a cull could not be recorded.
+#[derive(Debug, thiserror::Error)]
+pub enum CullError {
+    #[error("{box_count} boxes exceed the {max} one dispatch of the cull pass can test")]
+    TooManyBoxes { box_count: u32, max: u32 },
+    #[error("the records buffer holds {records} records, fewer than the {box_count} boxes to cull")]
+    RecordsTooSmall { records: u64, box_count: u32 },
+}
+
+/// What one cull wrote, read back to the CPU (tests, statistics).
+#[derive(Debug, Clone, PartialEq)]
+pub struct CullResults {
+    /// Per box: [`CULL_VISIBLE`], [`CULL_FRUSTUM_OUTSIDE`] or [`CULL_OCCLUDED`].
+    pub status: Vec<u32>,
+    /// The appended draws of the visible boxes (in no particular order).
+    pub commands: Vec<DrawIndexedIndirectArgs>,
+}
+
+/// The cull pass: pipeline, uniforms and output buffers (status, commands, count), grown to the
+/// largest box count seen.
+#[derive(Debug)]
+pub struct HzbCull {
+    device: wgpu::Device,
+    pipeline: wgpu::ComputePipeline,
+    layout: wgpu::BindGroupLayout,
+    params: wgpu::Buffer,
+    status: wgpu::Buffer,
+    commands: wgpu::Buffer,
+    count: wgpu::Buffer,
+    capacity: u32,
+}
+
+const STATUS_BYTES: u64 = 4;
+const COMMAND_BYTES: u64 = size_of::<DrawIndexedIndirectArgs>() as u64;
+
+impl HzbCull {
+    /// A cull pass with room for `capacity` boxes (grown on demand).
+    pub fn new(gpu: &GpuContext, capacity: u32) -> HzbCull {
+        let device = &gpu.device;
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("hzb cull"),
+            source: wgpu::ShaderSource::Wgsl(HZB_CULL_WGSL.into()),
+        });
+        let buffer_entry = |binding, ty, min: u64| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty,
+                has_dynamic_offset: false,
+                min_binding_size: wgpu::BufferSize::new(min),
+            },
+            count: None,
+        };
+        let rw = wgpu::BufferBindingType::Storage { read_only: false };
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("hzb cull"),
+            entries: &[
+                buffer_entry(
+                    0,
+                    wgpu::BufferBindingType::Uniform,
+                    size_of::<HzbCullParams>() as u64,
+                ),
+                buffer_entry(
+                    1,
+                    wgpu::BufferBindingType::Storage { read_only: true },
+                    size_of::<BuildingRecord>() as u64,
+                ),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 2,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                buffer_entry(3, rw, STATUS_BYTES),
+                buffer_entry(4, rw, COMMAND_BYTES),
+                buffer_entry(5, rw, 4),
+            ],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("hzb cull"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("hzb cull"),
+            layout: Some(&pipeline_layout),
+            module: &module,
+            entry_point: Some("cull"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        let params = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("hzb cull params"),
+            size: size_of::<HzbCullParams>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let count = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("hzb cull draw count"),
+            size: 4,
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::INDIRECT
+                | wgpu::BufferUsages::COPY_SRC
+                | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let capacity = capacity.max(1);
+        let (status, commands) = Self::outputs(device, capacity);
+        HzbCull {
+            device: device.clone(),
+            pipeline,
+            layout,
+            params,
+            status,
+            commands,
+            count,
+            capacity,
+        }
+    }
+
+    fn outputs(device: &wgpu::Device, capacity: u32) -> (wgpu::Buffer, wgpu::Buffer) {
+        let status = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("hzb cull status"),
+            size: u64::from(capacity) * STATUS_BYTES,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let commands = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("hzb cull commands"),
+            size: u64::from(capacity) * COMMAND_BYTES,
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::INDIRECT
+                | wgpu::BufferUsages::COPY_SRC
+                | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        (status, commands)
+    }
+
+    /// The most boxes one cull can test (one-dimensional dispatch).
+    pub fn max_boxes(gpu: &GpuContext) -> u32 {
+        gpu.device
+            .limits()
+            .max_compute_workgroups_per_dimension
+            .saturating_mul(HZB_CULL_WORKGROUP)
+    }
+
+    /// Records the cull of the first `box_count` records of `records` (a storage buffer of
+    /// [`BuildingRecord`], e.g. [`crate::scene_gpu::SceneGpu::records_buffer`]) against
+    /// `pyramid` (built from this frame's depth, seen with `view_proj`). Clears the commands and
+    /// the count first. The uniforms are written through the queue: submit this encoder before
+    /// recording another cull with this pass.
+    pub fn encode(
+        &mut self,
+        gpu: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        records: &wgpu::Buffer,
+        box_count: u32,
+        pyramid: &HzbPyramid,
+        view_proj: Mat4,
+    ) -> Result<(), CullError> {
+        let max = Self::max_boxes(gpu);
+        if box_count > max {
+            return Err(CullError::TooManyBoxes { box_count, max });
+        }
+        let record_capacity = records.size() / size_of::<BuildingRecord>() as u64;
+        if record_capacity < u64::from(box_count.max(1)) {
+            return Err(CullError::RecordsTooSmall {
+                records: record_capacity,
+                box_count,
+            });
+        }
+        if box_count > self.capacity {
+            self.capacity = box_count.next_power_of_two().min(max).max(box_count);
+            (self.status, self.commands) = Self::outputs(&self.device, self.capacity);
+        }
+        let (width, height) = pyramid.size();
+        let params = HzbCullParams {
+            view_proj: view_proj.to_cols_array_2d(),
+            viewport_px: [width, height],
+            box_count,
+            level_count: pyramid.level_count(),
+        };
+        gpu.queue
+            .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        encoder.clear_buffer(&self.count, 0, None);
+        encoder.clear_buffer(
+            &self.commands,
+            0,
+            Some(u64::from(box_count.max(1)) * COMMAND_BYTES),
+        );
+        if box_count == 0 {
+            return Ok(());
+        }
+        let group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("hzb cull"),
+            layout: &self.layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: self.params.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: records.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: wgpu::BindingResource::TextureView(pyramid.view()),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: self.status.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 4,
+                    resource: self.commands.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 5,
+                    resource: self.count.as_entire_binding(),
+                },
+            ],
+        });
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("hzb cull"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, &group, &[]);
+        pass.dispatch_workgroups(box_count.div_ceil(HZB_CULL_WORKGROUP), 1, 1);
+        Ok(())
+    }
+
+    /// Per-box status (`u32`), valid for the boxes of the last cull.
+    pub fn status_buffer(&self) -> &wgpu::Buffer {
+        &self.status
+    }
+
+    /// The visible boxes' [`DrawIndexedIndirectArgs`], packed from the start; the rest of the
+    /// last cull's `box_count` slots are zero (no-op draws).
+    pub fn commands_buffer(&self) -> &wgpu::Buffer {
+        &self.commands
+    }
+
+    /// The number of commands written (`u32`), for `multi_draw_indexed_indirect_count`.
+    pub fn count_buffer(&self) -> &wgpu::Buffer {
+        &self.count
+    }
+
+    /// Reads back the status of the last cull's `box_count` boxes and its commands (after the
+    /// cull was submitted).
+    pub fn read_back(
+        &self,
+        gpu: &GpuContext,
+        box_count: u32,
+    ) -> Result<CullResults, ReadbackError> {
+        let n = u64::from(box_count.min(self.capacity));
+        let status_bytes = n * STATUS_BYTES;
+        let commands_bytes = n * COMMAND_BYTES;
+        // Status, then the count at a 4-aligned offset, then the commands.
+        let count_at = status_bytes;
+        let commands_at = count_at + 4;
+        let buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("hzb cull readback"),
+            size: (commands_at + commands_bytes).max(4),
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        let mut encoder = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("hzb cull readback"),
+            });
+        if n > 0 {
+            encoder.copy_buffer_to_buffer(&self.status, 0, &buffer, 0, status_bytes);
+            encoder.copy_buffer_to_buffer(&self.commands, 0, &buffer, commands_at, commands_bytes);
+        }
+        encoder.copy_buffer_to_buffer(&self.count, 0, &buffer, count_at, 4);
+        gpu.queue.submit([encoder.finish()]);
+        let bytes = map_read(gpu, &buffer)?;
+        let words: Vec<u32> = bytes
+            .chunks_exact(4)
+            .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+            .collect();
+        let status = words[..n as usize].to_vec();
+        let count = (words[n as usize] as usize).min(n as usize);
+        let commands = words[n as usize + 1..]
+            .chunks_exact(5)
+            .take(count)
+            .map(|c| DrawIndexedIndirectArgs {
+                index_count: c[0],
+                instance_count: c[1],
+                first_index: c[2],
+                base_vertex: c[3] as i32,
+                first_instance: c[4],
+            })
+            .collect();
+        Ok(CullResults { status, commands })
+    }
+}

@@ -1,0 +1,331 @@
+//! CPU reference of the hierarchical-Z pyramid build and of the occlusion test against it,
+//! shaped like the GPU passes so tests can compare them texel for texel.
+//!
+//! Depth is reversed-Z (1 at the near plane, 0 at infinity; cleared to 0). Each pyramid texel
+//! keeps the *minimum* depth — the farthest surface — of the pixels it covers, so an object whose
+//! nearest depth is smaller than every texel it overlaps lies behind everything drawn there.
+//!
+//! Non-power-of-two sizes: level `l + 1` has `ceil(w_l / 2) × ceil(h_l / 2)` texels and texel
+//! `(x, y)` reduces texels `2x, 2x + 1` (the latter only where it exists) of level `l`. By
+//! induction, texel `(x, y)` of level `l` is exactly the minimum over the pixels
+//! `[x·2^l, (x+1)·2^l) × [y·2^l, (y+1)·2^l)` clipped to the viewport, so pixel `p` maps to texel
+//! `p >> l` at every level and no pixel is ever left out (the classic odd-size bug).
+//! This follows the two-phase occlusion culling of Kubisch & Tavenrath's GPU-driven rendering
+//! and zeux's niagara, with the level chosen by *ceil* so a rectangle touches at most 2×2 texels.
+
+use glam::{Mat4, Vec3, Vec4};
+
+/// One level of the pyramid.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PyramidLevel {
+    pub width: u32,
+    pub height: u32,
+    /// Row-major minimum depths.
+    pub depth: Vec<f32>,
+}
+
+impl PyramidLevel {
+    fn at(&self, x: u32, y: u32) -> f32 {
+        self.depth[(y * self.width + x) as usize]
+    }
+}
+
+/// A min-depth pyramid over a reversed-Z depth buffer; level 0 is the depth buffer itself.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DepthPyramid {
+    pub levels: Vec<PyramidLevel>,
+}
+
+/// Number of levels of the pyramid for a `width × height` viewport: down to 1×1.
+pub fn level_count(width: u32, height: u32) -> u32 {
+    let mut n = 1;
+    let (mut w, mut h) = (width.max(1), height.max(1));
+    while w > 1 || h > 1 {
+        w = w.div_ceil(2);
+        h = h.div_ceil(2);
+        n += 1;
+    }
+    n
+}
+
+impl DepthPyramid {
+    /// Builds the pyramid from a row-major depth buffer of `width × height` texels.
+    pub fn build(width: u32, height: u32, depth: &[f32]) -> DepthPyramid {
+        assert_eq!(depth.len(), (width * height) as usize, "depth buffer size");
+        let mut levels = vec![PyramidLevel {
+            width,
+            height,
+            depth: depth.to_vec(),
+        }];
+        for _ in 1..level_count(width, height) {
+            let prev = levels.last().expect("level 0 exists");
+            let (w, h) = (prev.width.div_ceil(2), prev.height.div_ceil(2));
+            let mut next = Vec::with_capacity((w * h) as usize);
+            for y in 0..h {
+                for x in 0..w {
+                    next.push(reduce_texel(prev, x, y));
+                }
+            }
+            levels.push(PyramidLevel {
+                width: w,
+                height: h,
+                depth: next,
+            });
+        }
+        DepthPyramid { levels }
+    }
+
+    /// Whether an object covering the pixel rectangle `rect` (inclusive, clamped to the
+    /// viewport) whose nearest point has depth `nearest_depth` is hidden behind the depth
+    /// buffer everywhere in that rectangle.
+    pub fn is_occluded(&self, rect: PixelRect, nearest_depth: f32) -> bool {
+        let level = select_level(rect);
+        let l = &self.levels[level.min(self.levels.len() as u32 - 1) as usize];
+        let (x0, x1) = (rect.x0 >> level, rect.x1 >> level);
+        let (y0, y1) = (rect.y0 >> level, rect.y1 >> level);
+        let mut farthest = f32::INFINITY;
+        for y in y0..=y1.min(l.height - 1) {
+            for x in x0..=x1.min(l.width - 1) {
+                farthest = farthest.min(l.at(x, y));
+            }
+        }
+        nearest_depth < farthest
+    }
+}
+
+/// Minimum of the up to 2×2 texels of `prev` under texel `(x, y)` of the next level.
+pub fn reduce_texel(prev: &PyramidLevel, x: u32, y: u32) -> f32 {
+    let mut m = f32::INFINITY;
+    for dy in 0..2 {
+        for dx in 0..2 {
+            let (sx, sy) = (2 * x + dx, 2 * y + dy);
+            if sx < prev.width && sy < prev.height {
+                m = m.min(prev.at(sx, sy));
+            }
+        }
+    }
+    m
+}
+
+/// The finest level at which `rect` spans at most two texels in each direction (ceil, never
+/// floor: a level too fine would make the test read only part of the rectangle).
+pub fn select_level(rect: PixelRect) -> u32 {
+    let mut level = 0;
+    while (rect.x1 >> level) - (rect.x0 >> level) > 1 || (rect.y1 >> level) - (rect.y0 >> level) > 1
+    {
+        level += 1;
+    }
+    level
+}
+
+/// An inclusive rectangle of pixels, `x0 <= x1`, `y0 <= y1`, y down.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PixelRect {
+    pub x0: u32,
+    pub y0: u32,
+    pub x1: u32,
+    pub y1: u32,
+}
+
+/// Where an axis-aligned box lands on screen.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum BoxProjection {
+    /// Entirely outside the viewport or behind the camera.
+    Outside,
+    /// Some corner is at or behind the near plane: no safe screen rectangle, treat as visible.
+    CrossesNear,
+    /// The pixels the box can cover and the depth of its nearest point.
+    Rect { rect: PixelRect, nearest_depth: f32 },
+}
+
+/// Projects the box `[lo, hi]` with a reversed-Z `view_proj` onto a `width × height` viewport.
+/// The rectangle is conservative: it contains every pixel whose centre the box's rasterisation
+/// could cover.
+pub fn project_box(view_proj: Mat4, lo: Vec3, hi: Vec3, width: u32, height: u32) -> BoxProjection {
+    let mut ndc_min = glam::Vec2::splat(f32::INFINITY);
+    let mut ndc_max = glam::Vec2::splat(f32::NEG_INFINITY);
+    let mut nearest_depth = 0.0f32;
+    let (mut behind, mut inside_near) = (0, 0);
+    for i in 0..8 {
+        let corner = Vec3::new(
+            if i & 1 == 0 { lo.x } else { hi.x },
+            if i & 2 == 0 { lo.y } else { hi.y },
+            if i & 4 == 0 { lo.z } else { hi.z },
+        );
+        let clip: Vec4 = view_proj * corner.extend(1.0);
+        // The same threshold as the GPU cull (`shaders/wgsl/hzb_cull.wgsl`).
+        if clip.w <= citywalk_shaders::constants::HZB_BEHIND_W {
+            behind += 1;
+            continue;
+        }
+        if clip.z > clip.w {
+            // Between the eye and the near plane.
+            inside_near += 1;
+            continue;
+        }
+        let ndc = clip.truncate() / clip.w;
+        ndc_min = ndc_min.min(ndc.truncate());
+        ndc_max = ndc_max.max(ndc.truncate());
+        nearest_depth = nearest_depth.max(ndc.z);
+    }
+    if behind == 8 {
+        return BoxProjection::Outside;
+    }
+    if behind > 0 || inside_near > 0 {
+        // Part of the box is at or behind the eye: its projection is unbounded.
+        return BoxProjection::CrossesNear;
+    }
+    if ndc_max.x < -1.0 || ndc_min.x > 1.0 || ndc_max.y < -1.0 || ndc_min.y > 1.0 {
+        return BoxProjection::Outside;
+    }
+    let (w, h) = (width as f32, height as f32);
+    let to_px = |x: f32| ((x * 0.5 + 0.5) * w).clamp(0.0, w - 1.0);
+    let to_py = |y: f32| ((0.5 - y * 0.5) * h).clamp(0.0, h - 1.0);
+    let rect = PixelRect {
+        x0: to_px(ndc_min.x).floor() as u32,
+        x1: to_px(ndc_max.x).floor() as u32,
+        y0: to_py(ndc_max.y).floor() as u32,
+        y1: to_py(ndc_min.y).floor() as u32,
+    };
+    BoxProjection::Rect {
+        rect,
+        nearest_depth,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn brute_min(w: u32, depth: &[f32], r: PixelRect) -> f32 {
+        let mut m = f32::INFINITY;
+        for y in r.y0..=r.y1 {
+            for x in r.x0..=r.x1 {
+                m = m.min(depth[(y * w + x) as usize]);
+            }
+        }
+        m
+    }
+
+    #[test]
+    fn level_counts() {
+        assert_eq!(level_count(1, 1), 1);
+        assert_eq!(level_count(2, 1), 2);
+        assert_eq!(level_count(1280, 720), 12);
+        assert_eq!(level_count(1001, 777), 11);
+    }
+
+    #[test]
+    fn odd_sizes_keep_the_last_row_and_column() {
+        // 5x3 buffer, everything far (0.0 is infinitely far) except a near last column.
+        let (w, h) = (5, 3);
+        let mut d = vec![0.9; 15];
+        d[14] = 0.1; // bottom-right pixel: far-ish
+        let p = DepthPyramid::build(w, h, &d);
+        assert_eq!(p.levels.last().unwrap().depth, vec![0.1]);
+        assert_eq!(p.levels[1].width, 3);
+        assert_eq!(p.levels[1].height, 2);
+        assert_eq!(p.levels[1].at(2, 1), 0.1);
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 256, rng_seed: proptest::test_runner::RngSeed::Fixed(7), ..ProptestConfig::default() })]
+        /// Every texel is the minimum of exactly the pixels it covers, and the occlusion test
+        /// equals the brute-force test over the whole rectangle for every rectangle.
+        #[test]
+        fn pyramid_is_exact_and_test_is_conservative(
+            w in 1u32..70, h in 1u32..50, seed in 0u64..1000,
+            rx in 0.0f32..1.0, ry in 0.0f32..1.0, rw in 0.0f32..1.0, rh in 0.0f32..1.0,
+            depth in 0.0f32..1.0,
+        ) {
+            let mut state = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            let buffer: Vec<f32> = (0..w * h).map(|_| {
+                state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                (state >> 40) as f32 / (1u64 << 24) as f32
+            }).collect();
+            let p = DepthPyramid::build(w, h, &buffer);
+            for (l, level) in p.levels.iter().enumerate() {
+                for y in 0..level.height {
+                    for x in 0..level.width {
+                        let r = PixelRect {
+                            x0: x << l, y0: y << l,
+                            x1: (((x + 1) << l) - 1).min(w - 1), y1: (((y + 1) << l) - 1).min(h - 1),
+                        };
+                        prop_assert_eq!(level.at(x, y), brute_min(w, &buffer, r));
+                    }
+                }
+            }
+            let x0 = (rx * (w - 1) as f32) as u32;
+            let y0 = (ry * (h - 1) as f32) as u32;
+            let x1 = (x0 + (rw * w as f32) as u32).min(w - 1);
+            let y1 = (y0 + (rh * h as f32) as u32).min(h - 1);
+            let rect = PixelRect { x0, y0, x1, y1 };
+            let hidden = p.is_occluded(rect, depth);
+            // Never claims hidden when some pixel of the rectangle is farther than the object.
+            if hidden {
+                prop_assert!(depth < brute_min(w, &buffer, rect));
+            }
+        }
+    }
+
+    #[test]
+    fn box_projection_cases() {
+        let cam = crate::camera::Camera {
+            position: Vec3::new(0.0, 0.0, 1.7),
+            yaw_rad: 0.0,
+            pitch_rad: 0.0,
+            fov_y_rad: 60f32.to_radians(),
+            near_m: 0.1,
+        };
+        let vp = cam.view_proj(16.0 / 9.0);
+        // A box straight ahead projects to a centred rectangle.
+        match project_box(
+            vp,
+            Vec3::new(10.0, -1.0, 0.7),
+            Vec3::new(12.0, 1.0, 2.7),
+            1280,
+            720,
+        ) {
+            BoxProjection::Rect {
+                rect,
+                nearest_depth,
+            } => {
+                assert!(rect.x0 < 640 && rect.x1 > 640 && rect.y0 < 360 && rect.y1 > 360);
+                assert!((nearest_depth - 0.1 / 10.0).abs() < 1e-4, "{nearest_depth}");
+            }
+            other => panic!("{other:?}"),
+        }
+        // Behind the camera: outside. Around the camera: crosses the near plane.
+        assert_eq!(
+            project_box(
+                vp,
+                Vec3::new(-12.0, -1.0, 0.0),
+                Vec3::new(-10.0, 1.0, 2.0),
+                1280,
+                720
+            ),
+            BoxProjection::Outside
+        );
+        assert_eq!(
+            project_box(
+                vp,
+                Vec3::new(-1.0, -1.0, 0.0),
+                Vec3::new(1.0, 1.0, 3.0),
+                1280,
+                720
+            ),
+            BoxProjection::CrossesNear
+        );
+        assert_eq!(
+            project_box(
+                vp,
+                Vec3::new(10.0, 50.0, 0.0),
+                Vec3::new(12.0, 52.0, 2.0),
+                1280,
+                720
+            ),
+            BoxProjection::Outside
+        );
+    }
+}

@@ -1,0 +1,113 @@
+//! The brute-force renderer: draws every building and the ground, flat-shaded, with no culling.
+//! The reference image for every culling scheme, and the viewer's renderer until culling lands.
+
+use citywalk_shaders::SCENE_WGSL;
+
+use crate::camera::Camera;
+use crate::gpu::GpuContext;
+use crate::render::targets::{DepthTarget, OffscreenTarget, ReadbackError};
+use crate::render::view::{SceneStyle, view_uniforms};
+use crate::scene_gpu::SceneGpu;
+
+/// Flat-shaded scene pass into a colour target of one format, with a reversed-Z
+/// `Depth32Float` depth target.
+#[derive(Debug)]
+pub struct BruteRenderer {
+    pipeline: wgpu::RenderPipeline,
+    view_buffer: wgpu::Buffer,
+    view_group: wgpu::BindGroup,
+    /// The colour format the pipeline was built for.
+    pub colour_format: wgpu::TextureFormat,
+    /// Sky, sun and fog.
+    pub style: SceneStyle,
+}
+
+impl BruteRenderer {
+    /// The colour format of offscreen frames written as PNG.
+    pub const PNG_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
+
+    /// A renderer for colour targets of `colour_format` (`Rgba8UnormSrgb` for PNG frames, the
+    /// surface's format in the viewer; use an sRGB format so the shader's linear colours are
+    /// encoded).
+    pub fn new(gpu: &GpuContext, colour_format: wgpu::TextureFormat) -> BruteRenderer {
+        let device = &gpu.device;
+        let layout = super::view_bind_group_layout(device, "brute view");
+        let (view_buffer, view_group) = super::view_buffer_and_group(device, &layout, "brute view");
+        let pipeline =
+            super::scene_pipeline(device, "brute scene", SCENE_WGSL, &layout, colour_format);
+        BruteRenderer {
+            pipeline,
+            view_buffer,
+            view_group,
+            colour_format,
+            style: SceneStyle::default(),
+        }
+    }
+
+    /// Records the pass: clears colour to the sky and depth to reversed-Z infinity, then draws
+    /// the ground and every building. `colour` and `depth` must be `width × height`.
+    ///
+    /// The view uniforms are written through the queue, so submit this encoder before
+    /// recording another frame with this renderer.
+    pub fn encode(
+        &self,
+        gpu: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        scene: &SceneGpu,
+        camera: &Camera,
+        colour: &wgpu::TextureView,
+        depth: &DepthTarget,
+    ) {
+        let uniforms = view_uniforms(camera, depth.width, depth.height, &self.style);
+        gpu.queue
+            .write_buffer(&self.view_buffer, 0, bytemuck::bytes_of(&uniforms));
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("brute scene"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: colour,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(self.style.clear_colour()),
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: Some(depth.attachment()),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, &self.view_group, &[]);
+        scene.bind(&mut pass);
+        scene.draw_all(&mut pass);
+    }
+
+    /// Renders one frame offscreen and reads it back as tightly packed RGBA8 (sRGB) rows.
+    /// The renderer must have been made for `Rgba8UnormSrgb`.
+    pub fn render_rgba(
+        &self,
+        gpu: &GpuContext,
+        scene: &SceneGpu,
+        camera: &Camera,
+        width: u32,
+        height: u32,
+    ) -> Result<Vec<u8>, ReadbackError> {
+        let target = OffscreenTarget::new(gpu, width, height, self.colour_format)?;
+        let mut encoder = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("brute frame"),
+            });
+        self.encode(
+            gpu,
+            &mut encoder,
+            scene,
+            camera,
+            &target.colour_view,
+            &target.depth,
+        );
+        gpu.queue.submit([encoder.finish()]);
+        target.read_colour(gpu)
+    }
+}

@@ -1,0 +1,70 @@
+//! The interactive viewer: a winit window with a wgpu surface, walk and fly modes
+//! ([`crate::controller`]), and a title bar showing mode, position and frame rate.
+//!
+//! `--screenshot` mode renders a fixed number of frames through the real window and surface,
+//! writes the last one to PNG and exits; the Xvfb test drives the viewer that way.
+
+mod app;
+pub mod input;
+pub mod screenshot;
+mod surface;
+
+use std::path::PathBuf;
+
+use citywalk_scenes::City;
+
+use crate::controller::Mode;
+use crate::gpu::GpuError;
+
+/// How to run the viewer.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ViewerOptions {
+    /// The mode to start in.
+    pub mode: Mode,
+    /// Window size in physical pixels.
+    pub size_px: (u32, u32),
+    /// Render this many frames, save the last and exit.
+    pub screenshot: Option<ScreenshotRequest>,
+    /// A name for the title bar (the scene's file name).
+    pub title: String,
+}
+
+/// `--screenshot PATH --frames N`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScreenshotRequest {
+    pub path: PathBuf,
+    /// Frames to render before the one saved (at least 1).
+    pub frames: u32,
+}
+
+/// Why the viewer stopped with an error.
+#[derive(Debug, thiserror::Error)]
+pub enum ViewerError {
+    #[error("event loop: {0}")]
+    EventLoop(#[from] winit::error::EventLoopError),
+    #[error("creating the window: {0}")]
+    Window(#[from] winit::error::OsError),
+    #[error("window surface: {0}")]
+    Surface(String),
+    #[error(transparent)]
+    Gpu(#[from] GpuError),
+    #[error("screenshot: {0}")]
+    Screenshot(#[from] screenshot::ScreenshotError),
+    #[error("writing screenshot {path}: {source}")]
+    Png {
+        path: PathBuf,
+        #[source]
+        source: image::ImageError,
+    },
+    #[error("the window closed after {drawn} of {wanted} frames; no screenshot was taken")]
+    ScreenshotNotTaken { drawn: u32, wanted: u32 },
+}
+
+/// Opens the window and runs until it is closed (or the screenshot is written).
+pub fn run(city: City, options: ViewerOptions) -> Result<(), ViewerError> {
+    let event_loop = winit::event_loop::EventLoop::new()?;
+    event_loop.set_control_flow(winit::event_loop::ControlFlow::Poll);
+    let mut app = app::App::new(city, options);
+    event_loop.run_app(&mut app)?;
+    app.finish()
+}

@@ -1,0 +1,371 @@
+//! The legibility cluster tree (Chang et al. 2008; Yang et al. 2011): single-link clustering of
+//! the buildings, merged and simplified cluster hulls, depth reduction and balancing, per-node
+//! errors, landmarks and cluster meshes. The output types live in
+//! [`citywalk_scenes::cluster_tree`] so the runtime reads them without linking this crate.
+//!
+//! Pipeline ([`build_cluster_tree`]):
+//! 1. leaves: one ring per building in one shared vertex array ([`leaves`]);
+//! 2. single-link clustering inside blocks, then between blocks ([`linkage`]);
+//! 3. hulls merged bottom-up along the merge order ([`merge`]) and simplified ([`simplify`]);
+//! 4. depth reduction and balancing ([`depth`]);
+//! 5. node data: heights, errors (made monotone), bounds, landmarks, meshes.
+
+pub mod depth;
+pub mod geom;
+pub mod leaves;
+pub mod linkage;
+pub mod merge;
+pub mod simplify;
+
+use citywalk_scenes::City;
+use citywalk_scenes::city::TriangleMesh;
+pub use citywalk_scenes::cluster_tree::{ClusterDistance, ClusterParams};
+use citywalk_scenes::cluster_tree::{ClusterNode, ClusterStats, ClusterTree, HullSimplify};
+use citywalk_scenes::extrude::extrude_polygon;
+
+use geom::{convex_hull, ring_bounds, signed_area};
+use leaves::{LeafKind, VertexStore};
+
+/// Why a cluster tree could not be built.
+#[derive(Debug, thiserror::Error)]
+pub enum ClusterError {
+    #[error("the city has no buildings")]
+    NoBuildings,
+    #[error("{got} block ids for {expected} buildings")]
+    BlockCount { expected: usize, got: usize },
+    #[error("invalid cluster parameter: {0}")]
+    InvalidParams(String),
+    #[error("Delaunay triangulation of the footprints failed: {0}")]
+    Triangulation(String),
+}
+
+fn check_params(p: &ClusterParams) -> Result<(), ClusterError> {
+    let bad = |what: &str| Err(ClusterError::InvalidParams(what.to_string()));
+    if !(0.0..=1.0).contains(&p.adjacency_lambda) {
+        return bad("adjacency_lambda must be in [0, 1] (Yang §3.1)");
+    }
+    if !(p.concave_area_divisor.is_finite() && p.concave_area_divisor > 0.0) {
+        return bad("concave_area_divisor must be positive");
+    }
+    if !(p.straight_angle_deg.is_finite() && p.straight_angle_deg <= 180.0) {
+        return bad("straight_angle_deg must be at most 180");
+    }
+    if !(0.0..=1.0).contains(&p.chang_keep_fraction)
+        || !(0.0..=1.0).contains(&p.chang_min_input_fraction)
+    {
+        return bad("Chang's fractions must be in [0, 1]");
+    }
+    if p.depth_lambda.is_some_and(|l| !(l.is_finite() && l > 0.0)) {
+        return bad("depth_lambda must be positive");
+    }
+    if !(p.landmark_height_ratio.is_finite() && p.landmark_height_ratio >= 1.0) {
+        return bad("landmark_height_ratio must be at least 1");
+    }
+    Ok(())
+}
+
+/// Builds the cluster tree of `city`. `blocks[i]` is the urban block of building `i`
+/// (`UrbanBlocks::block_of_building`; all zeros for one block). No node below the block level
+/// holds buildings of two blocks.
+pub fn build_cluster_tree(
+    city: &City,
+    blocks: &[u32],
+    params: &ClusterParams,
+) -> Result<ClusterTree, ClusterError> {
+    check_params(params)?;
+    let n = city.buildings.len();
+    if n == 0 {
+        return Err(ClusterError::NoBuildings);
+    }
+    if blocks.len() != n {
+        return Err(ClusterError::BlockCount {
+            expected: n,
+            got: blocks.len(),
+        });
+    }
+    let mut stats = ClusterStats::default();
+    let mut store = VertexStore::default();
+    let leaves = leaves::build_leaves(&mut store, &city.buildings);
+    for (i, l) in leaves.iter().enumerate() {
+        match l.kind {
+            LeafKind::Exterior => {}
+            LeafKind::Hull => stats.multi_part_buildings += 1,
+            LeafKind::Degenerate => stats.degenerate_buildings.push(city.buildings[i].id),
+        }
+    }
+    if !stats.degenerate_buildings.is_empty() {
+        tracing::warn!(
+            count = stats.degenerate_buildings.len(),
+            "degenerate footprints replaced by their bounding boxes grown by 0.25 m"
+        );
+    }
+    let merges = linkage::single_link(
+        &leaves,
+        &store.verts,
+        blocks,
+        params.distance,
+        params.adjacency_lambda,
+    )?;
+
+    // Hulls along the merge order.
+    let input_edges: usize = leaves.iter().map(|l| l.ring.len()).sum();
+    let mut rings: Vec<Vec<u32>> = leaves.iter().map(|l| l.ring.clone()).collect();
+    let mut dist = vec![0.0f64; n];
+    let mut bin_children: Vec<[u32; 2]> = Vec::with_capacity(merges.len());
+    let mut areas: Vec<f64> = rings.iter().map(|r| signed_area(&store.verts, r)).collect();
+    let mut level_area_sum: f64 = areas.iter().sum();
+    let mut level_count = n as f64;
+    for m in &merges {
+        let (a, b) = (m.a as usize, m.b as usize);
+        let merged = merge::merge_rings(
+            &mut store,
+            &rings[a],
+            &rings[b],
+            params.merge,
+            params.adjacency_lambda,
+        );
+        if merged.fallback {
+            stats.merge_fallbacks += 1;
+        }
+        let ring = match params.simplify {
+            HullSimplify::ChangSmallestArea => {
+                let hull_len = convex_hull(&store.verts, merged.ring.iter().copied()).len();
+                let target = ((params.chang_keep_fraction
+                    * (rings[a].len() + rings[b].len()) as f64)
+                    .ceil() as usize)
+                    .max((params.chang_min_input_fraction * input_edges as f64).ceil() as usize)
+                    .max(hull_len);
+                simplify::simplify_chang(&store.verts, &merged.ring, target)
+            }
+            HullSimplify::YangConcaveTriangles => {
+                let a_ave = level_area_sum / level_count.max(1.0);
+                simplify::simplify_yang(
+                    &store.verts,
+                    &merged.ring,
+                    a_ave / params.concave_area_divisor,
+                    params.straight_angle_deg,
+                )
+            }
+        };
+        // Growth-only removals keep the ring simple by construction; verify, and keep the
+        // unsimplified ring (counted) should that ever fail.
+        let ring = if geom::ring_is_simple_ccw(&store.verts, &ring) {
+            ring
+        } else {
+            stats.simplify_fallbacks += 1;
+            merged.ring
+        };
+        let area = signed_area(&store.verts, &ring);
+        level_area_sum += area - areas[a] - areas[b];
+        level_count -= 1.0;
+        areas.push(area);
+        rings.push(ring);
+        dist.push(m.distance.max(dist[a]).max(dist[b]));
+        bin_children.push([m.a, m.b]);
+    }
+    stats.binary_inner_nodes = merges.len() as u32;
+
+    // Block roots stay in the reduced tree: the block level is a level of its own.
+    let total = rings.len();
+    let mut force_keep = vec![false; total];
+    let mut within = vec![true; total];
+    for (k, m) in merges.iter().enumerate() {
+        within[n + k] = m.within_block && within[m.a as usize] && within[m.b as usize];
+    }
+    for (k, m) in merges.iter().enumerate() {
+        if !within[n + k] {
+            for c in [m.a, m.b] {
+                if within[c as usize] {
+                    force_keep[c as usize] = true;
+                }
+            }
+        }
+    }
+    let reduced = depth::reduce(n, &bin_children, &dist, &force_keep, params.depth_lambda);
+
+    // Final nodes in depth-first preorder, so every node's buildings are a contiguous range.
+    let mut order: Vec<(u32, u32, u32)> = Vec::new(); // (binary id, parent final id, depth)
+    let mut stack = vec![(total as u32 - 1, u32::MAX, 0u32)];
+    while let Some((x, parent, d)) = stack.pop() {
+        let id = order.len() as u32;
+        order.push((x, parent, d));
+        for &c in reduced.children[x as usize].iter().rev() {
+            stack.push((c, id, d + 1));
+        }
+    }
+    let mut children: Vec<Vec<u32>> = vec![Vec::new(); order.len()];
+    for (id, &(_, parent, _)) in order.iter().enumerate() {
+        if parent != u32::MAX {
+            children[parent as usize].push(id as u32);
+        }
+    }
+    let mut building_order = Vec::with_capacity(n);
+    let mut range = vec![(0u32, 0u32); order.len()];
+    for (id, &(x, _, _)) in order.iter().enumerate() {
+        if (x as usize) < n {
+            range[id] = (building_order.len() as u32, building_order.len() as u32 + 1);
+            building_order.push(city.buildings[x as usize].id);
+        }
+    }
+    // Ranges of inner nodes, bottom-up (children come after parents in preorder).
+    for id in (0..order.len()).rev() {
+        if let (Some(&f), Some(&l)) = (children[id].first(), children[id].last()) {
+            range[id] = (range[f as usize].0, range[l as usize].1);
+        }
+    }
+
+    let mut nodes: Vec<ClusterNode> = Vec::with_capacity(order.len());
+    for (id, &(x, _, d)) in order.iter().enumerate() {
+        nodes.push(ClusterNode {
+            footprint: vec![rings[x as usize].clone()],
+            area_m2: areas[x as usize],
+            height_m: 0.0,
+            h_min_m: 0.0,
+            h_max_m: 0.0,
+            delta_h_m: 0.0,
+            delta_a_m2: 0.0,
+            neg_space_box_m: [0.0; 3],
+            bounds_min: [0.0; 3],
+            bounds_max: [0.0; 3],
+            children: children[id].clone(),
+            buildings: range[id],
+            depth: d,
+            merge_distance: dist[x as usize],
+            landmarks: Vec::new(),
+            mesh: TriangleMesh::default(),
+            block: None,
+        });
+    }
+    fill_node_data(
+        city,
+        blocks,
+        &store.verts,
+        &leaves,
+        &building_order,
+        &mut nodes,
+        params,
+    );
+
+    Ok(ClusterTree {
+        vertices: store.verts,
+        nodes,
+        root: 0,
+        building_order,
+        params: params.clone(),
+        stats,
+    })
+}
+
+/// Heights (Chang eq. 5), errors (Yang §4, Chang §8, made monotone), bounds, landmarks and
+/// meshes, bottom-up.
+fn fill_node_data(
+    city: &City,
+    blocks: &[u32],
+    verts: &[geom::Pt],
+    leaves: &[leaves::Leaf],
+    building_order: &[citywalk_scenes::BuildingId],
+    nodes: &mut [ClusterNode],
+    params: &ClusterParams,
+) {
+    // Per node: Σ area·top, Σ area, min base.
+    let mut sums = vec![(0.0f64, 0.0f64, f32::INFINITY); nodes.len()];
+    for id in (0..nodes.len()).rev() {
+        let (s, e) = nodes[id].buildings;
+        let node_blocks = || {
+            building_order[s as usize..e as usize]
+                .iter()
+                .map(|b| blocks[b.index()])
+        };
+        let first_block = node_blocks().next();
+        nodes[id].block = first_block.filter(|&f| node_blocks().all(|b| b == f));
+        if nodes[id].children.is_empty() {
+            let bi = building_order[s as usize].index();
+            let b = &city.buildings[bi];
+            let area_b = leaves[bi].area_m2;
+            let (lo, hi) = b.bounds();
+            let n = &mut nodes[id];
+            n.height_m = b.top_m;
+            n.h_min_m = b.top_m;
+            n.h_max_m = b.top_m;
+            n.delta_h_m = 0.0;
+            n.delta_a_m2 = (n.area_m2 - area_b).max(0.0);
+            n.bounds_min = lo.to_array();
+            n.bounds_max = hi.to_array();
+            sums[id] = (area_b * f64::from(b.top_m), area_b, b.base_m);
+        } else {
+            let ch = nodes[id].children.clone();
+            let mut acc = (0.0, 0.0, f32::INFINITY);
+            let (mut hmin, mut hmax) = (f32::INFINITY, f32::NEG_INFINITY);
+            let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+            let (mut dh, mut da, mut bx) = (0.0f32, 0.0f64, [0.0f32; 3]);
+            for &c in &ch {
+                let (cs, cn) = (sums[c as usize], &nodes[c as usize]);
+                acc = (acc.0 + cs.0, acc.1 + cs.1, acc.2.min(cs.2));
+                hmin = hmin.min(cn.h_min_m);
+                hmax = hmax.max(cn.h_max_m);
+                for k in 0..3 {
+                    lo[k] = lo[k].min(cn.bounds_min[k]);
+                    hi[k] = hi[k].max(cn.bounds_max[k]);
+                    bx[k] = bx[k].max(cn.neg_space_box_m[k]);
+                }
+                dh = dh.max(cn.delta_h_m);
+                da = da.max(cn.delta_a_m2);
+            }
+            sums[id] = acc;
+            let n = &mut nodes[id];
+            // Chang et al. 2008 eq. 5 / Yang eq. 5: area-weighted mean height.
+            n.height_m = if acc.1 > 0.0 {
+                (acc.0 / acc.1) as f32
+            } else {
+                0.5 * (hmin + hmax)
+            };
+            n.h_min_m = hmin;
+            n.h_max_m = hmax;
+            // Monotone errors: never below a child's (only ever overstates the error).
+            n.delta_h_m = (hmax - hmin).max(dh);
+            n.delta_a_m2 = (n.area_m2 - acc.1).max(0.0).max(da);
+            n.bounds_min = lo;
+            n.bounds_max = hi;
+            // Chang et al. 2008 §8: the negative space as a box with the hull AABB's aspect.
+            let (rlo, rhi) = ring_bounds(verts, &n.footprint[0]);
+            let (w0, d0) = ((rhi[0] - rlo[0]).max(1e-6), (rhi[1] - rlo[1]).max(1e-6));
+            let raw_da = (n.area_m2 - acc.1).max(0.0);
+            let raw = [
+                (raw_da * w0 / d0).sqrt() as f32,
+                (raw_da * d0 / w0).sqrt() as f32,
+                (n.height_m - acc.2).max(0.0),
+            ];
+            for k in 0..3 {
+                n.neg_space_box_m[k] = raw[k].max(bx[k]);
+            }
+            // Chang et al. 2008 §8: landmark candidates, much taller than the cluster.
+            let threshold = n.height_m.max(0.0) * params.landmark_height_ratio as f32;
+            let (s, e) = n.buildings;
+            n.landmarks = building_order[s as usize..e as usize]
+                .iter()
+                .copied()
+                .filter(|b| {
+                    let t = city.buildings[b.index()].top_m;
+                    t > n.height_m && t >= threshold
+                })
+                .collect();
+            n.mesh = cluster_mesh(verts, &n.footprint[0], acc.2.min(n.height_m), n.height_m);
+        }
+    }
+}
+
+/// The hull extruded from `base_m` to `top_m` (walls and a constrained-Delaunay roof).
+fn cluster_mesh(verts: &[geom::Pt], ring: &[u32], base_m: f32, top_m: f32) -> TriangleMesh {
+    let coords: Vec<geo::Coord<f64>> = ring
+        .iter()
+        .map(|&i| {
+            let p = verts[i as usize];
+            geo::Coord { x: p[0], y: p[1] }
+        })
+        .collect();
+    let polygon = geo::Polygon::new(geo::LineString::from(coords), Vec::new());
+    extrude_polygon(&polygon, base_m, top_m)
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,266 @@
+//! Simplifying a merged hull without creating vertices and without shrinking it.
+//!
+//! This work is based on:
+//! - Chang et al. 2008 §6: repeatedly remove the vertex whose removal adds the smallest
+//!   positive area, never self-intersecting; stop at max(2/3 of the children's edges, 1 % of
+//!   the input edges, the convex hull's edge count).
+//! - Yang et al. 2011 §3.2 (after Visvalingam & Whyatt 1993): remove the smallest concave
+//!   triangle while its area is under δa = a_ave/50, then remove vertices between two sides
+//!   meeting at more than 175°.
+//!
+//! Only reflex (concave) or collinear vertices are removed, and only when the triangle they
+//! cut off holds no other vertex of the ring. The new ring is then the old ring plus that
+//! triangle: still simple, and still containing every building (the papers' "non
+//! self-intersecting" and "contains its buildings" by construction). A convex vertex at more
+//! than 175° is kept: removing it would cut a corner off a building.
+
+use std::cmp::Ordering;
+use std::collections::BinaryHeap;
+
+use super::geom::{Pt, orient};
+
+#[derive(Debug, Clone, Copy)]
+struct Cand {
+    area: f64,
+    at: u32,
+    stamp: u32,
+}
+
+impl PartialEq for Cand {
+    fn eq(&self, o: &Self) -> bool {
+        self.cmp(o) == Ordering::Equal
+    }
+}
+impl Eq for Cand {}
+impl PartialOrd for Cand {
+    fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
+        Some(self.cmp(o))
+    }
+}
+impl Ord for Cand {
+    fn cmp(&self, o: &Self) -> Ordering {
+        o.area.total_cmp(&self.area).then(o.at.cmp(&self.at))
+    }
+}
+
+/// A ring as a doubly linked list with a removal heap.
+struct Linked<'a> {
+    verts: &'a [Pt],
+    ring: &'a [u32],
+    prev: Vec<u32>,
+    next: Vec<u32>,
+    alive: Vec<bool>,
+    stamp: Vec<u32>,
+    len: usize,
+}
+
+impl<'a> Linked<'a> {
+    fn new(verts: &'a [Pt], ring: &'a [u32]) -> Self {
+        let n = ring.len() as u32;
+        Linked {
+            verts,
+            ring,
+            prev: (0..n).map(|i| (i + n - 1) % n).collect(),
+            next: (0..n).map(|i| (i + 1) % n).collect(),
+            alive: vec![true; n as usize],
+            stamp: vec![0; n as usize],
+            len: n as usize,
+        }
+    }
+
+    fn p(&self, i: u32) -> Pt {
+        self.verts[self.ring[i as usize] as usize]
+    }
+
+    /// Area the ring gains when vertex `i` is removed, if it is reflex or collinear between
+    /// its neighbours; `None` for a convex vertex.
+    fn gain(&self, i: u32) -> Option<f64> {
+        let (a, v, b) = (
+            self.p(self.prev[i as usize]),
+            self.p(i),
+            self.p(self.next[i as usize]),
+        );
+        let o = orient(a, v, b);
+        if o > 0.0 {
+            return None;
+        }
+        if o == 0.0 {
+            // Collinear: removable only if v lies between a and b (not a spike).
+            let dot = (a[0] - v[0]) * (b[0] - v[0]) + (a[1] - v[1]) * (b[1] - v[1]);
+            return (dot < 0.0).then_some(0.0);
+        }
+        Some(0.5 * ((b[0] - a[0]) * (v[1] - a[1]) - (b[1] - a[1]) * (v[0] - a[0])).abs())
+    }
+
+    /// Angle at vertex `i` between its two sides, degrees in [0, 180].
+    fn angle_deg(&self, i: u32) -> f64 {
+        let (a, v, b) = (
+            self.p(self.prev[i as usize]),
+            self.p(i),
+            self.p(self.next[i as usize]),
+        );
+        let u = [a[0] - v[0], a[1] - v[1]];
+        let w = [b[0] - v[0], b[1] - v[1]];
+        let cross = u[0] * w[1] - u[1] * w[0];
+        let dot = u[0] * w[0] + u[1] * w[1];
+        cross.abs().atan2(dot).to_degrees()
+    }
+
+    /// Whether removing `i` keeps the ring simple: no other vertex in the closed triangle.
+    fn removable(&self, i: u32) -> bool {
+        if self.len <= 3 {
+            return false;
+        }
+        let (ia, ib) = (self.prev[i as usize], self.next[i as usize]);
+        let (a, v, b) = (self.p(ia), self.p(i), self.p(ib));
+        let lo = [a[0].min(v[0]).min(b[0]), a[1].min(v[1]).min(b[1])];
+        let hi = [a[0].max(v[0]).max(b[0]), a[1].max(v[1]).max(b[1])];
+        // The triangle a, b, v is counter-clockwise for a reflex v.
+        let mut k = self.next[ib as usize];
+        while k != ia {
+            let q = self.p(k);
+            if q[0] >= lo[0] && q[0] <= hi[0] && q[1] >= lo[1] && q[1] <= hi[1] {
+                let inside =
+                    orient(a, b, q) >= 0.0 && orient(b, v, q) >= 0.0 && orient(v, a, q) >= 0.0;
+                let on_ab = orient(a, b, q) == 0.0
+                    && q[0] >= a[0].min(b[0])
+                    && q[0] <= a[0].max(b[0])
+                    && q[1] >= a[1].min(b[1])
+                    && q[1] <= a[1].max(b[1]);
+                if inside || on_ab || q == a || q == b || q == v {
+                    return false;
+                }
+            }
+            k = self.next[k as usize];
+        }
+        true
+    }
+
+    fn remove(&mut self, i: u32) {
+        let (a, b) = (self.prev[i as usize], self.next[i as usize]);
+        self.next[a as usize] = b;
+        self.prev[b as usize] = a;
+        self.alive[i as usize] = false;
+        self.stamp[a as usize] += 1;
+        self.stamp[b as usize] += 1;
+        self.len -= 1;
+    }
+
+    fn push(&self, heap: &mut BinaryHeap<Cand>, i: u32, filter: &impl Fn(&Self, u32, f64) -> bool) {
+        if let Some(area) = self.gain(i)
+            && filter(self, i, area)
+        {
+            heap.push(Cand {
+                area,
+                at: i,
+                stamp: self.stamp[i as usize],
+            });
+        }
+    }
+
+    /// Removes admissible vertices smallest gain first until `len <= target`.
+    fn run(&mut self, target: usize, filter: impl Fn(&Self, u32, f64) -> bool) {
+        let mut heap = BinaryHeap::new();
+        for i in 0..self.ring.len() as u32 {
+            self.push(&mut heap, i, &filter);
+        }
+        while self.len > target.max(3) {
+            let Some(c) = heap.pop() else { break };
+            if !self.alive[c.at as usize] || self.stamp[c.at as usize] != c.stamp {
+                continue;
+            }
+            if !self.removable(c.at) {
+                continue;
+            }
+            let (a, b) = (self.prev[c.at as usize], self.next[c.at as usize]);
+            self.remove(c.at);
+            self.push(&mut heap, a, &filter);
+            self.push(&mut heap, b, &filter);
+        }
+    }
+
+    fn into_ring(self) -> Vec<u32> {
+        let Some(start) = (0..self.ring.len()).find(|&i| self.alive[i]) else {
+            return Vec::new();
+        };
+        let mut out = Vec::with_capacity(self.len);
+        let mut k = start as u32;
+        loop {
+            out.push(self.ring[k as usize]);
+            k = self.next[k as usize];
+            if k as usize == start {
+                break;
+            }
+        }
+        out
+    }
+}
+
+/// Chang et al. 2008 §6: removes smallest-gain vertices until the ring has `target` vertices
+/// or no vertex can be removed.
+pub fn simplify_chang(verts: &[Pt], ring: &[u32], target: usize) -> Vec<u32> {
+    let mut l = Linked::new(verts, ring);
+    l.run(target, |_, _, _| true);
+    l.into_ring()
+}
+
+/// Yang et al. 2011 §3.2: removes concave triangles under `delta_a_m2` (smallest first), then
+/// reflex or straight vertices whose sides meet at more than `straight_deg`.
+pub fn simplify_yang(verts: &[Pt], ring: &[u32], delta_a_m2: f64, straight_deg: f64) -> Vec<u32> {
+    let mut l = Linked::new(verts, ring);
+    l.run(3, |_, _, area| area < delta_a_m2);
+    let ring2 = l.into_ring();
+    let mut l = Linked::new(verts, &ring2);
+    l.run(3, |l, i, _| l.angle_deg(i) > straight_deg);
+    l.into_ring()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cluster::geom::{ring_contains_ring, ring_is_simple_ccw, signed_area};
+
+    /// A comb: a 10 × 2 bar with three 1 m wide teeth of height 3 and notches between.
+    fn comb() -> (Vec<Pt>, Vec<u32>) {
+        let pts: Vec<Pt> = vec![
+            [0.0, 0.0],
+            [10.0, 0.0],
+            [10.0, 5.0],
+            [9.0, 5.0],
+            [9.0, 2.0],
+            [5.5, 2.0],
+            [5.5, 5.0],
+            [4.5, 5.0],
+            [4.5, 2.0],
+            [1.0, 2.0],
+            [1.0, 5.0],
+            [0.0, 5.0],
+        ];
+        let ring = (0..pts.len() as u32).collect();
+        (pts, ring)
+    }
+
+    #[test]
+    fn chang_grows_and_stops_at_target() {
+        let (v, r) = comb();
+        let s = simplify_chang(&v, &r, 8);
+        assert!(s.len() <= 8 && s.len() >= 4, "{s:?}");
+        assert!(ring_is_simple_ccw(&v, &s));
+        assert!(ring_contains_ring(&v, &s, &r));
+        assert!(signed_area(&v, &s) > signed_area(&v, &r));
+        let all = simplify_chang(&v, &r, 3);
+        assert_eq!(all.len(), 4, "converges to the convex hull: {all:?}");
+    }
+
+    #[test]
+    fn yang_removes_only_small_concavities() {
+        let (v, r) = comb();
+        // Notch triangles: (9,2),(5.5,2),(5.5,5) = 5.25 m²; a threshold of 1 m² keeps them.
+        let s = simplify_yang(&v, &r, 1.0, 175.0);
+        assert_eq!(s.len(), r.len());
+        let s = simplify_yang(&v, &r, 6.0, 175.0);
+        assert!(s.len() < r.len());
+        assert!(ring_is_simple_ccw(&v, &s));
+        assert!(ring_contains_ring(&v, &s, &r));
+    }
+}

@@ -1,0 +1,447 @@
+//! Cluster-tree tests: hand-made, random (proptest, fixed seed), street-split, degenerate,
+//! generated and real (Chelsea) cities, all through `ClusterTree::check_invariants`.
+
+use std::collections::BTreeMap;
+
+use citywalk_scenes::cluster_tree::{ClusterDistance, ClusterTree, HullMerge, HullSimplify};
+use citywalk_scenes::{
+    Building, BuildingId, BuildingPart, City, Frame, HeightSource, LoadReport, Street, StreetClass,
+};
+use geo::{LineString, MultiPolygon, Polygon};
+use proptest::prelude::*;
+use proptest::test_runner::{Config, RngAlgorithm, TestRng, TestRunner};
+
+use super::*;
+
+fn building(i: usize, ring: Vec<(f64, f64)>, top_m: f32) -> Building {
+    let fp = MultiPolygon(vec![Polygon::new(LineString::from(ring), Vec::new())]);
+    Building {
+        id: BuildingId(i as u32),
+        source_id: format!("test/{i}"),
+        footprint: fp.clone(),
+        parts: vec![BuildingPart {
+            source_id: format!("test/{i}"),
+            footprint: fp,
+            base_m: 0.0,
+            top_m,
+        }],
+        base_m: 0.0,
+        top_m,
+        height_source: HeightSource::Tagged,
+        mesh: None,
+        tags: BTreeMap::new(),
+    }
+}
+
+fn rect(i: usize, x0: f64, y0: f64, x1: f64, y1: f64, top_m: f32) -> Building {
+    building(
+        i,
+        vec![(x0, y0), (x1, y0), (x1, y1), (x0, y1), (x0, y0)],
+        top_m,
+    )
+}
+
+fn city(buildings: Vec<Building>, streets: Vec<Street>) -> City {
+    let n = buildings.len();
+    City {
+        frame: Frame::local(),
+        buildings,
+        streets,
+        report: LoadReport {
+            buildings_found: n,
+            buildings_loaded: n,
+            ..LoadReport::default()
+        },
+    }
+}
+
+fn all_params() -> Vec<ClusterParams> {
+    let mut out = Vec::new();
+    for distance in [
+        ClusterDistance::YangAdjacent,
+        ClusterDistance::ChangSizeWeighted,
+    ] {
+        for merge in [HullMerge::YangDelaunay, HullMerge::ChangCases] {
+            for simplify in [
+                HullSimplify::YangConcaveTriangles,
+                HullSimplify::ChangSmallestArea,
+            ] {
+                for depth_lambda in [Some(1.5), None] {
+                    out.push(ClusterParams {
+                        distance,
+                        merge,
+                        simplify,
+                        depth_lambda,
+                        ..ClusterParams::default()
+                    });
+                }
+            }
+        }
+    }
+    out
+}
+
+fn build_checked(c: &City, blocks: &[u32], p: &ClusterParams) -> ClusterTree {
+    let tree = build_cluster_tree(c, blocks, p).expect("cluster tree");
+    if let Err(e) = tree.check_invariants(c) {
+        panic!("{p:?}: {e}");
+    }
+    tree
+}
+
+/// Three rows of houses with an L-shaped building and a tower.
+fn hand_city() -> City {
+    let mut b = Vec::new();
+    for row in 0..3 {
+        for col in 0..6 {
+            let (x, y) = (col as f64 * 14.0, row as f64 * 30.0);
+            b.push(rect(
+                b.len(),
+                x,
+                y,
+                x + 10.0,
+                y + 12.0,
+                9.0 + (col % 3) as f32 * 3.0,
+            ));
+        }
+    }
+    let i = b.len();
+    b.push(building(
+        i,
+        vec![
+            (100.0, 0.0),
+            (130.0, 0.0),
+            (130.0, 10.0),
+            (110.0, 10.0),
+            (110.0, 40.0),
+            (100.0, 40.0),
+            (100.0, 0.0),
+        ],
+        15.0,
+    ));
+    let i = b.len();
+    b.push(rect(i, 115.0, 20.0, 125.0, 30.0, 120.0));
+    city(b, Vec::new())
+}
+
+#[test]
+fn hand_made_city_all_parameter_sets() {
+    let c = hand_city();
+    let blocks = vec![0; c.buildings.len()];
+    for p in all_params() {
+        let tree = build_checked(&c, &blocks, &p);
+        let leaves = tree.nodes.iter().filter(|n| n.is_leaf()).count();
+        assert_eq!(leaves, c.buildings.len());
+        let root = &tree.nodes[tree.root as usize];
+        assert!(
+            root.area_m2
+                >= c.buildings
+                    .iter()
+                    .map(Building::footprint_area_m2)
+                    .sum::<f64>()
+        );
+        assert!(root.h_max_m == 120.0 && root.h_min_m == 9.0);
+        // The tower is a landmark of the root (much taller than the area-weighted height).
+        assert!(
+            root.landmarks.contains(&BuildingId(19)),
+            "{:?}",
+            root.landmarks
+        );
+        assert!(!root.mesh.indices.is_empty());
+        if p.depth_lambda.is_some() {
+            assert!(tree.max_depth() < 19, "depth {}", tree.max_depth());
+        } else {
+            assert!(
+                tree.nodes
+                    .iter()
+                    .all(|n| n.is_leaf() || n.children.len() == 2)
+            );
+        }
+    }
+}
+
+#[test]
+fn rows_merge_before_crossing_wide_gaps() {
+    // Yang's adjacent distance: the houses of a row (4 m apart, facing sides parallel)
+    // cluster before rows join across 18 m.
+    let c = hand_city();
+    let tree = build_checked(
+        &c,
+        &vec![0; c.buildings.len()],
+        &ClusterParams {
+            depth_lambda: None,
+            ..ClusterParams::default()
+        },
+    );
+    let row_of = |b: BuildingId| if b.0 < 18 { Some(b.0 / 6) } else { None };
+    for n in &tree.nodes {
+        let bs = &tree.building_order[n.buildings.0 as usize..n.buildings.1 as usize];
+        if bs.len() <= 6 {
+            let rows: std::collections::BTreeSet<_> =
+                bs.iter().filter_map(|&b| row_of(b)).collect();
+            assert!(rows.len() <= 1, "small cluster spans rows {rows:?}");
+        }
+    }
+}
+
+/// Two rows of houses 6 m apart across a street, 10 m apart along it: without the street as
+/// a block boundary, single-link clustering pairs houses across the street first.
+fn street_city() -> City {
+    let mut b = Vec::new();
+    for k in 0..8 {
+        let y = k as f64 * 18.0;
+        b.push(rect(b.len(), -13.0, y, -3.0, y + 8.0, 10.0));
+        b.push(rect(b.len(), 3.0, y, 13.0, y + 8.0, 10.0));
+    }
+    let street = |id: &str, pts: Vec<(f64, f64)>| Street {
+        source_id: format!("test/{id}"),
+        class: StreetClass::Residential,
+        name: None,
+        line: LineString::from(pts),
+    };
+    // The middle street and a ring road around both rows: two street faces.
+    let streets = vec![
+        street("middle", vec![(0.0, -20.0), (0.0, 160.0)]),
+        street(
+            "ring",
+            vec![
+                (-30.0, -20.0),
+                (30.0, -20.0),
+                (30.0, 160.0),
+                (-30.0, 160.0),
+                (-30.0, -20.0),
+            ],
+        ),
+    ];
+    city(b, streets)
+}
+
+fn spans_both(tree: &ClusterTree, blocks: &[u32], node: usize) -> bool {
+    let n = &tree.nodes[node];
+    let bs = &tree.building_order[n.buildings.0 as usize..n.buildings.1 as usize];
+    let first = blocks[bs[0].index()];
+    bs.iter().any(|b| blocks[b.index()] != first)
+}
+
+#[test]
+fn clusters_never_cross_the_street_below_the_block_level() {
+    let c = street_city();
+    let side: Vec<u32> = c
+        .buildings
+        .iter()
+        .map(|b| u32::from(b.bounds().0.x > 0.0))
+        .collect();
+    for p in all_params() {
+        let p = ClusterParams {
+            depth_lambda: None,
+            ..p
+        };
+        // One block: some cluster below the root crosses the street (the test can fail).
+        let one = build_checked(&c, &vec![0; c.buildings.len()], &p);
+        let crossing = (0..one.nodes.len())
+            .filter(|&i| i != one.root as usize && spans_both(&one, &side, i))
+            .count();
+        assert!(
+            crossing > 0,
+            "{p:?}: without blocks nothing crosses; test is vacuous"
+        );
+        // Two blocks: only the root spans both sides.
+        let two = build_checked(&c, &side, &p);
+        for i in 0..two.nodes.len() {
+            if i != two.root as usize {
+                assert!(
+                    !spans_both(&two, &side, i),
+                    "{p:?}: node {i} crosses the street"
+                );
+                assert!(two.nodes[i].block.is_some());
+            }
+        }
+        assert_eq!(two.nodes[two.root as usize].block, None);
+    }
+}
+
+#[test]
+fn street_blocks_from_the_blocks_module() {
+    let c = street_city();
+    let blocks = crate::blocks::build_blocks(&c);
+    let tree = build_checked(&c, &blocks.block_of_building, &ClusterParams::default());
+    let side: Vec<u32> = c
+        .buildings
+        .iter()
+        .map(|b| u32::from(b.bounds().0.x > 0.0))
+        .collect();
+    let distinct: std::collections::BTreeSet<_> = blocks.block_of_building.iter().collect();
+    assert_eq!(
+        distinct.len(),
+        2,
+        "the street splits the city in two blocks"
+    );
+    for i in 0..tree.nodes.len() {
+        if i != tree.root as usize {
+            assert!(!spans_both(&tree, &side, i), "node {i} crosses the street");
+        }
+    }
+}
+
+#[test]
+fn degenerate_and_nested_footprints_never_panic() {
+    let mut b = vec![
+        rect(0, 0.0, 0.0, 20.0, 20.0, 10.0),
+        rect(1, 5.0, 5.0, 10.0, 10.0, 30.0),  // inside building 0
+        rect(2, 20.0, 0.0, 30.0, 10.0, 12.0), // touching building 0
+        rect(3, 25.0, 5.0, 35.0, 15.0, 8.0),  // overlapping building 2
+        rect(4, 40.0, 0.0, 40.01, 30.0, 6.0), // sliver
+    ];
+    // Zero-area footprint (collinear): reported, represented by a grown box.
+    b.push(building(
+        5,
+        vec![(50.0, 0.0), (55.0, 0.0), (60.0, 0.0), (50.0, 0.0)],
+        5.0,
+    ));
+    let c = city(b, Vec::new());
+    for p in all_params() {
+        let tree = build_checked(&c, &[0; 6], &p);
+        assert_eq!(tree.stats.degenerate_buildings, vec![BuildingId(5)]);
+    }
+    // Inputs the builder refuses with a typed error.
+    assert!(matches!(
+        build_cluster_tree(&c, &[0; 5], &ClusterParams::default()),
+        Err(ClusterError::BlockCount {
+            expected: 6,
+            got: 5
+        })
+    ));
+    assert!(matches!(
+        build_cluster_tree(
+            &city(Vec::new(), Vec::new()),
+            &[],
+            &ClusterParams::default()
+        ),
+        Err(ClusterError::NoBuildings)
+    ));
+    let bad = ClusterParams {
+        adjacency_lambda: 2.0,
+        ..ClusterParams::default()
+    };
+    assert!(matches!(
+        build_cluster_tree(&c, &[0; 6], &bad),
+        Err(ClusterError::InvalidParams(_))
+    ));
+}
+
+/// Random rectangles on a jittered grid: some touching, some overlapping, slivers, and some
+/// nested inside others.
+fn random_city() -> impl Strategy<Value = (City, Vec<u32>)> {
+    let rect_s = (
+        0usize..4,
+        0.0f64..3.0,
+        0.0f64..3.0,
+        0.05f64..9.0,
+        0.3f64..9.0,
+        3.0f32..60.0,
+    );
+    (prop::collection::vec(rect_s, 1..40), 1u32..4).prop_map(|(rs, nblocks)| {
+        let mut b = Vec::new();
+        let mut blocks = Vec::new();
+        for (k, (kind, jx, jy, w, h, top)) in rs.into_iter().enumerate() {
+            let (gx, gy) = ((k % 6) as f64 * 10.0, (k / 6) as f64 * 10.0);
+            let (x0, y0) = match kind {
+                // Touching the previous cell exactly.
+                0 => (gx, gy),
+                // Overlapping a neighbour.
+                1 => (gx - 2.0 + jx, gy + jy),
+                _ => (gx + jx, gy + jy),
+            };
+            let i = b.len();
+            b.push(rect(i, x0, y0, x0 + w, y0 + h, top));
+            blocks.push((gx as u32 / 20) % nblocks);
+            if kind == 3 && w > 2.0 && h > 2.0 {
+                // A building inside this one.
+                let i = b.len();
+                b.push(rect(
+                    i,
+                    x0 + 0.5,
+                    y0 + 0.5,
+                    x0 + w - 0.5,
+                    y0 + h - 0.5,
+                    top + 5.0,
+                ));
+                blocks.push((gx as u32 / 20) % nblocks);
+            }
+        }
+        (city(b, Vec::new()), blocks)
+    })
+}
+
+#[test]
+fn random_cities_satisfy_the_invariants() {
+    let config = Config {
+        cases: 48,
+        failure_persistence: None,
+        ..Config::default()
+    };
+    let rng = TestRng::from_seed(RngAlgorithm::ChaCha, &[7; 32]);
+    let mut runner = TestRunner::new_with_rng(config, rng);
+    let params = all_params();
+    runner
+        .run(&(random_city(), 0..params.len()), |((c, blocks), pi)| {
+            let p = &params[pi];
+            let tree = build_cluster_tree(&c, &blocks, p)
+                .map_err(|e| TestCaseError::fail(e.to_string()))?;
+            tree.check_invariants(&c)
+                .map_err(|e| TestCaseError::fail(format!("{p:?}: {e}")))?;
+            for i in 0..tree.nodes.len() {
+                if tree.nodes[i].block.is_some() {
+                    prop_assert!(!spans_both(&tree, &blocks, i));
+                }
+            }
+            Ok(())
+        })
+        .expect("random cities");
+}
+
+#[test]
+fn generated_city() {
+    let params = citywalk_scenes::generate::GenerateParams::new(600, 11);
+    let c = citywalk_scenes::generate::generate_city(&params).expect("generated city");
+    let blocks = crate::blocks::build_blocks(&c);
+    for p in [
+        ClusterParams::default(),
+        ClusterParams {
+            distance: ClusterDistance::ChangSizeWeighted,
+            merge: HullMerge::ChangCases,
+            simplify: HullSimplify::ChangSmallestArea,
+            ..ClusterParams::default()
+        },
+    ] {
+        let tree = build_checked(&c, &blocks.block_of_building, &p);
+        let cap = {
+            let target = ((c.buildings.len() as f64).log2() / 1.5).ceil();
+            2 * (c.buildings.len() as f64).powf(1.0 / target).ceil() as usize
+        };
+        assert!(tree.nodes.iter().all(|n| n.children.len() <= cap.max(2)));
+        assert!(
+            tree.stats.merge_fallbacks * 10 <= tree.stats.binary_inner_nodes,
+            "{:?}",
+            tree.stats
+        );
+    }
+}
+
+#[test]
+fn chelsea_extract() {
+    let path = std::path::Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../scenes/data/chelsea.osm.pbf"
+    ));
+    let c = citywalk_scenes::load_city(path, &citywalk_scenes::LoadOptions::default())
+        .expect("chelsea loads");
+    assert!(c.buildings.len() > 100);
+    let blocks = crate::blocks::build_blocks(&c);
+    let tree = build_checked(&c, &blocks.block_of_building, &ClusterParams::default());
+    assert!(
+        tree.stats.merge_fallbacks * 10 <= tree.stats.binary_inner_nodes,
+        "{:?}",
+        tree.stats
+    );
+}

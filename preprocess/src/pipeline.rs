@@ -1,0 +1,363 @@
+//! The preprocessing pipeline: city → blocks → occluders → cluster tree → B-Quadtree → scene
+//! package, each stage timed.
+//!
+//! Blocks come from the street network ([`crate::blocks`], Pina et al. §3). A city without any
+//! block-bounding street face takes its blocks from the first cut of the cluster tree (DESIGN.md
+//! step 3): the tree is built over the whole city as one block, and the blocks are the nodes of
+//! the shallowest level cut with at least `⌈n / PreprocessParams::buildings_per_block⌉` nodes
+//! (a citywalk choice: 20 buildings per block on average, about a city block). The nodes'
+//! `block` fields are then recomputed for those blocks.
+
+use std::time::Instant;
+
+use citywalk_scenes::blocks::{UrbanBlock, UrbanBlocks};
+use citywalk_scenes::cluster_tree::{ClusterParams, ClusterTree};
+use citywalk_scenes::package::{
+    InputFile, PackageError, Provenance, ScenePackage, StageTiming, sha256_file,
+};
+use citywalk_scenes::{BuildingId, City};
+use serde::{Deserialize, Serialize};
+
+use crate::blocks::{BlockParams, BlockReport, build_blocks_with};
+use crate::cluster::{ClusterError, build_cluster_tree};
+use crate::occluders::{OccluderParams, build_occluders};
+use crate::quadtree::build_quadtree;
+
+/// The stages, in order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Stage {
+    Blocks,
+    Occluders,
+    ClusterTree,
+    Quadtree,
+    Package,
+}
+
+impl Stage {
+    pub const ALL: [Stage; 5] = [
+        Stage::Blocks,
+        Stage::Occluders,
+        Stage::ClusterTree,
+        Stage::Quadtree,
+        Stage::Package,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Stage::Blocks => "blocks",
+            Stage::Occluders => "occluders",
+            Stage::ClusterTree => "cluster tree",
+            Stage::Quadtree => "quadtree",
+            Stage::Package => "package",
+        }
+    }
+}
+
+/// Receives stage progress (the CLI shows progress bars; tests pass [`NoProgress`]).
+pub trait ProgressSink {
+    fn stage_started(&self, stage: Stage);
+    fn stage_finished(&self, stage: Stage, seconds: f64, summary: &str);
+}
+
+/// A sink that ignores progress.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct NoProgress;
+
+impl ProgressSink for NoProgress {
+    fn stage_started(&self, _stage: Stage) {}
+    fn stage_finished(&self, _stage: Stage, _seconds: f64, _summary: &str) {}
+}
+
+/// Parameters of the whole preprocessing; stored (as JSON) in the package's provenance.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PreprocessParams {
+    pub blocks: BlockParams,
+    pub occluders: OccluderParams,
+    pub cluster: ClusterParams,
+    /// Run the occluder stage (Germs & Jansen).
+    pub build_occluders: bool,
+    /// Run the cluster-tree stage (Chang et al., Yang et al.).
+    pub build_cluster_tree: bool,
+    /// Without street faces: the mean block size aimed at by the cluster-tree cut.
+    pub buildings_per_block: usize,
+}
+
+impl Default for PreprocessParams {
+    fn default() -> Self {
+        PreprocessParams {
+            blocks: BlockParams::default(),
+            occluders: OccluderParams::default(),
+            cluster: ClusterParams::default(),
+            build_occluders: true,
+            build_cluster_tree: true,
+            buildings_per_block: 20,
+        }
+    }
+}
+
+/// Why preprocessing failed.
+#[derive(Debug, thiserror::Error)]
+pub enum PreprocessError {
+    #[error("the city is invalid: {0}")]
+    InvalidCity(String),
+    #[error("cluster tree: {0}")]
+    Cluster(#[from] ClusterError),
+    #[error("package: {0}")]
+    Package(#[from] PackageError),
+}
+
+/// Runs the pipeline on `city` and returns the scene package (not yet written).
+pub fn preprocess(
+    city: City,
+    params: &PreprocessParams,
+    progress: &dyn ProgressSink,
+) -> Result<ScenePackage, PreprocessError> {
+    city.check_invariants()
+        .map_err(PreprocessError::InvalidCity)?;
+    let mut timings = Vec::new();
+    let mut provenance = Provenance {
+        tool_version: format!("citywalk {}", env!("CARGO_PKG_VERSION")),
+        parameters_json: serde_json::to_string(params).unwrap_or_default(),
+        ..Provenance::default()
+    };
+    let mut run = |stage: Stage, f: &mut dyn FnMut() -> String| {
+        progress.stage_started(stage);
+        let start = Instant::now();
+        let summary = f();
+        let seconds = start.elapsed().as_secs_f64();
+        tracing::info!(stage = stage.name(), seconds, "{summary}");
+        progress.stage_finished(stage, seconds, &summary);
+        timings.push(StageTiming {
+            stage: stage.name().into(),
+            seconds,
+        });
+    };
+
+    let mut blocks = UrbanBlocks::default();
+    let mut block_report = BlockReport::default();
+    run(Stage::Blocks, &mut || {
+        (blocks, block_report) = build_blocks_with(&city, &params.blocks);
+        blocks_summary(&blocks, &block_report)
+    });
+
+    let mut occluders = None;
+    if params.build_occluders {
+        run(Stage::Occluders, &mut || {
+            let set = build_occluders(&city, &params.occluders);
+            let s = format!(
+                "{} occluders, {} triangles",
+                set.occluders.len(),
+                set.triangle_count()
+            );
+            occluders = Some(set);
+            s
+        });
+    } else {
+        provenance
+            .skipped_stages
+            .push("occluders: disabled by the parameters".into());
+    }
+
+    let mut cluster_tree = None;
+    let mut cluster_error = None;
+    if params.build_cluster_tree && !city.buildings.is_empty() {
+        let no_street_faces = block_report.street_blocks == 0;
+        run(Stage::ClusterTree, &mut || {
+            let result = if no_street_faces {
+                let one_block = vec![0u32; city.buildings.len()];
+                build_cluster_tree(&city, &one_block, &params.cluster).map(|mut tree| {
+                    blocks = blocks_from_tree_cut(&city, &mut tree, params.buildings_per_block);
+                    tree
+                })
+            } else {
+                build_cluster_tree(&city, &blocks.block_of_building, &params.cluster)
+            };
+            match result {
+                Ok(tree) => {
+                    let s = format!(
+                        "{} nodes, depth {}{}",
+                        tree.nodes.len(),
+                        tree.max_depth(),
+                        if no_street_faces {
+                            format!("; {} blocks from its first cut", blocks.blocks.len())
+                        } else {
+                            String::new()
+                        }
+                    );
+                    cluster_tree = Some(tree);
+                    s
+                }
+                Err(e) => {
+                    let s = format!("failed: {e}");
+                    cluster_error = Some(e);
+                    s
+                }
+            }
+        });
+    } else if !params.build_cluster_tree {
+        provenance
+            .skipped_stages
+            .push("cluster tree: disabled by the parameters".into());
+    } else {
+        provenance
+            .skipped_stages
+            .push("cluster tree: the city has no buildings".into());
+    }
+    if let Some(e) = cluster_error {
+        return Err(e.into());
+    }
+
+    let mut quadtree = Default::default();
+    run(Stage::Quadtree, &mut || {
+        quadtree = build_quadtree(&blocks);
+        format!(
+            "{} nodes, {} leaves, depth {}",
+            quadtree.nodes.len(),
+            quadtree.leaf_count(),
+            quadtree.max_depth()
+        )
+    });
+
+    let mut inputs = Vec::new();
+    run(Stage::Package, &mut || {
+        inputs = city
+            .report
+            .files
+            .iter()
+            .map(|p| {
+                let hashed = sha256_file(p).ok();
+                InputFile {
+                    path: p.display().to_string(),
+                    size_bytes: hashed.as_ref().map_or(0, |h| h.0),
+                    sha256: hashed.map(|h| h.1),
+                }
+            })
+            .collect();
+        format!("{} input files hashed", inputs.len())
+    });
+
+    provenance.inputs = inputs;
+    let counts = &mut provenance.counts;
+    let mut count = |name: &str, v: usize| {
+        counts.insert(name.to_string(), v as u64);
+    };
+    count("buildings", city.buildings.len());
+    count("streets", city.streets.len());
+    count("blocks", blocks.blocks.len());
+    count("block_street_faces", block_report.faces);
+    count("blocks_from_streets", block_report.street_blocks);
+    count("blocks_leftover_cells", block_report.leftover_blocks);
+    count(
+        "buildings_outside_street_faces",
+        block_report.leftover_buildings,
+    );
+    count("street_graph_edges", block_report.graph_edges);
+    count("quadtree_nodes", quadtree.nodes.len());
+    count("quadtree_leaves", quadtree.leaf_count());
+    count("quadtree_depth", quadtree.max_depth() as usize);
+    if let Some(set) = &occluders {
+        count("occluders", set.occluders.len());
+        count("occluder_triangles", set.triangle_count());
+    }
+    if let Some(tree) = &cluster_tree {
+        count("cluster_tree_nodes", tree.nodes.len());
+        count("cluster_tree_depth", tree.max_depth() as usize);
+    }
+    if block_report.street_blocks == 0 && !city.buildings.is_empty() {
+        provenance.warnings.push(if cluster_tree.is_some() {
+            "no block-bounding street faces: blocks are the first cut of the cluster tree".into()
+        } else {
+            format!(
+                "no block-bounding street faces: blocks are grid cells of {} m",
+                params.blocks.leftover_cell_m
+            )
+        });
+    }
+    provenance.load_report = city.report.clone();
+
+    Ok(ScenePackage {
+        frame: city.frame,
+        buildings: city.buildings,
+        streets: city.streets,
+        blocks,
+        quadtree,
+        occluders,
+        cluster_tree,
+        provenance,
+        timings,
+    })
+}
+
+fn blocks_summary(blocks: &UrbanBlocks, report: &BlockReport) -> String {
+    let sizes = blocks
+        .size_stats()
+        .map(|(lo, med, hi)| format!("; buildings per block min {lo} / median {med} / max {hi}"))
+        .unwrap_or_default();
+    format!(
+        "{} blocks ({} street faces of {}, {} leftover cells){sizes}",
+        blocks.blocks.len(),
+        report.street_blocks,
+        report.faces,
+        report.leftover_blocks
+    )
+}
+
+/// Blocks from the shallowest cut of `tree` with at least `⌈n / per_block⌉` nodes (module
+/// documentation); sets every node's `block` to the block holding all its buildings.
+fn blocks_from_tree_cut(city: &City, tree: &mut ClusterTree, per_block: usize) -> UrbanBlocks {
+    let n = city.buildings.len();
+    let wanted = n.div_ceil(per_block.max(1)).max(1);
+    let mut cut = tree.cut_at_level(0);
+    for level in 1..=tree.max_depth() {
+        if cut.len() >= wanted {
+            break;
+        }
+        cut = tree.cut_at_level(level);
+    }
+    let mut blocks = UrbanBlocks {
+        blocks: Vec::new(),
+        block_of_building: vec![0; n],
+    };
+    for &node in &cut {
+        let Some((s, e)) = tree.nodes.get(node as usize).map(|nd| nd.buildings) else {
+            continue;
+        };
+        let mut members: Vec<BuildingId> = tree
+            .building_order
+            .get(s as usize..e as usize)
+            .unwrap_or(&[])
+            .to_vec();
+        if members.is_empty() {
+            continue;
+        }
+        members.sort_unstable();
+        let index = blocks.blocks.len() as u32;
+        let mut lo = [f32::MAX; 3];
+        let mut hi = [f32::MIN; 3];
+        for id in &members {
+            blocks.block_of_building[id.index()] = index;
+            let (blo, bhi) = city.buildings[id.index()].bounds();
+            for k in 0..3 {
+                lo[k] = lo[k].min(blo[k]);
+                hi[k] = hi[k].max(bhi[k]);
+            }
+        }
+        blocks.blocks.push(UrbanBlock {
+            outline: None,
+            buildings: members,
+            bounds_min: lo,
+            bounds_max: hi,
+        });
+    }
+    for node in &mut tree.nodes {
+        let (s, e) = node.buildings;
+        let of = |b: &BuildingId| blocks.block_of_building[b.index()];
+        let range = tree
+            .building_order
+            .get(s as usize..e as usize)
+            .unwrap_or(&[]);
+        let first = range.first().map(of);
+        node.block = first.filter(|&f| range.iter().all(|b| of(b) == f));
+    }
+    blocks
+}

@@ -1,0 +1,159 @@
+//! Blocks, B-Quadtree and the whole pipeline on a generated city and on Chelsea (OSM), and the
+//! package round trip and determinism of preprocessing.
+
+use std::path::PathBuf;
+
+use citywalk_preprocess::blocks::{BlockParams, build_blocks_with};
+use citywalk_preprocess::pipeline::{NoProgress, PreprocessParams, preprocess};
+use citywalk_preprocess::quadtree::build_quadtree;
+use citywalk_scenes::frustum::Frustum;
+use citywalk_scenes::generate::{GenerateParams, generate_city};
+use citywalk_scenes::package::{ScenePackage, WriteOptions};
+use citywalk_scenes::{City, LoadOptions, load_cities};
+use glam::Vec3;
+
+const CHELSEA: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../../shared/data/osm_nyc_chelsea/nyc.osm.pbf"
+);
+
+fn generated(buildings: usize, seed: u64) -> City {
+    generate_city(&GenerateParams {
+        buildings,
+        seed,
+        ..GenerateParams::default()
+    })
+    .expect("generate")
+}
+
+fn chelsea() -> City {
+    load_cities(&[PathBuf::from(CHELSEA)], &LoadOptions::default()).expect("load Chelsea")
+}
+
+/// The package's invariants except the cluster tree's own (checked by the cluster-tree tests).
+fn check_package(pkg: &ScenePackage) {
+    if let Err(errors) = pkg.check_invariants() {
+        let mine: Vec<&String> = errors
+            .iter()
+            .filter(|e| !e.starts_with("cluster tree: node"))
+            .collect();
+        assert!(mine.is_empty(), "{mine:?}");
+        eprintln!("cluster tree violations (not checked here): {errors:?}");
+    }
+}
+
+fn check_blocks_and_quadtree(city: &City) -> (usize, usize) {
+    let (blocks, report) = build_blocks_with(city, &BlockParams::default());
+    assert_eq!(blocks.check_invariants(city.buildings.len()), Ok(()));
+    let tree = build_quadtree(&blocks);
+    assert_eq!(tree.check_invariants(), Ok(()));
+    assert_eq!(tree.block_bounds.len(), blocks.blocks.len());
+    let (lo, med, hi) = blocks.size_stats().expect("blocks");
+    eprintln!(
+        "{} buildings -> {} blocks ({report:?}); per block min {lo} median {med} max {hi}; \
+         quadtree {} nodes, depth {}",
+        city.buildings.len(),
+        blocks.blocks.len(),
+        tree.nodes.len(),
+        tree.max_depth()
+    );
+    (report.street_blocks, report.leftover_buildings)
+}
+
+#[test]
+fn a_generated_city_has_every_building_in_one_street_block() {
+    let city = generated(2_000, 3);
+    let (street_blocks, leftover) = check_blocks_and_quadtree(&city);
+    // The generator places buildings inside the blocks between its streets.
+    assert!(street_blocks > 20, "{street_blocks} street blocks");
+    assert!(
+        leftover * 10 < city.buildings.len(),
+        "{leftover} buildings outside street faces"
+    );
+}
+
+#[test]
+fn chelsea_has_every_building_in_one_block() {
+    let city = chelsea();
+    assert!(city.buildings.len() > 100);
+    let (street_blocks, _) = check_blocks_and_quadtree(&city);
+    assert!(
+        street_blocks > 10,
+        "{street_blocks} street blocks in Chelsea"
+    );
+}
+
+#[test]
+fn hierarchical_culling_over_chelsea_equals_testing_every_block() {
+    let city = chelsea();
+    let (blocks, _) = build_blocks_with(&city, &BlockParams::default());
+    let tree = build_quadtree(&blocks);
+    let (lo, hi) = city.bounds().expect("bounds");
+    let mut culled_some = false;
+    // Street-level cameras on a fixed 6 × 6 grid over the city, eight headings each.
+    for i in 0..6 {
+        for j in 0..6 {
+            let eye = Vec3::new(
+                lo.x + (hi.x - lo.x) * (i as f32 + 0.5) / 6.0,
+                lo.y + (hi.y - lo.y) * (j as f32 + 0.5) / 6.0,
+                1.7,
+            );
+            for k in 0..8 {
+                let yaw = k as f32 * std::f32::consts::FRAC_PI_4;
+                let dir = Vec3::new(yaw.cos(), yaw.sin(), -0.05);
+                let view = glam::camera::rh::view::look_to_mat4(eye, dir, Vec3::Z);
+                let proj =
+                    glam::camera::rh::proj::directx::perspective_infinite_reverse(1.0, 1.6, 0.3);
+                let frustum = Frustum::from_view_proj(proj * view);
+                let mut hierarchical = tree.cull(&frustum);
+                hierarchical.sort_unstable();
+                let brute = tree.cull_brute_force(&frustum);
+                culled_some |= brute.len() < blocks.blocks.len();
+                assert_eq!(hierarchical, brute);
+            }
+        }
+    }
+    assert!(culled_some, "no camera culled anything");
+}
+
+#[test]
+fn preprocessing_round_trips_through_a_package_and_is_deterministic() {
+    let city = generated(300, 11);
+    let params = PreprocessParams::default();
+    let a = preprocess(city.clone(), &params, &NoProgress).expect("preprocess");
+    let b = preprocess(city, &params, &NoProgress).expect("preprocess again");
+    check_package(&a);
+    assert!(a.occluders.is_some() && a.cluster_tree.is_some());
+    let bytes_a = a.to_bytes(WriteOptions::default()).expect("encode");
+    let bytes_b = b.to_bytes(WriteOptions::default()).expect("encode");
+    assert!(bytes_a == bytes_b, "two runs gave different packages");
+    let back = ScenePackage::from_bytes(&bytes_a).expect("decode");
+    // Timings are not in the file.
+    let mut expected = a;
+    expected.timings.clear();
+    assert!(back == expected, "the package did not round trip");
+}
+
+#[test]
+fn a_city_without_streets_takes_its_blocks_from_the_cluster_tree() {
+    let mut city = generated(400, 5);
+    city.streets.clear();
+    let pkg = preprocess(city, &PreprocessParams::default(), &NoProgress).expect("preprocess");
+    check_package(&pkg);
+    assert!(
+        pkg.blocks.blocks.len() >= 400 / 20,
+        "{} blocks",
+        pkg.blocks.blocks.len()
+    );
+    assert!(pkg.blocks.blocks.iter().all(|b| b.outline.is_none()));
+    let tree = pkg.cluster_tree.as_ref().expect("tree");
+    // Every block is one subtree: some node holds exactly its buildings and says so.
+    for (k, block) in pkg.blocks.blocks.iter().enumerate() {
+        assert!(
+            tree.nodes
+                .iter()
+                .any(|n| n.block == Some(k as u32) && n.building_count() == block.buildings.len()),
+            "block {k} is not a subtree of the cluster tree"
+        );
+    }
+}

@@ -1,0 +1,363 @@
+//! The legibility cluster tree: the data the preprocessing writes and the runtime LOD cut reads.
+//!
+//! This work is based on:
+//! - Chang, Butkiewicz, Ziemkiewicz, Wartell, Pollard, Ribarsky: *Hierarchical simplification
+//!   of city models to maintain urban legibility* (2008) — single-link clustering, hull
+//!   merging and simplification, area-weighted cluster height (eq. 5), negative-space
+//!   error box (§8) and landmark tolerance τ.
+//! - Yang, Zhang, Ma, Wang: *Interactive visualization of multi-resolution urban building
+//!   models considering spatial cognition* (2011) — adjacent distance, one shared vertex
+//!   array (§3.3.1), depth reduction and balancing (§3.3.2), Δh / Δa errors (§4).
+//!
+//! The tree is built by `citywalk_preprocess::cluster::build_cluster_tree` and stored in the
+//! scene package. A leaf is one building; an inner node is a cluster whose footprint (the
+//! merged, simplified hull) contains the footprints of everything below it.
+//!
+//! **Errors are monotone**: for every node, each error measure (`delta_h_m`, `delta_a_m2`,
+//! and each side of `neg_space_box_m`) is at least the same measure of each child,
+//! so a cut that refines a node whenever its error exceeds a tolerance is consistent. The
+//! builder enforces this by taking the maximum with the children where the raw value is lower
+//! (this only ever overstates an error, so the cut stays conservative).
+
+pub mod ring;
+
+use serde::{Deserialize, Serialize};
+
+use crate::city::{BuildingId, City, TriangleMesh};
+
+/// Distance used by the single-link clustering.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum ClusterDistance {
+    /// Chang et al. 2008 eq. 1: size-weighted minimum distance,
+    /// `size(C1)·size(C2)/avgClusterSize² · min d(x, y)`.
+    ChangSizeWeighted,
+    /// Yang et al. 2011 §3.1: adjacent distance `d_min·(1 − N·λ)`.
+    YangAdjacent,
+}
+
+/// How two cluster hulls are merged.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum HullMerge {
+    /// Yang et al. 2011 §3.2: connection pairs from a constrained Delaunay triangulation.
+    YangDelaunay,
+    /// Chang et al. 2008 §5: disjoint / bisecting / intersecting / contained cases.
+    ChangCases,
+}
+
+/// How a merged hull is simplified.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum HullSimplify {
+    /// Chang et al. 2008 §5: remove the vertex adding the smallest area, down to
+    /// max(2/3 of the children's edges, 1 % of the input edges, the convex hull's count).
+    ChangSmallestArea,
+    /// Yang et al. 2011 §3.2: remove concave triangles under δa = a_ave/50, then vertices
+    /// between edges at more than 175°.
+    YangConcaveTriangles,
+}
+
+/// Parameters of the cluster tree; stored with the tree so a package records how it was built.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ClusterParams {
+    pub distance: ClusterDistance,
+    pub merge: HullMerge,
+    pub simplify: HullSimplify,
+    /// Yang et al. 2011 §3.1, λ = 0.6: weight of the adjacency ratio N in the adjacent distance.
+    pub adjacency_lambda: f64,
+    /// Yang et al. 2011 §3.2, δa = a_ave / 50: divisor of the mean footprint area.
+    pub concave_area_divisor: f64,
+    /// Yang et al. 2011 §3.2: vertices between edges at more than this angle are removed (175°).
+    pub straight_angle_deg: f64,
+    /// Chang et al. 2008 §5: a merged hull keeps at least this fraction of its children's
+    /// edges (2/3).
+    pub chang_keep_fraction: f64,
+    /// Chang et al. 2008 §5: ... and at least this fraction of the input's edges (1 %).
+    pub chang_min_input_fraction: f64,
+    /// Yang et al. 2011 §3.3.2: reduce the binary merge tree to about `log2(n)/λ` levels
+    /// (λ = 1.5 in the paper's experiments) and balance it. `None` keeps the binary tree.
+    pub depth_lambda: Option<f64>,
+    /// Chang et al. 2008 §8 landmarks: a building is a landmark candidate of a cluster when its
+    /// top is at least this factor times the cluster's height above ground (citywalk default
+    /// 1.5; the runtime then applies the pixel tolerance τ).
+    pub landmark_height_ratio: f64,
+}
+
+impl Default for ClusterParams {
+    fn default() -> Self {
+        ClusterParams {
+            distance: ClusterDistance::YangAdjacent,
+            merge: HullMerge::YangDelaunay,
+            simplify: HullSimplify::YangConcaveTriangles,
+            adjacency_lambda: 0.6,
+            concave_area_divisor: 50.0,
+            straight_angle_deg: 175.0,
+            chang_keep_fraction: 2.0 / 3.0,
+            chang_min_input_fraction: 0.01,
+            depth_lambda: Some(1.5),
+            landmark_height_ratio: 1.5,
+        }
+    }
+}
+
+/// Counters of the build (how often a fallback was needed, what was reported).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct ClusterStats {
+    /// Merges whose chosen method did not give a simple polygon containing the children and
+    /// that fell back to the convex hull of the union.
+    pub merge_fallbacks: u32,
+    /// Simplifications abandoned (the merged ring kept) because the result was not a simple
+    /// ring; growth-only simplification should never need this.
+    pub simplify_fallbacks: u32,
+    /// Buildings whose footprint had several polygons or holes and were represented by an
+    /// outline (the union of parts, or the convex hull) as a leaf.
+    pub multi_part_buildings: u32,
+    /// Buildings whose footprint was degenerate (no area) and whose leaf uses the footprint's
+    /// bounding box grown by 0.25 m instead; listed by id.
+    pub degenerate_buildings: Vec<BuildingId>,
+    /// Number of inner nodes before depth reduction.
+    pub binary_inner_nodes: u32,
+}
+
+/// One node of the cluster tree.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ClusterNode {
+    /// Footprint rings as indices into [`ClusterTree::vertices`]; the outer ring first,
+    /// counter-clockwise, not closed (the last index is not a repeat of the first). Cluster
+    /// hulls have one ring.
+    pub footprint: Vec<Vec<u32>>,
+    /// Footprint (hull) area in m².
+    pub area_m2: f64,
+    /// Area-weighted mean building height above ground (Chang et al. 2008 eq. 5), metres.
+    pub height_m: f32,
+    /// Lowest building top in the node (metres).
+    pub h_min_m: f32,
+    /// Highest building top in the node (metres).
+    pub h_max_m: f32,
+    /// Yang et al. 2011 §4: Δh = h_max − h_min (metres), made monotone.
+    pub delta_h_m: f32,
+    /// Yang et al. 2011 §4: Δa = hull area − Σ building footprint areas (m²), made monotone.
+    pub delta_a_m2: f64,
+    /// Chang et al. 2008 §8: the negative-space box `[width_m, depth_m, height_m]`: the
+    /// negative-space area laid out with the aspect of the hull's bounding box, as tall as the
+    /// cluster; the runtime projects it and refines while it covers more than ε pixels.
+    pub neg_space_box_m: [f32; 3],
+    /// Axis-aligned bounds of everything below the node (buildings' full heights).
+    pub bounds_min: [f32; 3],
+    pub bounds_max: [f32; 3],
+    /// Child node indices; empty for a leaf (one building).
+    pub children: Vec<u32>,
+    /// `building_order[buildings.0 .. buildings.1]` are the buildings below this node.
+    pub buildings: (u32, u32),
+    /// Depth below the root (root = 0).
+    pub depth: u32,
+    /// Clustering distance at which this node was formed (0 for leaves).
+    pub merge_distance: f64,
+    /// Buildings below this node that are much taller than the cluster (landmark candidates,
+    /// Chang et al. 2008 §8); drawn beside the cluster mesh when their projected excess
+    /// height exceeds τ. Empty for leaves.
+    pub landmarks: Vec<BuildingId>,
+    /// The hull extruded to `height_m` (walls and a constrained-Delaunay roof); empty for
+    /// leaves, which are drawn with the building's own geometry.
+    pub mesh: TriangleMesh,
+    /// The urban block of the node's buildings, or `None` above the block level.
+    pub block: Option<u32>,
+}
+
+impl ClusterNode {
+    pub fn is_leaf(&self) -> bool {
+        self.children.is_empty()
+    }
+
+    /// Number of buildings below the node.
+    pub fn building_count(&self) -> usize {
+        (self.buildings.1 - self.buildings.0) as usize
+    }
+
+    /// Volume of the negative-space box (m³), Chang's error measure.
+    pub fn neg_space_volume_m3(&self) -> f64 {
+        self.neg_space_box_m.iter().map(|v| f64::from(*v)).product()
+    }
+}
+
+/// The legibility cluster tree of a city.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ClusterTree {
+    /// One shared vertex array for all footprints (Yang et al. 2011 §3.3.1), local metres.
+    pub vertices: Vec<[f64; 2]>,
+    pub nodes: Vec<ClusterNode>,
+    pub root: u32,
+    /// Leaf order: every node's buildings are a contiguous range of this array.
+    pub building_order: Vec<BuildingId>,
+    pub params: ClusterParams,
+    pub stats: ClusterStats,
+}
+
+impl ClusterTree {
+    /// The nodes at depth `level` plus the leaves shallower than it: a complete cut.
+    pub fn cut_at_level(&self, level: u32) -> Vec<u32> {
+        let mut out = Vec::new();
+        let mut stack = vec![self.root];
+        while let Some(n) = stack.pop() {
+            let Some(node) = self.nodes.get(n as usize) else {
+                continue;
+            };
+            if node.depth >= level || node.is_leaf() {
+                out.push(n);
+            } else {
+                stack.extend(node.children.iter().rev());
+            }
+        }
+        out
+    }
+
+    /// Depth of the deepest node.
+    pub fn max_depth(&self) -> u32 {
+        self.nodes.iter().map(|n| n.depth).max().unwrap_or(0)
+    }
+
+    /// A node's ring as coordinates.
+    pub fn ring_coords(&self, ring: &[u32]) -> Vec<[f64; 2]> {
+        ring.iter()
+            .filter_map(|&i| self.vertices.get(i as usize).copied())
+            .collect()
+    }
+}
+
+impl ClusterTree {
+    /// Checks the tree's invariants against the city it was built from; returns the first
+    /// violation found:
+    /// - `building_order` is a permutation of the city's buildings; every leaf holds exactly
+    ///   one building; every inner node's range is the concatenation of its children's;
+    /// - child depths are parent depth + 1; every node but the root has exactly one parent;
+    /// - every footprint ring is a simple counter-clockwise polygon on `vertices`;
+    /// - every node's footprint contains its children's footprints, and every leaf's footprint
+    ///   contains its building's footprint (so, transitively, each node contains its buildings);
+    ///   containment is exact up to [`ring::CONTAIN_TOL_M`] (1 µm), the rounding of inserted
+    ///   intersection points;
+    /// - errors are monotone: Δh, Δa and each side of the negative-space box are at least the
+    ///   children's (Yang's and Chang's measures);
+    /// - height is within [h_min, h_max]; bounds contain the children's bounds.
+    pub fn check_invariants(&self, city: &City) -> Result<(), String> {
+        use ring::{Side, locate, ring_contains_ring, ring_is_simple_ccw};
+        let n = city.buildings.len();
+        if self.building_order.len() != n {
+            return Err(format!(
+                "building_order has {} of {n} buildings",
+                self.building_order.len()
+            ));
+        }
+        let mut seen = vec![false; n];
+        for b in &self.building_order {
+            match seen.get_mut(b.index()) {
+                Some(s) if !*s => *s = true,
+                _ => {
+                    return Err(format!(
+                        "building {b:?} missing or repeated in building_order"
+                    ));
+                }
+            }
+        }
+        let root = self
+            .nodes
+            .get(self.root as usize)
+            .ok_or("root out of range")?;
+        if root.depth != 0 || root.buildings != (0, n as u32) {
+            return Err(format!(
+                "root has depth {} and range {:?}",
+                root.depth, root.buildings
+            ));
+        }
+        let mut parents = vec![0u32; self.nodes.len()];
+        for (i, node) in self.nodes.iter().enumerate() {
+            let fail = |what: String| Err(format!("node {i}: {what}"));
+            let Some(outer) = node.footprint.first() else {
+                return fail("no footprint".into());
+            };
+            if node
+                .footprint
+                .iter()
+                .flatten()
+                .any(|&v| v as usize >= self.vertices.len())
+            {
+                return fail("vertex index out of range".into());
+            }
+            if !ring_is_simple_ccw(&self.vertices, outer) {
+                return fail(format!(
+                    "footprint {outer:?} is not a simple counter-clockwise ring"
+                ));
+            }
+            if !(node.h_min_m <= node.height_m + 1e-3 && node.height_m <= node.h_max_m + 1e-3) {
+                return fail(format!(
+                    "height {} outside [{}, {}]",
+                    node.height_m, node.h_min_m, node.h_max_m
+                ));
+            }
+            if node.children.is_empty() {
+                if node.buildings.1 != node.buildings.0 + 1 {
+                    return fail(format!("leaf with range {:?}", node.buildings));
+                }
+                let b = self.building_order[node.buildings.0 as usize];
+                let building = &city.buildings[b.index()];
+                for poly in &building.footprint.0 {
+                    for c in &poly.exterior().0 {
+                        if locate(&self.vertices, outer, [c.x, c.y]) == Side::Outside {
+                            return fail(format!(
+                                "building {b:?} corner ({}, {}) outside its leaf",
+                                c.x, c.y
+                            ));
+                        }
+                    }
+                }
+                continue;
+            }
+            let mut next = node.buildings.0;
+            for &c in &node.children {
+                let child = self
+                    .nodes
+                    .get(c as usize)
+                    .ok_or(format!("node {i}: child {c} out of range"))?;
+                parents[c as usize] += 1;
+                if child.depth != node.depth + 1 {
+                    return fail(format!("child {c} at depth {}", child.depth));
+                }
+                if child.buildings.0 != next || child.buildings.1 <= child.buildings.0 {
+                    return fail(format!(
+                        "child {c} range {:?} not contiguous",
+                        child.buildings
+                    ));
+                }
+                next = child.buildings.1;
+                let Some(cring) = child.footprint.first() else {
+                    return fail(format!("child {c} has no footprint"));
+                };
+                if !ring_contains_ring(&self.vertices, outer, cring) {
+                    return fail(format!("footprint does not contain child {c}"));
+                }
+                if child.delta_h_m > node.delta_h_m
+                    || child.delta_a_m2 > node.delta_a_m2
+                    || (0..3).any(|k| child.neg_space_box_m[k] > node.neg_space_box_m[k])
+                {
+                    return fail(format!("error smaller than child {c}'s"));
+                }
+                if (0..3).any(|k| {
+                    child.bounds_min[k] < node.bounds_min[k]
+                        || child.bounds_max[k] > node.bounds_max[k]
+                }) {
+                    return fail(format!("bounds do not contain child {c}'s"));
+                }
+            }
+            if next != node.buildings.1 {
+                return fail(format!(
+                    "children cover up to {next}, range {:?}",
+                    node.buildings
+                ));
+            }
+        }
+        for (i, &p) in parents.iter().enumerate() {
+            let want = u32::from(i as u32 != self.root);
+            if p != want {
+                return Err(format!("node {i} has {p} parents"));
+            }
+        }
+        Ok(())
+    }
+}

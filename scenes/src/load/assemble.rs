@@ -1,0 +1,571 @@
+//! From raw 2.5D areas (OSM ways and relations, GeoJSON features) to a [`City`]: the part of the
+//! OSM and GeoJSON loaders that does not depend on the file format.
+//!
+//! 1. The frame is centred on the bounding box of the buildings' source coordinates.
+//! 2. Every area is projected, cleaned ([`crate::validate::clean_footprint`]) and given
+//!    heights ([`super::heights`], checked with [`crate::validate::check_heights`]); a bad
+//!    building is a [`Rejection`], a bad part a [`LoadWarning`] (parts are not buildings).
+//! 3. Parts are attached to buildings following the OSM Simple 3D Buildings rules
+//!    (<https://wiki.openstreetmap.org/wiki/Simple_3D_Buildings>, "Building outlines and
+//!    parts"): a part belongs to the building whose outline contains it; where a building has
+//!    parts, they replace its outline for the 3D shape (the building keeps its outline as
+//!    `footprint`, its `parts` are the part areas). Attachment is by an explicit link
+//!    (`part_of`) when given, else by containment of the part's interior point, searched in an
+//!    R*-tree of the buildings' bounding boxes; among nested outlines the smallest wins.
+//! 4. A part with no building (an *orphan*, typically one whose building outline was cut off
+//!    by the extract) is dropped with a warning. Loading it as a building of its own would
+//!    either unbalance the report (`loaded + rejected = found`) or make `buildings_found`
+//!    count parts, unlike every OSM tool (the data folders' READMEs count buildings and parts
+//!    apart), so the report stays as the source counts it: the part is in `parts_found` only.
+//! 5. A part with no height of its own inherits its building's heights (the building's tags
+//!    describe the whole building when the part says nothing).
+
+use std::collections::{BTreeMap, HashMap};
+use std::path::Path;
+
+use geo::{Area, BoundingRect, Coord, InteriorPoint, Intersects, LineString, MultiPolygon};
+use glam::DVec3;
+use rstar::primitives::{GeomWithData, Rectangle};
+use rstar::{AABB, RTree};
+
+use super::LoadOptions;
+use super::heights::{ResolvedHeights, TaggedHeights};
+use crate::city::{Building, BuildingId, BuildingPart, City, HeightSource, Street, StreetClass};
+use crate::frame::Frame;
+use crate::report::{LoadError, LoadReport, LoadWarning, RejectReason, Rejection};
+use crate::validate::{check_heights, clean_footprint};
+
+/// Polygons of rings (outer ring first, then holes), in source coordinates.
+pub(crate) type RawPolygons = Vec<Vec<Vec<Coord<f64>>>>;
+
+/// Whether an area is a building or a `building:part`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum AreaKind {
+    Building,
+    Part,
+}
+
+/// One building or part as read from the source, before projection and validation.
+#[derive(Debug, Clone)]
+pub(crate) struct RawArea {
+    pub source_id: String,
+    pub kind: AreaKind,
+    /// The geometry, or why it could not be read (missing nodes, unassembled rings).
+    pub polygons: Result<RawPolygons, RejectReason>,
+    pub tags: BTreeMap<String, String>,
+    pub heights: TaggedHeights,
+    /// Further names by which a part may link to this building (`part_of`).
+    pub link_ids: Vec<String>,
+    /// The building this part names explicitly, if any.
+    pub part_of: Option<String>,
+}
+
+/// One street as read from the source.
+#[derive(Debug, Clone)]
+pub(crate) struct RawStreet {
+    pub source_id: String,
+    pub class: StreetClass,
+    pub name: Option<String>,
+    pub points: Vec<Coord<f64>>,
+}
+
+/// The CRS of the source coordinates.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) enum SourceCrs {
+    /// Longitude / latitude in degrees.
+    Wgs84,
+    /// Projected metres, with the CRS's name; the frame's origin is the data's centre.
+    Projected(String),
+    /// Already local metres: the frame is [`Frame::local`] and coordinates are kept.
+    Local,
+}
+
+/// Everything a format reader hands over.
+#[derive(Debug)]
+pub(crate) struct RawCity {
+    pub crs: SourceCrs,
+    pub areas: Vec<RawArea>,
+    pub streets: Vec<RawStreet>,
+    pub warnings: Vec<LoadWarning>,
+}
+
+/// A validated area in the local frame.
+struct Area2 {
+    source_id: String,
+    footprint: MultiPolygon<f64>,
+    heights: ResolvedHeights,
+    has_own_heights: bool,
+    tags: BTreeMap<String, String>,
+    part_of: Option<String>,
+}
+
+/// Builds the city from what a reader found in `path`.
+pub(crate) fn assemble(
+    path: &Path,
+    raw: RawCity,
+    options: &LoadOptions,
+) -> Result<City, LoadError> {
+    let RawCity {
+        crs,
+        areas,
+        streets,
+        warnings,
+    } = raw;
+    let mut report = LoadReport {
+        files: vec![path.to_path_buf()],
+        warnings,
+        ..LoadReport::default()
+    };
+    let Some(frame) = make_frame(&crs, &areas) else {
+        let found = areas
+            .iter()
+            .filter(|a| a.kind == AreaKind::Building)
+            .count();
+        let first = if areas.is_empty() {
+            "the file has no building or building:part"
+        } else {
+            "no building or part has a usable coordinate"
+        };
+        return Err(LoadError::NothingLoaded {
+            path: path.to_path_buf(),
+            found,
+            first: first.into(),
+        });
+    };
+    let project = |c: Coord<f64>| -> Result<Coord<f64>, RejectReason> {
+        if !(c.x.is_finite() && c.y.is_finite()) {
+            return Err(RejectReason::NonFiniteCoordinate);
+        }
+        if crs == SourceCrs::Wgs84 && !(c.x.abs() <= 180.0 && c.y.abs() <= 90.0) {
+            return Err(RejectReason::CoordinateOutOfRange(format!(
+                "lon/lat ({}, {}) outside ±180°/±90°",
+                c.x, c.y
+            )));
+        }
+        let p = frame.to_local(DVec3::new(c.x, c.y, 0.0));
+        Ok(Coord { x: p.x, y: p.y })
+    };
+
+    // Validate every area; buildings that fail are rejected, parts that fail are dropped.
+    let mut buildings: Vec<Area2> = Vec::new();
+    let mut parts: Vec<Area2> = Vec::new();
+    let mut link: HashMap<String, usize> = HashMap::new();
+    for area in areas {
+        let is_building = area.kind == AreaKind::Building;
+        if is_building {
+            report.buildings_found += 1;
+        } else {
+            report.parts_found += 1;
+        }
+        for bad in &area.heights.unparsed {
+            report.warnings.push(LoadWarning {
+                file: path.to_path_buf(),
+                source_id: area.source_id.clone(),
+                message: format!("unparseable height value {bad} ignored"),
+            });
+        }
+        let ids = area.link_ids.clone();
+        match validate_area(area, &project, options) {
+            Ok((valid, repairs)) => {
+                for r in repairs {
+                    report.warnings.push(LoadWarning {
+                        file: path.to_path_buf(),
+                        source_id: valid.source_id.clone(),
+                        message: r,
+                    });
+                }
+                if is_building {
+                    let index = buildings.len();
+                    link.entry(valid.source_id.clone()).or_insert(index);
+                    for id in ids {
+                        link.entry(id).or_insert(index);
+                    }
+                    buildings.push(valid);
+                } else {
+                    parts.push(valid);
+                }
+            }
+            Err((source_id, reason)) => {
+                if is_building {
+                    report.rejected.push(Rejection {
+                        file: path.to_path_buf(),
+                        source_id,
+                        reason,
+                    });
+                } else {
+                    report.warnings.push(LoadWarning {
+                        file: path.to_path_buf(),
+                        source_id,
+                        message: format!("building:part dropped: {reason}"),
+                    });
+                }
+            }
+        }
+    }
+
+    // Attach parts: explicit link first, then containment in the R*-tree.
+    let tree = RTree::bulk_load(
+        buildings
+            .iter()
+            .enumerate()
+            .filter_map(|(i, b)| {
+                let r = b.footprint.bounding_rect()?;
+                Some(GeomWithData::new(
+                    Rectangle::from_corners([r.min().x, r.min().y], [r.max().x, r.max().y]),
+                    i,
+                ))
+            })
+            .collect(),
+    );
+    let areas_m2: Vec<f64> = buildings
+        .iter()
+        .map(|b| b.footprint.unsigned_area())
+        .collect();
+    let mut attached: Vec<Vec<Area2>> = (0..buildings.len()).map(|_| Vec::new()).collect();
+    let mut orphans: Vec<Area2> = Vec::new();
+    for part in parts {
+        let explicit = match &part.part_of {
+            Some(name) => match link.get(name) {
+                Some(&i) => Some(i),
+                None => {
+                    report.warnings.push(LoadWarning {
+                        file: path.to_path_buf(),
+                        source_id: part.source_id.clone(),
+                        message: format!(
+                            "part_of names {name:?}, which is not a loaded building; attached \
+                             by containment instead"
+                        ),
+                    });
+                    None
+                }
+            },
+            None => None,
+        };
+        let owner = explicit.or_else(|| {
+            let p = part.footprint.interior_point()?;
+            tree.locate_in_envelope_intersecting(AABB::from_point([p.x(), p.y()]))
+                .map(|g| g.data)
+                .filter(|&i| buildings[i].footprint.intersects(&p))
+                .min_by(|&a, &b| areas_m2[a].total_cmp(&areas_m2[b]))
+        });
+        match owner {
+            Some(i) => attached[i].push(part),
+            None => orphans.push(part),
+        }
+    }
+    // Build the city's buildings.
+    let mut out = Vec::with_capacity(buildings.len() + orphans.len());
+    for (building, parts) in buildings.into_iter().zip(attached) {
+        out.push(make_building(building, parts, &mut report));
+    }
+    for orphan in orphans {
+        report.warnings.push(LoadWarning {
+            file: path.to_path_buf(),
+            source_id: orphan.source_id,
+            message: "building:part inside no building outline: dropped (it is not counted as \
+                      a building, so it cannot be loaded as one)"
+                .into(),
+        });
+    }
+    report.buildings_loaded = out.len();
+
+    let mut city_streets = Vec::new();
+    if options.load_streets {
+        for s in streets {
+            let points: Vec<Coord<f64>> = s
+                .points
+                .into_iter()
+                .filter_map(|c| project(c).ok())
+                .collect();
+            let points = dedup(points);
+            if points.len() < 2 {
+                continue;
+            }
+            city_streets.push(Street {
+                source_id: s.source_id,
+                class: s.class,
+                name: s.name,
+                line: LineString::new(points),
+            });
+        }
+    }
+    report.streets_loaded = city_streets.len();
+
+    if out.is_empty() {
+        let first = report
+            .rejected
+            .first()
+            .map(|r| format!("{}: {}", r.source_id, r.reason))
+            .unwrap_or_else(|| "none".into());
+        return Err(LoadError::NothingLoaded {
+            path: path.to_path_buf(),
+            found: report.buildings_found,
+            first,
+        });
+    }
+    let mut city = City {
+        frame,
+        buildings: out,
+        streets: city_streets,
+        report,
+    };
+    city.renumber();
+    Ok(city)
+}
+
+/// The frame: WGS84 or projected at the centre of the buildings' bounding box (of the parts'
+/// when no building has a usable coordinate); `None` when nothing has one.
+fn make_frame(crs: &SourceCrs, areas: &[RawArea]) -> Option<Frame> {
+    if *crs == SourceCrs::Local {
+        return Some(Frame::local());
+    }
+    let usable = |c: &Coord<f64>| {
+        c.x.is_finite()
+            && c.y.is_finite()
+            && (*crs != SourceCrs::Wgs84 || (c.x.abs() <= 180.0 && c.y.abs() <= 90.0))
+    };
+    let bbox = |kind: AreaKind| {
+        let mut lo = Coord {
+            x: f64::INFINITY,
+            y: f64::INFINITY,
+        };
+        let mut hi = Coord {
+            x: f64::NEG_INFINITY,
+            y: f64::NEG_INFINITY,
+        };
+        let coords = areas
+            .iter()
+            .filter(|a| a.kind == kind)
+            .filter_map(|a| a.polygons.as_ref().ok())
+            .flatten()
+            .flatten()
+            .flatten()
+            .filter(|c| usable(c));
+        for c in coords {
+            lo.x = lo.x.min(c.x);
+            lo.y = lo.y.min(c.y);
+            hi.x = hi.x.max(c.x);
+            hi.y = hi.y.max(c.y);
+        }
+        (lo.x <= hi.x).then_some(Coord {
+            x: 0.5 * (lo.x + hi.x),
+            y: 0.5 * (lo.y + hi.y),
+        })
+    };
+    let centre = bbox(AreaKind::Building).or_else(|| bbox(AreaKind::Part))?;
+    Some(match crs {
+        SourceCrs::Wgs84 => Frame::wgs84(centre.x, centre.y),
+        SourceCrs::Projected(name) => Frame::projected(name.clone(), [centre.x, centre.y, 0.0]),
+        SourceCrs::Local => Frame::local(),
+    })
+}
+
+/// Projects, cleans and gives heights to one area. On failure returns its id and the reason.
+fn validate_area(
+    area: RawArea,
+    project: &impl Fn(Coord<f64>) -> Result<Coord<f64>, RejectReason>,
+    options: &LoadOptions,
+) -> Result<(Area2, Vec<String>), (String, RejectReason)> {
+    let RawArea {
+        source_id,
+        polygons,
+        tags,
+        heights,
+        part_of,
+        ..
+    } = area;
+    let fail = |reason| (source_id.clone(), reason);
+    let polygons = polygons.map_err(fail)?;
+    let mut local: RawPolygons = Vec::with_capacity(polygons.len());
+    for rings in polygons {
+        let mut out_rings = Vec::with_capacity(rings.len());
+        for ring in rings {
+            let ring: Result<Vec<_>, _> = ring.into_iter().map(project).collect();
+            out_rings.push(ring.map_err(fail)?);
+        }
+        local.push(out_rings);
+    }
+    // `geo`'s overlay (used to repair crossing rings) is robust, but a panic on some
+    // pathological ring must not take the whole load down: it rejects this building only.
+    let clean = std::panic::catch_unwind(|| clean_footprint(&local))
+        .unwrap_or_else(|_| {
+            Err(RejectReason::InvalidGeometry(
+                "footprint repair failed".into(),
+            ))
+        })
+        .map_err(fail)?;
+    let resolved = heights.resolve(options);
+    check_heights(resolved.base_m, resolved.top_m).map_err(fail)?;
+    Ok((
+        Area2 {
+            source_id,
+            footprint: clean.footprint,
+            heights: resolved,
+            has_own_heights: heights.has_top(),
+            tags,
+            part_of,
+        },
+        clean.repairs,
+    ))
+}
+
+/// Makes the model's building from a validated building (or orphan part) and its parts.
+fn make_building(building: Area2, parts: Vec<Area2>, report: &mut LoadReport) -> Building {
+    let own = building.heights;
+    // The building's height source: its own when tagged, else the best of its parts'.
+    let mut source = own.source;
+    let mut out_parts: Vec<BuildingPart> = parts
+        .into_iter()
+        .map(|p| {
+            let h = if p.has_own_heights { p.heights } else { own };
+            source = better_source(source, h.source);
+            BuildingPart {
+                source_id: p.source_id,
+                footprint: p.footprint,
+                base_m: h.base_m,
+                top_m: h.top_m,
+            }
+        })
+        .collect();
+    if out_parts.is_empty() {
+        out_parts.push(BuildingPart {
+            source_id: building.source_id.clone(),
+            footprint: building.footprint.clone(),
+            base_m: own.base_m,
+            top_m: own.top_m,
+        });
+    }
+    let base_m = out_parts
+        .iter()
+        .map(|p| p.base_m)
+        .fold(f32::INFINITY, f32::min);
+    let top_m = out_parts
+        .iter()
+        .map(|p| p.top_m)
+        .fold(f32::NEG_INFINITY, f32::max);
+    // The report counts the building's own tags, as OSM statistics do (a building without a
+    // height whose parts have one is not "with height"); `height_source` is the best source of
+    // the heights actually used.
+    match own.source {
+        HeightSource::Tagged => report.buildings_with_height += 1,
+        HeightSource::Estimated => report.buildings_estimated_height += 1,
+        HeightSource::Levels | HeightSource::Geometry => {}
+    }
+    Building {
+        id: BuildingId(0),
+        source_id: building.source_id,
+        footprint: building.footprint,
+        parts: out_parts,
+        base_m,
+        top_m,
+        height_source: source,
+        mesh: None,
+        tags: building.tags,
+    }
+}
+
+/// The more trustworthy of two height sources (tagged metres, levels, estimate).
+fn better_source(a: HeightSource, b: HeightSource) -> HeightSource {
+    let rank = |s| match s {
+        HeightSource::Geometry => 0,
+        HeightSource::Tagged => 1,
+        HeightSource::Levels => 2,
+        HeightSource::Estimated => 3,
+    };
+    if rank(b) < rank(a) { b } else { a }
+}
+
+/// Drops consecutive repeated points.
+fn dedup(mut points: Vec<Coord<f64>>) -> Vec<Coord<f64>> {
+    points.dedup();
+    points
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::load::heights::HeightKeys;
+
+    fn area(id: &str, kind: AreaKind, x: f64, y: f64, s: f64, tags: &[(&str, &str)]) -> RawArea {
+        let ring = vec![
+            Coord { x, y },
+            Coord { x: x + s, y },
+            Coord { x: x + s, y: y + s },
+            Coord { x, y: y + s },
+        ];
+        let tags: BTreeMap<String, String> = tags
+            .iter()
+            .map(|(k, v)| (k.to_string(), v.to_string()))
+            .collect();
+        let heights = TaggedHeights::read(
+            |k| tags.get(k).map(String::as_str),
+            &HeightKeys::osm(),
+            &LoadOptions::default(),
+        );
+        RawArea {
+            source_id: id.into(),
+            kind,
+            polygons: Ok(vec![vec![ring]]),
+            tags,
+            heights,
+            link_ids: Vec::new(),
+            part_of: None,
+        }
+    }
+
+    #[test]
+    fn part_goes_to_the_smallest_containing_outline() {
+        let inner_part = area("p", AreaKind::Part, 12.0, 12.0, 2.0, &[("height", "40")]);
+        let mut linked = area("q", AreaKind::Part, 1.0, 1.0, 2.0, &[]);
+        linked.part_of = Some("nowhere".into());
+        let raw = RawCity {
+            crs: SourceCrs::Local,
+            areas: vec![
+                area(
+                    "big",
+                    AreaKind::Building,
+                    0.0,
+                    0.0,
+                    100.0,
+                    &[("height", "10")],
+                ),
+                area(
+                    "small",
+                    AreaKind::Building,
+                    10.0,
+                    10.0,
+                    10.0,
+                    &[("height", "30")],
+                ),
+                inner_part,
+                linked,
+            ],
+            streets: Vec::new(),
+            warnings: Vec::new(),
+        };
+        let city = assemble(Path::new("t.geojson"), raw, &LoadOptions::default()).unwrap();
+        city.check_invariants().unwrap();
+        let small = city
+            .buildings
+            .iter()
+            .find(|b| b.source_id == "small")
+            .unwrap();
+        assert_eq!(small.parts.len(), 1);
+        assert_eq!(small.parts[0].source_id, "p");
+        assert_eq!(small.top_m, 40.0);
+        // The unresolved part_of falls back to containment (in "big"), with a warning, and the
+        // part without heights inherits its building's.
+        let big = city
+            .buildings
+            .iter()
+            .find(|b| b.source_id == "big")
+            .unwrap();
+        assert_eq!(big.parts.len(), 1);
+        assert_eq!(
+            (big.parts[0].source_id.as_str(), big.parts[0].top_m),
+            ("q", 10.0)
+        );
+        assert!(city.report.warnings.iter().any(|w| w.source_id == "q"));
+        assert_eq!(city.report.buildings_with_height, 2);
+    }
+}

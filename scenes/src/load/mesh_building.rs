@@ -1,0 +1,186 @@
+//! From triangle meshes in the local frame to [`Building`]s: the part of the CityJSON and glTF
+//! loaders that does not depend on the file format.
+//!
+//! Each part's footprint is derived from its mesh ([`crate::mesh_footprint`]), its base and top
+//! are the mesh's lowest and highest z. A part that fails (no area, absurd height, a vertex out
+//! of range) is dropped with a [`LoadWarning`]; a building with no part left is a
+//! [`Rejection`] carrying the first part's reason. The building's mesh is the concatenation of
+//! its parts' meshes and its footprint the union of theirs.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use crate::city::{Building, BuildingId, BuildingPart, City, HeightSource, TriangleMesh};
+use crate::frame::Frame;
+use crate::mesh_footprint::{footprint_from_mesh, union_footprints};
+use crate::report::{LoadError, LoadReport, LoadWarning, RejectReason, Rejection};
+use crate::validate::{MAX_LOCAL_COORDINATE_M, check_heights};
+
+/// One part of a mesh building, in the local frame.
+#[derive(Debug, Clone)]
+pub(crate) struct MeshPart {
+    pub source_id: String,
+    /// The part's geometry, or why it could not be read.
+    pub mesh: Result<TriangleMesh, RejectReason>,
+}
+
+/// One building as read from a mesh source.
+#[derive(Debug, Clone)]
+pub(crate) struct MeshBuilding {
+    pub source_id: String,
+    pub parts: Vec<MeshPart>,
+    pub tags: BTreeMap<String, String>,
+}
+
+/// Validates and assembles the buildings of one file into a city. `report` already holds the
+/// file's counts of parts and its warnings; this adds found / loaded / rejected buildings.
+pub(crate) fn assemble(
+    path: &Path,
+    format: &'static str,
+    frame: Frame,
+    buildings: Vec<MeshBuilding>,
+    mut report: LoadReport,
+) -> Result<City, LoadError> {
+    if buildings.is_empty() {
+        return Err(LoadError::Malformed {
+            path: path.to_path_buf(),
+            format,
+            reason: "no building found".into(),
+        });
+    }
+    let mut out = Vec::with_capacity(buildings.len());
+    for raw in buildings {
+        report.buildings_found += 1;
+        match build_one(path, raw.parts, &mut report.warnings) {
+            Ok((parts, mesh)) => match finish(parts) {
+                Ok((footprint, base_m, top_m, parts)) => {
+                    out.push(Building {
+                        id: BuildingId(out.len() as u32),
+                        source_id: raw.source_id,
+                        footprint,
+                        parts,
+                        base_m,
+                        top_m,
+                        height_source: HeightSource::Geometry,
+                        mesh: Some(mesh),
+                        tags: raw.tags,
+                    });
+                }
+                Err(reason) => report.rejected.push(Rejection {
+                    file: path.to_path_buf(),
+                    source_id: raw.source_id,
+                    reason,
+                }),
+            },
+            Err(reason) => report.rejected.push(Rejection {
+                file: path.to_path_buf(),
+                source_id: raw.source_id,
+                reason,
+            }),
+        }
+    }
+    report.buildings_loaded = out.len();
+    if out.is_empty() {
+        let first = report
+            .rejected
+            .first()
+            .map(|r| format!("{}: {}", r.source_id, r.reason))
+            .unwrap_or_else(|| "none".into());
+        return Err(LoadError::NothingLoaded {
+            path: path.to_path_buf(),
+            found: report.buildings_found,
+            first,
+        });
+    }
+    tracing::info!(file = %path.display(), format, "{report}");
+    let mut city = City {
+        frame,
+        buildings: out,
+        streets: Vec::new(),
+        report,
+    };
+    city.renumber();
+    Ok(city)
+}
+
+/// Validates each part; returns the surviving parts and the building's mesh.
+fn build_one(
+    path: &Path,
+    parts: Vec<MeshPart>,
+    warnings: &mut Vec<LoadWarning>,
+) -> Result<(Vec<BuildingPart>, TriangleMesh), RejectReason> {
+    let mut first_reason = None;
+    let mut kept = Vec::with_capacity(parts.len());
+    let mut mesh = TriangleMesh::default();
+    let several = parts.len() > 1;
+    for part in parts {
+        match part.mesh.and_then(|m| build_part(&part.source_id, m)) {
+            Ok((p, m)) => {
+                mesh.append(&m);
+                kept.push(p);
+            }
+            Err(reason) => {
+                if several {
+                    warnings.push(LoadWarning {
+                        file: path.to_path_buf(),
+                        source_id: part.source_id.clone(),
+                        message: format!("part dropped: {reason}"),
+                    });
+                }
+                first_reason.get_or_insert(reason);
+            }
+        }
+    }
+    if kept.is_empty() {
+        return Err(first_reason.unwrap_or_else(|| RejectReason::MissingGeometry("no part".into())));
+    }
+    Ok((kept, mesh))
+}
+
+/// Checks one part's mesh and derives its footprint and heights.
+fn build_part(
+    source_id: &str,
+    mesh: TriangleMesh,
+) -> Result<(BuildingPart, TriangleMesh), RejectReason> {
+    let Some((lo, hi)) = mesh.bounds() else {
+        return Err(RejectReason::MissingGeometry("empty mesh".into()));
+    };
+    if !(lo.is_finite() && hi.is_finite()) {
+        return Err(RejectReason::NonFiniteCoordinate);
+    }
+    let limit = MAX_LOCAL_COORDINATE_M as f32;
+    if lo.abs().max(hi.abs()).max_element() > limit {
+        return Err(RejectReason::CoordinateOutOfRange(format!(
+            "mesh spans ({:.0}, {:.0}, {:.0})..({:.0}, {:.0}, {:.0}) m",
+            lo.x, lo.y, lo.z, hi.x, hi.y, hi.z
+        )));
+    }
+    check_heights(lo.z, hi.z)?;
+    let footprint = footprint_from_mesh(&mesh)?.footprint;
+    Ok((
+        BuildingPart {
+            source_id: source_id.to_string(),
+            footprint,
+            base_m: lo.z,
+            top_m: hi.z,
+        },
+        mesh,
+    ))
+}
+
+type Finished = (geo::MultiPolygon<f64>, f32, f32, Vec<BuildingPart>);
+
+/// The building's footprint (union of the parts') and height range.
+fn finish(parts: Vec<BuildingPart>) -> Result<Finished, RejectReason> {
+    let footprint = match parts.as_slice() {
+        [single] => single.footprint.clone(),
+        _ => union_footprints(parts.iter().map(|p| &p.footprint))?.footprint,
+    };
+    let base_m = parts.iter().map(|p| p.base_m).fold(f32::INFINITY, f32::min);
+    let top_m = parts
+        .iter()
+        .map(|p| p.top_m)
+        .fold(f32::NEG_INFINITY, f32::max);
+    check_heights(base_m, top_m)?;
+    Ok((footprint, base_m, top_m, parts))
+}

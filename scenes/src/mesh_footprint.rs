@@ -1,0 +1,394 @@
+//! Footprints and triangulations for true 3D building geometry (CityJSON, glTF).
+//!
+//! * [`footprint_from_mesh`] projects a triangle mesh to the ground plane and takes the outline
+//!   of the union: only faces that are not vertical (|n_z| above [`MIN_FACE_NORMAL_Z`], that is
+//!   roofs, ground surfaces, overhang undersides) are projected, since a closed building shell
+//!   covers its whole plan with them and walls project to zero area. The union is `geo`'s
+//!   unary union (i_overlay), holes (courtyards) are kept, and the result goes through
+//!   [`crate::validate::clean_footprint`].
+//! * [`triangulate_planar_polygon`] triangulates one planar 3D polygon with holes (a CityJSON
+//!   surface) by projecting it onto its dominant axis plane and running earcut
+//!   (`geo::TriangulateEarcut`).
+
+use geo::{Area, Coord, LineString, MultiPolygon, Polygon, TriangulateEarcut};
+use glam::DVec3;
+
+use crate::city::TriangleMesh;
+use crate::report::RejectReason;
+use crate::validate::{CleanFootprint, clean_footprint};
+
+/// Faces whose unit normal has |z| below this are treated as vertical walls and left out of
+/// the footprint union (about 2.9° from vertical). Walls tilted by a few degrees still project
+/// to slivers along the outline, which the union absorbs.
+pub const MIN_FACE_NORMAL_Z: f64 = 0.05;
+
+/// Projected faces smaller than this (square metres) are skipped: they add nothing to the
+/// outline and only slow the union down.
+const MIN_FACE_AREA_M2: f64 = 1e-6;
+
+/// Holes smaller than this (square metres) in the union are gaps between adjacent faces left by
+/// rounding, not courtyards, and are closed.
+pub const MIN_HOLE_AREA_M2: f64 = 0.5;
+
+/// Derives the footprint of a building (or part) from its triangle mesh, in the mesh's own xy
+/// frame (metres): the union of the ground projections of its non-vertical faces, holes kept,
+/// cleaned and validated like every other footprint.
+///
+/// Rejects with [`RejectReason::NonFiniteCoordinate`] for a NaN/infinite vertex,
+/// [`RejectReason::InvalidGeometry`] for an index out of range, and
+/// [`RejectReason::ZeroArea`] when nothing with area remains (an empty mesh, or walls only).
+pub fn footprint_from_mesh(mesh: &TriangleMesh) -> Result<CleanFootprint, RejectReason> {
+    let mut faces: Vec<Polygon<f64>> = Vec::with_capacity(mesh.triangle_count());
+    for tri in mesh.indices.chunks_exact(3) {
+        let mut corners = [DVec3::ZERO; 3];
+        for (corner, &index) in corners.iter_mut().zip(tri) {
+            let p = mesh.positions.get(index as usize).ok_or_else(|| {
+                RejectReason::InvalidGeometry(format!(
+                    "vertex index {index} out of range ({} vertices)",
+                    mesh.positions.len()
+                ))
+            })?;
+            if !p.is_finite() {
+                return Err(RejectReason::NonFiniteCoordinate);
+            }
+            *corner = p.as_dvec3();
+        }
+        let [a, b, c] = corners;
+        let normal = (b - a).cross(c - a);
+        let len = normal.length();
+        if len <= 0.0 || (normal.z / len).abs() < MIN_FACE_NORMAL_Z {
+            continue;
+        }
+        // Twice the projected area is |normal.z|.
+        if normal.z.abs() * 0.5 < MIN_FACE_AREA_M2 {
+            continue;
+        }
+        // Every face counter-clockwise seen from above: unary_union picks its fill rule from
+        // the first ring's winding, so the windings must agree.
+        let ring = if normal.z > 0.0 { [a, b, c] } else { [a, c, b] };
+        faces.push(Polygon::new(
+            LineString::new(ring.iter().map(|p| Coord { x: p.x, y: p.y }).collect()),
+            vec![],
+        ));
+    }
+    if faces.is_empty() {
+        return Err(RejectReason::ZeroArea);
+    }
+    let union = geo::unary_union(&faces);
+    clean_footprint(&multipolygon_rings(&union, MIN_HOLE_AREA_M2))
+}
+
+/// Takes the union of several footprints (for a building made of parts) and cleans it.
+pub fn union_footprints<'a>(
+    footprints: impl IntoIterator<Item = &'a MultiPolygon<f64>>,
+) -> Result<CleanFootprint, RejectReason> {
+    let polygons: Vec<&Polygon<f64>> = footprints.into_iter().flat_map(|m| &m.0).collect();
+    if polygons.is_empty() {
+        return Err(RejectReason::MissingGeometry("no footprint".into()));
+    }
+    let union = geo::unary_union(polygons);
+    clean_footprint(&multipolygon_rings(&union, MIN_HOLE_AREA_M2))
+}
+
+/// A multipolygon as rings for [`clean_footprint`], dropping holes under `min_hole_area_m2`.
+fn multipolygon_rings(mp: &MultiPolygon<f64>, min_hole_area_m2: f64) -> Vec<Vec<Vec<Coord<f64>>>> {
+    mp.0.iter()
+        .map(|polygon| {
+            std::iter::once(polygon.exterior().0.clone())
+                .chain(
+                    polygon
+                        .interiors()
+                        .iter()
+                        .filter(|hole| {
+                            Polygon::new((*hole).clone(), vec![]).unsigned_area()
+                                >= min_hole_area_m2
+                        })
+                        .map(|hole| hole.0.clone()),
+                )
+                .collect()
+        })
+        .collect()
+}
+
+/// Why a planar polygon could not be triangulated.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum TriangulateError {
+    #[error("non-finite vertex")]
+    NonFinite,
+    #[error("outer ring has fewer than 3 distinct points")]
+    TooFewPoints,
+    #[error("polygon has zero area")]
+    ZeroArea,
+}
+
+/// Triangulates a planar (or nearly planar) 3D polygon with holes.
+///
+/// `rings[0]` is the outer ring, the others are holes; rings are open or closed (a repeated
+/// first point at the end is ignored, as are consecutive duplicates). The polygon is projected
+/// onto the axis plane its Newell normal is most aligned with, triangulated with earcut, and
+/// every triangle is returned with the winding of the outer ring (so a surface that is
+/// counter-clockwise seen from outside gives triangles facing outside).
+///
+/// Returns triangles as indices into the concatenation of `rings` (ring 0's points first, then
+/// ring 1's, ...). Holes with fewer than 3 distinct points are ignored.
+pub fn triangulate_planar_polygon(
+    rings: &[Vec<DVec3>],
+) -> Result<Vec<[usize; 3]>, TriangulateError> {
+    let Some(outer) = rings.first() else {
+        return Err(TriangulateError::TooFewPoints);
+    };
+    if rings.iter().flatten().any(|p| !p.is_finite()) {
+        return Err(TriangulateError::NonFinite);
+    }
+    let normal = newell_normal(outer);
+    // Finite inputs give a finite normal; a zero one means no area.
+    if normal.length() <= 0.0 {
+        return Err(TriangulateError::ZeroArea);
+    }
+    // Drop the axis the normal is most aligned with.
+    let a = normal.abs();
+    let project: fn(DVec3) -> Coord<f64> = if a.z >= a.x && a.z >= a.y {
+        |p| Coord { x: p.x, y: p.y }
+    } else if a.x >= a.y {
+        |p| Coord { x: p.y, y: p.z }
+    } else {
+        |p| Coord { x: p.z, y: p.x }
+    };
+
+    // Clean rings, remembering where each kept point came from in the flattened input.
+    let mut offset = 0;
+    let mut cleaned: Vec<(Vec<Coord<f64>>, Vec<usize>)> = Vec::with_capacity(rings.len());
+    for (ring_index, ring) in rings.iter().enumerate() {
+        let mut coords: Vec<Coord<f64>> = Vec::with_capacity(ring.len());
+        let mut origin: Vec<usize> = Vec::with_capacity(ring.len());
+        for (i, p) in ring.iter().enumerate() {
+            let c = project(*p);
+            if coords.last() == Some(&c) {
+                continue;
+            }
+            coords.push(c);
+            origin.push(offset + i);
+        }
+        while coords.len() > 1 && coords.first() == coords.last() {
+            coords.pop();
+            origin.pop();
+        }
+        offset += ring.len();
+        if coords.len() < 3 {
+            if ring_index == 0 {
+                return Err(TriangulateError::TooFewPoints);
+            }
+            continue;
+        }
+        cleaned.push((coords, origin));
+    }
+    let Some(((outer_coords, _), holes)) = cleaned.split_first() else {
+        return Err(TriangulateError::TooFewPoints);
+    };
+    let polygon = Polygon::new(
+        LineString::new(outer_coords.clone()),
+        holes
+            .iter()
+            .map(|(c, _)| LineString::new(c.clone()))
+            .collect(),
+    );
+    if polygon.unsigned_area() <= 0.0 {
+        return Err(TriangulateError::ZeroArea);
+    }
+    let origin: Vec<usize> = cleaned
+        .iter()
+        .flat_map(|(_, o)| o.iter().copied())
+        .collect();
+    let flat: Vec<DVec3> = rings.iter().flatten().copied().collect();
+    let raw = polygon.earcut_triangles_raw();
+    let mut triangles = Vec::with_capacity(raw.triangle_indices.len() / 3);
+    for t in raw.triangle_indices.chunks_exact(3) {
+        let (Some(&i), Some(&j), Some(&k)) = (origin.get(t[0]), origin.get(t[1]), origin.get(t[2]))
+        else {
+            continue;
+        };
+        let (Some(&pi), Some(&pj), Some(&pk)) = (flat.get(i), flat.get(j), flat.get(k)) else {
+            continue;
+        };
+        let facing = (pj - pi).cross(pk - pi).dot(normal);
+        if facing == 0.0 {
+            continue;
+        }
+        triangles.push(if facing > 0.0 { [i, j, k] } else { [i, k, j] });
+    }
+    if triangles.is_empty() {
+        return Err(TriangulateError::ZeroArea);
+    }
+    Ok(triangles)
+}
+
+/// Newell's normal of a ring (robust for non-convex and slightly non-planar rings); its length
+/// is twice the ring's area.
+pub fn newell_normal(ring: &[DVec3]) -> DVec3 {
+    let Some(&first) = ring.first() else {
+        return DVec3::ZERO;
+    };
+    // Subtract the first point to keep the products small for georeferenced coordinates.
+    let mut n = DVec3::ZERO;
+    for (i, p) in ring.iter().enumerate() {
+        let q = ring.get(i + 1).copied().unwrap_or(first) - first;
+        let p = *p - first;
+        n.x += (p.y - q.y) * (p.z + q.z);
+        n.y += (p.z - q.z) * (p.x + q.x);
+        n.z += (p.x - q.x) * (p.y + q.y);
+    }
+    n
+}
+
+#[cfg(test)]
+mod tests {
+    use geo::{Contains, Point, Validation};
+    use glam::Vec3;
+
+    use super::*;
+
+    /// A closed extrusion of a polygon with holes between z0 and z1, triangulated with
+    /// [`triangulate_planar_polygon`] (roof up, floor down, walls out).
+    fn extrude(rings: &[Vec<(f64, f64)>], z0: f64, z1: f64) -> TriangleMesh {
+        let mut mesh = TriangleMesh::default();
+        let mut add = |poly: Vec<Vec<DVec3>>| {
+            let tris = triangulate_planar_polygon(&poly).unwrap();
+            let base = mesh.positions.len() as u32;
+            mesh.positions
+                .extend(poly.iter().flatten().map(|p| p.as_vec3()));
+            mesh.indices
+                .extend(tris.iter().flatten().map(|&i| base + i as u32));
+        };
+        // Outer ring counter-clockwise from above, holes clockwise.
+        let at = |z: f64, ring: &Vec<(f64, f64)>| -> Vec<DVec3> {
+            ring.iter().map(|&(x, y)| DVec3::new(x, y, z)).collect()
+        };
+        add(rings.iter().map(|r| at(z1, r)).collect());
+        add(rings
+            .iter()
+            .map(|r| at(z0, r).into_iter().rev().collect())
+            .collect());
+        for ring in rings {
+            for i in 0..ring.len() {
+                let (a, b) = (ring[i], ring[(i + 1) % ring.len()]);
+                add(vec![vec![
+                    DVec3::new(a.0, a.1, z0),
+                    DVec3::new(b.0, b.1, z0),
+                    DVec3::new(b.0, b.1, z1),
+                    DVec3::new(a.0, a.1, z1),
+                ]]);
+            }
+        }
+        mesh
+    }
+
+    #[test]
+    fn l_shaped_extrusion_gives_the_l() {
+        let l = vec![
+            (0.0, 0.0),
+            (20.0, 0.0),
+            (20.0, 8.0),
+            (8.0, 8.0),
+            (8.0, 20.0),
+            (0.0, 20.0),
+        ];
+        let mesh = extrude(&[l], 0.0, 12.0);
+        let f = footprint_from_mesh(&mesh).unwrap().footprint;
+        assert!(f.is_valid());
+        assert!(
+            (f.unsigned_area() - (20.0 * 8.0 + 8.0 * 12.0)).abs() < 1e-3,
+            "{}",
+            f.unsigned_area()
+        );
+        assert!(f.contains(&Point::new(4.0, 16.0)));
+        assert!(f.contains(&Point::new(16.0, 4.0)));
+        assert!(!f.contains(&Point::new(14.0, 14.0)));
+    }
+
+    #[test]
+    fn courtyard_keeps_its_hole() {
+        let outer = vec![(0.0, 0.0), (30.0, 0.0), (30.0, 30.0), (0.0, 30.0)];
+        let hole = vec![(10.0, 10.0), (10.0, 20.0), (20.0, 20.0), (20.0, 10.0)];
+        let mesh = extrude(&[outer, hole], 2.0, 20.0);
+        let f = footprint_from_mesh(&mesh).unwrap().footprint;
+        assert!(f.is_valid());
+        assert_eq!(f.0.len(), 1);
+        assert_eq!(f.0[0].interiors().len(), 1);
+        assert!((f.unsigned_area() - 800.0).abs() < 1e-3);
+        assert!(!f.contains(&Point::new(15.0, 15.0)));
+    }
+
+    #[test]
+    fn walls_only_and_bad_indices_are_rejected() {
+        let wall = TriangleMesh {
+            positions: vec![
+                Vec3::new(0.0, 0.0, 0.0),
+                Vec3::new(5.0, 0.0, 0.0),
+                Vec3::new(5.0, 0.0, 5.0),
+            ],
+            indices: vec![0, 1, 2],
+        };
+        assert_eq!(footprint_from_mesh(&wall), Err(RejectReason::ZeroArea));
+        let bad = TriangleMesh {
+            indices: vec![0, 1, 7],
+            ..wall.clone()
+        };
+        assert!(matches!(
+            footprint_from_mesh(&bad),
+            Err(RejectReason::InvalidGeometry(_))
+        ));
+        let nan = TriangleMesh {
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::new(f32::NAN, 1.0, 0.0)],
+            indices: vec![0, 1, 2],
+        };
+        assert_eq!(
+            footprint_from_mesh(&nan),
+            Err(RejectReason::NonFiniteCoordinate)
+        );
+    }
+
+    #[test]
+    fn triangulation_keeps_winding_and_area_on_a_vertical_face() {
+        // A wall in the xz plane, facing -y (counter-clockwise seen from -y).
+        let ring = vec![
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(4.0, 0.0, 0.0),
+            DVec3::new(4.0, 0.0, 3.0),
+            DVec3::new(0.0, 0.0, 3.0),
+            DVec3::new(0.0, 0.0, 0.0),
+        ];
+        let n = newell_normal(&ring);
+        assert!(n.y < 0.0);
+        let tris = triangulate_planar_polygon(std::slice::from_ref(&ring)).unwrap();
+        assert_eq!(tris.len(), 2);
+        let mut area = 0.0;
+        for t in &tris {
+            assert!(t.iter().all(|&i| i < 4), "closing point never used: {t:?}");
+            let c = (ring[t[1]] - ring[t[0]]).cross(ring[t[2]] - ring[t[0]]);
+            assert!(c.dot(n) > 0.0);
+            area += c.length() / 2.0;
+        }
+        assert!((area - 12.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn triangulation_rejects_degenerate_rings() {
+        let line = vec![DVec3::ZERO, DVec3::X, DVec3::X * 2.0];
+        assert_eq!(
+            triangulate_planar_polygon(&[line]),
+            Err(TriangulateError::ZeroArea)
+        );
+        assert_eq!(
+            triangulate_planar_polygon(&[vec![DVec3::ZERO, DVec3::X]]),
+            Err(TriangulateError::ZeroArea)
+        );
+        assert_eq!(
+            triangulate_planar_polygon(&[]),
+            Err(TriangulateError::TooFewPoints)
+        );
+        assert_eq!(
+            triangulate_planar_polygon(&[vec![DVec3::ZERO, DVec3::X, DVec3::NAN]]),
+            Err(TriangulateError::NonFinite)
+        );
+    }
+}

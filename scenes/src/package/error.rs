@@ -1,0 +1,37 @@
+//! Why a package could not be read or written.
+
+use std::path::PathBuf;
+
+/// An error reading or writing a scene package. Every malformed file gives one of these,
+/// never a panic.
+#[derive(Debug, thiserror::Error)]
+pub enum PackageError {
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// The file does not start with the package magic.
+    #[error("not a citywalk scene package (no `CWK` magic)")]
+    NotAPackage,
+    /// The file is a package of another format version.
+    #[error("package format version {found}; this citywalk reads version {supported}")]
+    Version { found: u32, supported: u32 },
+    /// The file ends before the data its header announces.
+    #[error("truncated package: {what} needs {needed} bytes, the file has {len}")]
+    Truncated { what: String, needed: u64, len: u64 },
+    /// A checksum does not match: the header (with its section table) or one section.
+    #[error("checksum mismatch in {section}: the package is corrupted")]
+    Checksum { section: String },
+    /// The header or section table is inconsistent (overlapping or unknown sections, a
+    /// missing section, non-zero padding, trailing bytes).
+    #[error("malformed package: {0}")]
+    Malformed(String),
+    /// A section passed its checksum but could not be decoded (written by a faulty writer).
+    #[error("section {section}: cannot decode: {reason}")]
+    Decode { section: String, reason: String },
+    /// The package could not be encoded.
+    #[error("cannot encode section {section}: {reason}")]
+    Encode { section: String, reason: String },
+}

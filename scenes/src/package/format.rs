@@ -1,0 +1,368 @@
+//! The byte layout of a scene package (all integers little-endian):
+//!
+//! ```text
+//! 0   magic "CWK\0"
+//! 4   u32 format version (FORMAT_VERSION)
+//! 8   u32 section count N (at most MAX_SECTIONS)
+//! 12  u32 CRC-32 (IEEE) of bytes 0..12 followed by the section table
+//! 16  section table: N entries of 32 bytes, kinds strictly ascending:
+//!       u32 kind, u32 flags (0), u64 offset, u64 length, u32 CRC-32 of the payload, u32 0
+//! ... sections: each payload starts at a multiple of SECTION_ALIGN; the gaps are zero bytes;
+//!     the file ends with the last payload.
+//! ```
+//!
+//! Each payload is one value encoded with `postcard` (serde; varint integers, little-endian
+//! floats). Every byte of the file is covered by a checksum or checked to be zero, so any
+//! corruption is reported as an error.
+
+use serde::Serialize;
+use serde::de::DeserializeOwned;
+
+use super::{PackageError, ScenePackage, StageTiming, WriteOptions};
+
+/// The first four bytes of every package.
+pub const MAGIC: [u8; 4] = *b"CWK\0";
+/// The format version this build writes and reads.
+pub const FORMAT_VERSION: u32 = 1;
+/// Sections start at multiples of this (a cache line, and enough for any scalar type).
+pub const SECTION_ALIGN: u64 = 64;
+/// The most sections a package may have.
+pub const MAX_SECTIONS: u32 = 64;
+const HEADER_LEN: usize = 16;
+const ENTRY_LEN: usize = 32;
+
+/// What a section holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+#[repr(u32)]
+pub enum SectionKind {
+    /// [`crate::Frame`].
+    Frame = 1,
+    /// `Vec<Building>`: ids, source ids, footprints, parts, heights, meshes, tags.
+    Buildings = 2,
+    /// `Vec<Street>`.
+    Streets = 3,
+    /// [`crate::blocks::UrbanBlocks`].
+    Blocks = 4,
+    /// [`crate::quadtree::BQuadtree`].
+    Quadtree = 5,
+    /// [`super::Provenance`].
+    Provenance = 6,
+    /// [`crate::occluder::OccluderSet`] (optional).
+    Occluders = 7,
+    /// [`crate::cluster_tree::ClusterTree`] with its shared vertex array and cluster meshes
+    /// (optional).
+    ClusterTree = 8,
+    /// `Vec<StageTiming>` (optional, not deterministic).
+    Timings = 9,
+}
+
+impl SectionKind {
+    pub const ALL: [SectionKind; 9] = [
+        SectionKind::Frame,
+        SectionKind::Buildings,
+        SectionKind::Streets,
+        SectionKind::Blocks,
+        SectionKind::Quadtree,
+        SectionKind::Provenance,
+        SectionKind::Occluders,
+        SectionKind::ClusterTree,
+        SectionKind::Timings,
+    ];
+
+    pub fn from_u32(v: u32) -> Option<SectionKind> {
+        Self::ALL.into_iter().find(|k| *k as u32 == v)
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            SectionKind::Frame => "frame",
+            SectionKind::Buildings => "buildings",
+            SectionKind::Streets => "streets",
+            SectionKind::Blocks => "blocks",
+            SectionKind::Quadtree => "quadtree",
+            SectionKind::Provenance => "provenance",
+            SectionKind::Occluders => "occluders",
+            SectionKind::ClusterTree => "cluster tree",
+            SectionKind::Timings => "timings",
+        }
+    }
+
+    fn required(self) -> bool {
+        (self as u32) <= SectionKind::Provenance as u32
+    }
+}
+
+/// One entry of the section table.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SectionEntry {
+    pub kind: u32,
+    pub offset: u64,
+    pub length: u64,
+    pub crc32: u32,
+}
+
+fn encode_one<T: Serialize>(
+    kind: SectionKind,
+    value: &T,
+) -> Result<(SectionKind, Vec<u8>), PackageError> {
+    postcard::to_stdvec(value)
+        .map(|bytes| (kind, bytes))
+        .map_err(|e| PackageError::Encode {
+            section: kind.name().into(),
+            reason: e.to_string(),
+        })
+}
+
+/// Encodes a package (see the module documentation).
+pub fn encode(pkg: &ScenePackage, options: WriteOptions) -> Result<Vec<u8>, PackageError> {
+    let mut payloads = vec![
+        encode_one(SectionKind::Frame, &pkg.frame)?,
+        encode_one(SectionKind::Buildings, &pkg.buildings)?,
+        encode_one(SectionKind::Streets, &pkg.streets)?,
+        encode_one(SectionKind::Blocks, &pkg.blocks)?,
+        encode_one(SectionKind::Quadtree, &pkg.quadtree)?,
+        encode_one(SectionKind::Provenance, &pkg.provenance)?,
+    ];
+    if let Some(occ) = &pkg.occluders {
+        payloads.push(encode_one(SectionKind::Occluders, occ)?);
+    }
+    if let Some(tree) = &pkg.cluster_tree {
+        payloads.push(encode_one(SectionKind::ClusterTree, tree)?);
+    }
+    if options.include_timings {
+        payloads.push(encode_one(SectionKind::Timings, &pkg.timings)?);
+    }
+
+    let table_end = (HEADER_LEN + ENTRY_LEN * payloads.len()) as u64;
+    let mut entries = Vec::with_capacity(payloads.len());
+    let mut offset = table_end;
+    for (kind, bytes) in &payloads {
+        offset = offset.next_multiple_of(SECTION_ALIGN);
+        entries.push(SectionEntry {
+            kind: *kind as u32,
+            offset,
+            length: bytes.len() as u64,
+            crc32: crc32fast::hash(bytes),
+        });
+        offset += bytes.len() as u64;
+    }
+    let mut out = Vec::with_capacity(offset as usize);
+    out.extend_from_slice(&MAGIC);
+    out.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
+    out.extend_from_slice(&(payloads.len() as u32).to_le_bytes());
+    out.extend_from_slice(&[0; 4]);
+    for e in &entries {
+        out.extend_from_slice(&e.kind.to_le_bytes());
+        out.extend_from_slice(&0u32.to_le_bytes());
+        out.extend_from_slice(&e.offset.to_le_bytes());
+        out.extend_from_slice(&e.length.to_le_bytes());
+        out.extend_from_slice(&e.crc32.to_le_bytes());
+        out.extend_from_slice(&0u32.to_le_bytes());
+    }
+    let crc = header_crc(&out);
+    out[12..16].copy_from_slice(&crc.to_le_bytes());
+    for ((_, bytes), e) in payloads.iter().zip(&entries) {
+        out.resize(e.offset as usize, 0);
+        out.extend_from_slice(bytes);
+    }
+    Ok(out)
+}
+
+/// CRC-32 of the header's first 12 bytes and the section table (`bytes` starts at the header
+/// and holds at least the table).
+fn header_crc(bytes: &[u8]) -> u32 {
+    let count = u32_at(bytes, 8).unwrap_or(0) as usize;
+    let mut hasher = crc32fast::Hasher::new();
+    hasher.update(&bytes[..12]);
+    hasher.update(&bytes[HEADER_LEN..HEADER_LEN + ENTRY_LEN * count]);
+    hasher.finalize()
+}
+
+fn u32_at(bytes: &[u8], at: usize) -> Option<u32> {
+    Some(u32::from_le_bytes(bytes.get(at..at + 4)?.try_into().ok()?))
+}
+
+fn u64_at(bytes: &[u8], at: usize) -> Option<u64> {
+    Some(u64::from_le_bytes(bytes.get(at..at + 8)?.try_into().ok()?))
+}
+
+fn truncated(what: &str, needed: u64, len: usize) -> PackageError {
+    PackageError::Truncated {
+        what: what.into(),
+        needed,
+        len: len as u64,
+    }
+}
+
+/// Verifies magic, version, header checksum, section table, padding and every section's
+/// checksum; returns the section table.
+pub fn verify(bytes: &[u8]) -> Result<Vec<SectionEntry>, PackageError> {
+    let len = bytes.len();
+    if len < MAGIC.len() {
+        return if bytes == &MAGIC[..len] && len > 0 {
+            Err(truncated("the magic", MAGIC.len() as u64, len))
+        } else {
+            Err(PackageError::NotAPackage)
+        };
+    }
+    if bytes[..4] != MAGIC {
+        return Err(PackageError::NotAPackage);
+    }
+    if let Some(version) = u32_at(bytes, 4)
+        && version != FORMAT_VERSION
+    {
+        return Err(PackageError::Version {
+            found: version,
+            supported: FORMAT_VERSION,
+        });
+    }
+    let (Some(count), Some(stored_crc)) = (u32_at(bytes, 8), u32_at(bytes, 12)) else {
+        return Err(truncated("the header", HEADER_LEN as u64, len));
+    };
+    if count > MAX_SECTIONS {
+        return Err(PackageError::Malformed(format!(
+            "{count} sections (at most {MAX_SECTIONS})"
+        )));
+    }
+    let table_end = HEADER_LEN + ENTRY_LEN * count as usize;
+    if len < table_end {
+        return Err(truncated("the section table", table_end as u64, len));
+    }
+    if header_crc(bytes) != stored_crc {
+        return Err(PackageError::Checksum {
+            section: "header".into(),
+        });
+    }
+    let mut entries = Vec::with_capacity(count as usize);
+    let mut previous_end = table_end as u64;
+    let mut previous_kind = 0u32;
+    for i in 0..count as usize {
+        let at = HEADER_LEN + ENTRY_LEN * i;
+        let field = |o: usize| u32_at(bytes, at + o).unwrap_or(u32::MAX);
+        let wide = |o: usize| u64_at(bytes, at + o).unwrap_or(u64::MAX);
+        let entry = SectionEntry {
+            kind: field(0),
+            offset: wide(8),
+            length: wide(16),
+            crc32: field(24),
+        };
+        if field(4) != 0 || field(28) != 0 {
+            return Err(PackageError::Malformed(format!(
+                "section entry {i}: reserved bits set"
+            )));
+        }
+        let Some(kind) = SectionKind::from_u32(entry.kind) else {
+            return Err(PackageError::Malformed(format!(
+                "section entry {i}: unknown kind {}",
+                entry.kind
+            )));
+        };
+        if entry.kind <= previous_kind {
+            return Err(PackageError::Malformed(format!(
+                "section entry {i}: kinds not strictly ascending"
+            )));
+        }
+        if !entry.offset.is_multiple_of(SECTION_ALIGN) || entry.offset < previous_end {
+            return Err(PackageError::Malformed(format!(
+                "section {}: offset {} misaligned or overlapping",
+                kind.name(),
+                entry.offset
+            )));
+        }
+        let end = entry.offset.checked_add(entry.length).ok_or_else(|| {
+            PackageError::Malformed(format!("section {}: length overflows", kind.name()))
+        })?;
+        if end > len as u64 {
+            return Err(truncated(&format!("section {}", kind.name()), end, len));
+        }
+        if bytes[previous_end as usize..entry.offset as usize]
+            .iter()
+            .any(|&b| b != 0)
+        {
+            return Err(PackageError::Malformed(format!(
+                "non-zero padding before section {}",
+                kind.name()
+            )));
+        }
+        previous_end = end;
+        previous_kind = entry.kind;
+        entries.push(entry);
+    }
+    if (len as u64) > previous_end {
+        return Err(PackageError::Malformed(format!(
+            "{} trailing bytes after the last section",
+            len as u64 - previous_end
+        )));
+    }
+    for e in &entries {
+        let payload = &bytes[e.offset as usize..(e.offset + e.length) as usize];
+        if crc32fast::hash(payload) != e.crc32 {
+            let name = SectionKind::from_u32(e.kind).map_or("?", SectionKind::name);
+            return Err(PackageError::Checksum {
+                section: name.into(),
+            });
+        }
+    }
+    for kind in SectionKind::ALL.into_iter().filter(|k| k.required()) {
+        if !entries.iter().any(|e| e.kind == kind as u32) {
+            return Err(PackageError::Malformed(format!(
+                "missing section {}",
+                kind.name()
+            )));
+        }
+    }
+    Ok(entries)
+}
+
+/// Decodes a package from bytes (verifying it first).
+pub fn decode(bytes: &[u8]) -> Result<ScenePackage, PackageError> {
+    let entries = verify(bytes)?;
+    decode_verified(bytes, &entries)
+}
+
+/// Decodes one section of verified bytes; `None` when the package has no such section.
+pub fn decode_one<T: DeserializeOwned>(
+    bytes: &[u8],
+    entries: &[SectionEntry],
+    kind: SectionKind,
+) -> Result<Option<T>, PackageError> {
+    let Some(e) = entries.iter().find(|e| e.kind == kind as u32) else {
+        return Ok(None);
+    };
+    let err = |reason: String| PackageError::Decode {
+        section: kind.name().into(),
+        reason,
+    };
+    let payload = bytes
+        .get(e.offset as usize..(e.offset + e.length) as usize)
+        .ok_or_else(|| err("section outside the file".into()))?;
+    let (value, rest) = postcard::take_from_bytes(payload).map_err(|e| err(e.to_string()))?;
+    if !rest.is_empty() {
+        return Err(err(format!("{} bytes left after the value", rest.len())));
+    }
+    Ok(Some(value))
+}
+
+fn required<T>(value: Option<T>, kind: SectionKind) -> Result<T, PackageError> {
+    value.ok_or_else(|| PackageError::Malformed(format!("missing section {}", kind.name())))
+}
+
+/// Decodes the sections of bytes already [`verify`]-ed.
+pub fn decode_verified(
+    bytes: &[u8],
+    entries: &[SectionEntry],
+) -> Result<ScenePackage, PackageError> {
+    use SectionKind as K;
+    let pkg = ScenePackage {
+        frame: required(decode_one(bytes, entries, K::Frame)?, K::Frame)?,
+        buildings: required(decode_one(bytes, entries, K::Buildings)?, K::Buildings)?,
+        streets: required(decode_one(bytes, entries, K::Streets)?, K::Streets)?,
+        blocks: required(decode_one(bytes, entries, K::Blocks)?, K::Blocks)?,
+        quadtree: required(decode_one(bytes, entries, K::Quadtree)?, K::Quadtree)?,
+        provenance: required(decode_one(bytes, entries, K::Provenance)?, K::Provenance)?,
+        occluders: decode_one(bytes, entries, K::Occluders)?,
+        cluster_tree: decode_one(bytes, entries, K::ClusterTree)?,
+        timings: decode_one::<Vec<StageTiming>>(bytes, entries, K::Timings)?.unwrap_or_default(),
+    };
+    Ok(pkg)
+}

@@ -1,0 +1,280 @@
+//! Round trip, determinism and every kind of bad package.
+
+use std::collections::BTreeMap;
+
+use geo::{MultiPolygon, polygon};
+use glam::Vec3;
+
+use super::*;
+use crate::blocks::UrbanBlock;
+use crate::city::{BuildingId, BuildingPart, HeightSource, StreetClass, TriangleMesh};
+use crate::quadtree::{Aabb, QuadNode, QuadNodeKind};
+
+fn building(i: u32, x: f64) -> Building {
+    let footprint = MultiPolygon::new(vec![polygon![
+        (x: x, y: 0.0), (x: x + 8.0, y: 0.0), (x: x + 8.0, y: 6.0), (x: x, y: 6.0)
+    ]]);
+    let mut tags = BTreeMap::new();
+    tags.insert("building".to_string(), "yes".to_string());
+    Building {
+        id: BuildingId(i),
+        source_id: format!("way/{i}"),
+        footprint: footprint.clone(),
+        parts: vec![BuildingPart {
+            source_id: format!("way/{i}"),
+            footprint,
+            base_m: 0.0,
+            top_m: 12.5,
+        }],
+        base_m: 0.0,
+        top_m: 12.5,
+        height_source: HeightSource::Tagged,
+        mesh: Some(TriangleMesh {
+            positions: vec![
+                Vec3::new(x as f32, 0.0, 0.0),
+                Vec3::new(x as f32 + 8.0, 0.0, 0.0),
+                Vec3::new(x as f32 + 8.0, 0.0, 12.5),
+            ],
+            indices: vec![0, 1, 2],
+        }),
+        tags,
+    }
+}
+
+/// A small but complete package: two buildings in one block, one quadtree leaf.
+pub(crate) fn small_package() -> ScenePackage {
+    let buildings = vec![building(0, 0.0), building(1, 20.0)];
+    let bounds = Aabb {
+        min: [0.0, 0.0, 0.0],
+        max: [28.0, 6.0, 12.5],
+    };
+    let blocks = UrbanBlocks {
+        blocks: vec![UrbanBlock {
+            outline: None,
+            buildings: vec![BuildingId(0), BuildingId(1)],
+            bounds_min: bounds.min,
+            bounds_max: bounds.max,
+        }],
+        block_of_building: vec![0, 0],
+    };
+    let quadtree = BQuadtree {
+        root_min: [0.0, 0.0],
+        root_max: [28.0, 6.0],
+        nodes: vec![QuadNode {
+            key: 1,
+            kind: QuadNodeKind::Leaf {
+                blocks: vec![0],
+                bounds,
+            },
+        }],
+        block_bounds: vec![bounds],
+    };
+    let mut counts = BTreeMap::new();
+    counts.insert("blocks".to_string(), 1);
+    ScenePackage {
+        frame: Frame::wgs84(-8.61, 41.15),
+        buildings,
+        streets: vec![Street {
+            source_id: "way/9".into(),
+            class: StreetClass::Residential,
+            name: Some("Rua".into()),
+            line: geo::LineString::from(vec![(0.0, -5.0), (30.0, -5.0)]),
+        }],
+        blocks,
+        quadtree,
+        occluders: None,
+        cluster_tree: None,
+        provenance: Provenance {
+            tool_version: "citywalk test".into(),
+            inputs: vec![InputFile {
+                path: "city.geojson".into(),
+                size_bytes: 123,
+                sha256: Some("00".repeat(32)),
+            }],
+            parameters_json: "{}".into(),
+            load_report: LoadReport {
+                buildings_found: 3,
+                buildings_loaded: 2,
+                ..LoadReport::default()
+            },
+            counts,
+            skipped_stages: vec![],
+            warnings: vec!["a warning".into()],
+        },
+        timings: vec![],
+    }
+}
+
+#[test]
+fn a_package_round_trips_through_bytes_and_a_file() {
+    let pkg = small_package();
+    assert_eq!(pkg.check_invariants(), Ok(()));
+    let bytes = pkg.to_bytes(WriteOptions::default()).expect("encode");
+    assert_eq!(&bytes[..4], &MAGIC);
+    let back = ScenePackage::from_bytes(&bytes).expect("decode");
+    assert_eq!(back, pkg);
+
+    let dir = std::env::temp_dir().join(format!("citywalk-package-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let path = dir.join("small.cwk");
+    pkg.write(&path, WriteOptions::default()).expect("write");
+    let file = PackageFile::open(&path).expect("open");
+    assert!(file.section(SectionKind::Buildings).is_some());
+    assert!(file.section(SectionKind::Occluders).is_none());
+    for e in file.sections() {
+        assert_eq!(e.offset % format::SECTION_ALIGN, 0);
+    }
+    assert_eq!(file.decode().expect("decode mapped"), pkg);
+    let quadtree: Option<BQuadtree> = file
+        .decode_section(SectionKind::Quadtree)
+        .expect("decode one section");
+    assert_eq!(quadtree.as_ref(), Some(&pkg.quadtree));
+    let none: Option<OccluderSet> = file
+        .decode_section(SectionKind::Occluders)
+        .expect("no section is not an error");
+    assert!(none.is_none());
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn encoding_is_deterministic_and_timings_stay_out_unless_asked() {
+    let mut a = small_package();
+    let b = small_package();
+    a.timings = vec![StageTiming {
+        stage: "blocks".into(),
+        seconds: 0.123,
+    }];
+    let bytes_a = a.to_bytes(WriteOptions::default()).expect("encode");
+    let bytes_b = b.to_bytes(WriteOptions::default()).expect("encode");
+    assert_eq!(bytes_a, bytes_b);
+    let with = a
+        .to_bytes(WriteOptions {
+            include_timings: true,
+        })
+        .expect("encode");
+    assert_ne!(with, bytes_a);
+    assert_eq!(
+        ScenePackage::from_bytes(&with).expect("decode").timings,
+        a.timings
+    );
+}
+
+#[test]
+fn every_truncation_is_refused_as_truncated() {
+    let bytes = small_package()
+        .to_bytes(WriteOptions::default())
+        .expect("encode");
+    assert!(matches!(
+        ScenePackage::from_bytes(&[]),
+        Err(PackageError::NotAPackage)
+    ));
+    for len in 1..bytes.len() {
+        match ScenePackage::from_bytes(&bytes[..len]) {
+            Err(PackageError::Truncated { .. }) => {}
+            other => panic!("prefix of {len} bytes: {other:?}"),
+        }
+    }
+}
+
+#[test]
+fn other_files_and_versions_are_refused() {
+    assert!(matches!(
+        ScenePackage::from_bytes(b"{\"type\": \"FeatureCollection\"}"),
+        Err(PackageError::NotAPackage)
+    ));
+    assert!(matches!(
+        ScenePackage::from_bytes(b"\x89PNG\r\n\x1a\n"),
+        Err(PackageError::NotAPackage)
+    ));
+    let mut bytes = small_package()
+        .to_bytes(WriteOptions::default())
+        .expect("encode");
+    assert!(matches!(
+        ScenePackage::from_bytes(b"CWK\0\x07\0\0\0"),
+        Err(PackageError::Version {
+            found: 7,
+            supported: FORMAT_VERSION
+        })
+    ));
+    bytes[4..8].copy_from_slice(&2u32.to_le_bytes());
+    assert!(matches!(
+        ScenePackage::from_bytes(&bytes),
+        Err(PackageError::Version {
+            found: 2,
+            supported: FORMAT_VERSION
+        })
+    ));
+}
+
+#[test]
+fn corrupted_sections_and_headers_name_what_is_broken() {
+    let bytes = small_package()
+        .to_bytes(WriteOptions::default())
+        .expect("encode");
+    let entries = format::verify(&bytes).expect("verify");
+    for e in &entries {
+        let mut bad = bytes.clone();
+        bad[(e.offset + e.length / 2) as usize] ^= 0x10;
+        let name = SectionKind::from_u32(e.kind).expect("kind").name();
+        match ScenePackage::from_bytes(&bad) {
+            Err(PackageError::Checksum { section }) => assert_eq!(section, name),
+            other => panic!("section {name}: {other:?}"),
+        }
+    }
+    // A length in the table (bytes 16 + 16..24 of the first entry).
+    let mut bad = bytes.clone();
+    bad[16 + 16] ^= 0x01;
+    assert!(matches!(
+        ScenePackage::from_bytes(&bad),
+        Err(PackageError::Checksum { section }) if section == "header"
+    ));
+    // Trailing garbage.
+    let mut long = bytes.clone();
+    long.push(0);
+    assert!(matches!(
+        ScenePackage::from_bytes(&long),
+        Err(PackageError::Malformed(_))
+    ));
+}
+
+#[test]
+fn flipping_any_single_byte_gives_an_error_never_a_panic_or_another_package() {
+    let bytes = small_package()
+        .to_bytes(WriteOptions {
+            include_timings: true,
+        })
+        .expect("encode");
+    for position in 0..bytes.len() {
+        for flip in [0x01u8, 0x80, 0xff] {
+            let mut bad = bytes.clone();
+            bad[position] ^= flip;
+            let result = std::panic::catch_unwind(|| ScenePackage::from_bytes(&bad));
+            match result {
+                Ok(Err(_)) => {}
+                Ok(Ok(_)) => panic!("byte {position} ^ {flip:#x}: accepted"),
+                Err(_) => panic!("byte {position} ^ {flip:#x}: panicked"),
+            }
+        }
+    }
+}
+
+#[test]
+fn the_package_checker_reports_broken_structures() {
+    let mut lost = small_package();
+    lost.blocks.block_of_building.pop();
+    let errors = lost
+        .check_invariants()
+        .expect_err("a building without a block");
+    assert!(
+        errors.iter().any(|e| e.starts_with("blocks:")),
+        "{errors:?}"
+    );
+
+    let mut moved = small_package();
+    moved.quadtree.block_bounds[0].max[0] += 1.0;
+    let errors = moved.check_invariants().expect_err("boxes disagree");
+    assert!(
+        errors.iter().any(|e| e.starts_with("quadtree:")),
+        "{errors:?}"
+    );
+}

@@ -1,0 +1,502 @@
+//! The GeoJSON loader on the real OSM-derived extracts (compared with the PBF loader), on
+//! small hand-made files (parts linked by `part_of` or by containment, CRS, streets, bad
+//! buildings) and on corrupt files (errors, never panics).
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use citywalk_scenes::load::{geojson, osm};
+use citywalk_scenes::{Crs, HeightSource, LoadError, LoadOptions, RejectReason, StreetClass};
+use proptest::prelude::*;
+use proptest::test_runner::{Config, RngAlgorithm, TestRng, TestRunner};
+use serde_json::json;
+
+const CHELSEA_DIR: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../../shared/data/osm_nyc_chelsea"
+);
+const PORTO_DIR: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../../shared/data/osm_porto_center"
+);
+
+fn temp_file(name: &str, bytes: &[u8]) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("citywalk-geojson-test-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join(name);
+    std::fs::write(&path, bytes).unwrap();
+    path
+}
+
+fn load_json(name: &str, value: &serde_json::Value) -> Result<citywalk_scenes::City, LoadError> {
+    let path = temp_file(name, value.to_string().as_bytes());
+    geojson::load(&path, &LoadOptions::default())
+}
+
+/// A closed square ring `[x, y]` of side `s`.
+fn ring(x: f64, y: f64, s: f64) -> serde_json::Value {
+    json!([[x, y], [x + s, y], [x + s, y + s], [x, y + s], [x, y]])
+}
+
+fn polygon(x: f64, y: f64, s: f64, properties: serde_json::Value) -> serde_json::Value {
+    json!({"type": "Feature", "geometry": {"type": "Polygon", "coordinates": [ring(x, y, s)]},
+           "properties": properties})
+}
+
+fn collection(features: Vec<serde_json::Value>) -> serde_json::Value {
+    json!({"type": "FeatureCollection", "features": features})
+}
+
+/// CPU time of this thread (ns), from `/proc/thread-self/schedstat` (0 where unavailable): the
+/// timings printed are shared-machine wall times, the CPU time is the fairer figure.
+fn thread_cpu_ns() -> u64 {
+    std::fs::read_to_string("/proc/thread-self/schedstat")
+        .ok()
+        .and_then(|s| s.split_whitespace().next()?.parse().ok())
+        .unwrap_or(0)
+}
+
+#[test]
+fn chelsea_geojson_agrees_with_the_pbf() {
+    let start = Instant::now();
+    let cpu = thread_cpu_ns();
+    let city = geojson::load(
+        &Path::new(CHELSEA_DIR).join("buildings.geojson"),
+        &LoadOptions::default(),
+    )
+    .unwrap();
+    let elapsed = start.elapsed();
+    let cpu_ms = thread_cpu_ns().saturating_sub(cpu) as f64 * 1e-6;
+    let r = &city.report;
+    println!("Chelsea GeoJSON: {r} in {elapsed:.2?} (CPU {cpu_ms:.1} ms)");
+    assert_eq!(r.buildings_found, 1525, "{r}");
+    assert_eq!(r.parts_found, 43, "{r}");
+    assert_eq!(r.buildings_with_height, 1514, "{r}");
+    assert!(r.is_balanced(), "{r}");
+    city.check_invariants().unwrap();
+    assert!(matches!(city.frame.crs, Crs::Wgs84));
+
+    let pbf = osm::load(
+        &Path::new(CHELSEA_DIR).join("nyc.osm.pbf"),
+        &LoadOptions::default(),
+    )
+    .unwrap();
+    assert_eq!(r.buildings_loaded, pbf.report.buildings_loaded);
+    // Same ids (osm_type/osm_id), same frame, same heights, footprints within centimetres.
+    let by_id: std::collections::HashMap<&str, &citywalk_scenes::Building> = pbf
+        .buildings
+        .iter()
+        .map(|b| (b.source_id.as_str(), b))
+        .collect();
+    assert!((city.frame.origin[0] - pbf.frame.origin[0]).abs() < 1e-9);
+    assert!((city.frame.origin[1] - pbf.frame.origin[1]).abs() < 1e-9);
+    use geo::Area;
+    for b in &city.buildings {
+        let other = by_id
+            .get(b.source_id.as_str())
+            .unwrap_or_else(|| panic!("{} not in the PBF city", b.source_id));
+        assert_eq!(
+            (b.base_m, b.top_m),
+            (other.base_m, other.top_m),
+            "{}",
+            b.source_id
+        );
+        assert_eq!(b.parts.len(), other.parts.len(), "{}", b.source_id);
+        let (a, o) = (b.footprint.unsigned_area(), other.footprint.unsigned_area());
+        assert!(
+            (a - o).abs() < 1e-3 * o.max(1.0),
+            "{}: {a} vs {o}",
+            b.source_id
+        );
+    }
+}
+
+#[test]
+fn porto_geojson_agrees_with_the_pbf() {
+    let start = Instant::now();
+    let cpu = thread_cpu_ns();
+    let city = geojson::load(
+        &Path::new(PORTO_DIR).join("buildings.geojson"),
+        &LoadOptions::default(),
+    )
+    .unwrap();
+    let elapsed = start.elapsed();
+    let cpu_ms = thread_cpu_ns().saturating_sub(cpu) as f64 * 1e-6;
+    let r = &city.report;
+    println!("Porto GeoJSON: {r} in {elapsed:.2?} (CPU {cpu_ms:.1} ms)");
+    assert_eq!((r.buildings_found, r.parts_found), (11_404, 61), "{r}");
+    assert!(r.is_balanced(), "{r}");
+    assert_eq!(r.buildings_with_height, 5, "{r}");
+    city.check_invariants().unwrap();
+    let pbf = osm::load(
+        &Path::new(PORTO_DIR).join("porto.osm.pbf"),
+        &LoadOptions::default(),
+    )
+    .unwrap();
+    assert_eq!(r.buildings_loaded, pbf.report.buildings_loaded);
+    assert_eq!(
+        r.buildings_estimated_height,
+        pbf.report.buildings_estimated_height
+    );
+}
+
+#[test]
+fn parts_link_by_part_of_or_by_containment() {
+    // Building A (feature id "a") and B (id property "b"), side by side. Part p1 lies inside A
+    // but names B with part_of: the explicit link wins. Part p2 has no link and lies in A.
+    let a = json!({"type": "Feature", "id": "a",
+        "geometry": {"type": "Polygon", "coordinates": [ring(0.0, 0.0, 0.0002)]},
+        "properties": {"height": 20, "min_height": 0}});
+    let b = polygon(0.001, 0.0, 0.0002, json!({"id": "b", "height_m": 12.5}));
+    let p1 = polygon(
+        0.00005,
+        0.00005,
+        0.00005,
+        json!({"kind": "building:part", "part_of": "b", "height": 10}),
+    );
+    let p2 = polygon(
+        0.00012,
+        0.00012,
+        0.00005,
+        json!({"building:part": "yes", "height": "15 m", "min_height_m": 3}),
+    );
+    // Through the format dispatch (a `.json` file recognised by its content).
+    let path = temp_file(
+        "parts.json",
+        collection(vec![a, b, p1, p2]).to_string().as_bytes(),
+    );
+    let city = citywalk_scenes::load_city(&path, &LoadOptions::default()).unwrap();
+    let r = &city.report;
+    assert_eq!(
+        (r.buildings_found, r.parts_found, r.buildings_loaded),
+        (2, 2, 2),
+        "{r}"
+    );
+    city.check_invariants().unwrap();
+    let a = city.buildings.iter().find(|x| x.source_id == "a").unwrap();
+    let b = city.buildings.iter().find(|x| x.source_id == "b").unwrap();
+    assert_eq!(a.parts.len(), 1);
+    assert_eq!(a.parts[0].source_id, "feature/3");
+    assert_eq!((a.parts[0].base_m, a.parts[0].top_m), (3.0, 15.0));
+    assert_eq!(b.parts.len(), 1);
+    assert_eq!(b.parts[0].source_id, "feature/2");
+    assert_eq!((b.base_m, b.top_m), (0.0, 10.0));
+    assert_eq!(a.height_source, HeightSource::Tagged);
+}
+
+#[test]
+fn heights_follow_the_documented_order() {
+    let f = |props| polygon(0.0, 0.0, 0.0002, props);
+    let features = vec![
+        f(json!({"id": "custom", "my_h": 42, "height": 10})),
+        f(json!({"id": "height", "height": "40'", "height_m": 3})),
+        f(json!({"id": "height_m", "height_m": 7.5, "render_height_m": 3})),
+        f(json!({"id": "render", "render_height_m": 8})),
+        f(json!({"id": "levels", "levels": 4, "min_level": 1})),
+        f(json!({"id": "osm levels", "building:levels": "3"})),
+        f(json!({"id": "none"})),
+    ];
+    let path = temp_file(
+        "heights.geojson",
+        collection(features).to_string().as_bytes(),
+    );
+    let options = LoadOptions {
+        height_property: Some("my_h".into()),
+        ..LoadOptions::default()
+    };
+    let city = geojson::load(&path, &options).unwrap();
+    let get = |id: &str| {
+        let b = city.buildings.iter().find(|b| b.source_id == id).unwrap();
+        (b.base_m, b.top_m, b.height_source)
+    };
+    assert_eq!(get("custom"), (0.0, 42.0, HeightSource::Tagged));
+    let (_, top, _) = get("height");
+    assert!((top - 12.192).abs() < 1e-3);
+    assert_eq!(get("height_m"), (0.0, 7.5, HeightSource::Tagged));
+    assert_eq!(get("render"), (0.0, 8.0, HeightSource::Tagged));
+    assert_eq!(get("levels"), (3.0, 12.0, HeightSource::Levels));
+    assert_eq!(get("osm levels"), (0.0, 9.0, HeightSource::Levels));
+    assert_eq!(get("none"), (0.0, 9.0, HeightSource::Estimated));
+    assert_eq!(city.report.buildings_with_height, 4);
+    assert_eq!(city.report.buildings_estimated_height, 1);
+}
+
+#[test]
+fn streets_crs_and_ids() {
+    // Projected metres (EPSG:28992, Dutch RD) with a legacy crs member.
+    let doc = json!({"type": "FeatureCollection",
+        "features": [
+            {"type": "Feature", "id": 7, "geometry": {"type": "MultiPolygon",
+              "coordinates": [[ring(85_000.0, 446_000.0, 10.0)], [ring(85_020.0, 446_000.0, 10.0)]]},
+             "properties": {"osm_id": 9, "height": 6}},
+            {"type": "Feature", "geometry": {"type": "Polygon",
+              "coordinates": [ring(85_100.0, 446_100.0, 10.0)]},
+             "properties": {"osm_id": 12, "osm_type": "way"}},
+            {"type": "Feature", "geometry": {"type": "LineString",
+              "coordinates": [[85_000.0, 445_990.0], [85_200.0, 445_990.0]]},
+             "properties": {"highway": "primary", "name": "Main"}},
+            {"type": "Feature", "geometry": {"type": "MultiLineString",
+              "coordinates": [[[85_000.0, 446_200.0], [85_100.0, 446_200.0]],
+                              [[85_100.0, 446_200.0], [85_100.0, 446_300.0]]]},
+             "properties": {"highway": "footway"}},
+            {"type": "Feature", "geometry": {"type": "LineString",
+              "coordinates": [[85_000.0, 445_000.0], [85_200.0, 445_000.0]]},
+             "properties": {"waterway": "canal"}},
+            {"type": "Feature", "geometry": {"type": "Polygon",
+              "coordinates": [ring(85_000.0, 445_000.0, 30.0)]},
+             "properties": {"highway": "pedestrian", "area": "yes"}}
+        ],
+        "crs": {"type": "name", "properties": {"name": "urn:ogc:def:crs:EPSG::28992"}}
+    });
+    let city = load_json("rd.geojson", &doc).unwrap();
+    assert_eq!(city.frame.crs, Crs::Projected("EPSG:28992".into()));
+    // Centre of the buildings' bounding box: x 85000..85110, y 446000..446110.
+    assert_eq!(city.frame.origin, [85_055.0, 446_055.0, 0.0]);
+    let ids: Vec<&str> = city
+        .buildings
+        .iter()
+        .map(|b| b.source_id.as_str())
+        .collect();
+    assert_eq!(ids, ["7", "way/12"]);
+    assert_eq!(city.buildings[0].footprint.0.len(), 2);
+    assert_eq!(
+        city.buildings[0].tags.get("osm_id").map(String::as_str),
+        Some("9")
+    );
+    assert_eq!(city.streets.len(), 3);
+    assert_eq!(city.streets[0].class, StreetClass::Major);
+    assert_eq!(city.streets[0].name.as_deref(), Some("Main"));
+    assert_eq!(city.streets[0].line.0[0].x, -55.0);
+    assert_eq!(city.streets[1].class, StreetClass::Pedestrian);
+    assert_eq!(city.report.streets_loaded, 3);
+    // The canal and the pedestrian square are skipped, with one warning.
+    assert_eq!(city.report.buildings_found, 2);
+    assert!(
+        city.report
+            .warnings
+            .iter()
+            .any(|w| w.message.starts_with("2 feature(s)")),
+        "{:?}",
+        city.report.warnings
+    );
+}
+
+#[test]
+fn bad_buildings_are_rejected_and_the_rest_load() {
+    let f = |id: &str, coords: serde_json::Value, props: serde_json::Value| {
+        let mut props = props;
+        props["id"] = json!(id);
+        json!({"type": "Feature", "geometry": {"type": "Polygon", "coordinates": coords},
+               "properties": props})
+    };
+    let features = vec![
+        f("good", json!([ring(0.0, 0.0, 0.0002)]), json!({})),
+        f(
+            "nan",
+            json!([[[0.0, 0.0], [0.0002, null], [0.0002, 0.0002], [0.0, 0.0]]]),
+            json!({}),
+        ),
+        f(
+            "two",
+            json!([[[0.0, 0.0], [0.0002, 0.0], [0.0, 0.0]]]),
+            json!({}),
+        ),
+        f(
+            "flat",
+            json!([[[0.0, 0.0], [0.0001, 0.0], [0.0002, 0.0], [0.0, 0.0]]]),
+            json!({}),
+        ),
+        f(
+            "tall",
+            json!([ring(0.0, 0.0, 0.0002)]),
+            json!({"height": 99999}),
+        ),
+        f(
+            "negative",
+            json!([ring(0.0, 0.0, 0.0002)]),
+            json!({"height": -3}),
+        ),
+        f("garbage", json!([[[0.0, "x"], [1, 2], [2, 2]]]), json!({})),
+        f("far", json!([ring(300.0, 0.0, 0.0002)]), json!({})),
+        json!({"type": "Feature", "geometry": null, "properties": {"id": "nogeom"}}),
+        json!({"type": "Feature", "geometry": 5, "properties": {"id": "numgeom"}}),
+        json!({"type": "Feature", "geometry": {"type": "Polygon", "coordinates": [[
+            [0.0, 0.0], [0.0002, 0.0], [0.0002, 0.0002], [0.0, 0.0002],
+            [0.0, 0.0], [0.0002, 0.0], [0.0002, 0.0002], [0.0, 0.0002],
+            [0.0, 0.0], [0.0002, 0.0], [0.0002, 0.0002], [0.0, 0.0002], [0.0, 0.0]]]},
+            "properties": {"id": "thrice"}}),
+    ];
+    let city = load_json("bad.geojson", &collection(features)).unwrap();
+    let r = &city.report;
+    assert_eq!(
+        (r.buildings_found, r.buildings_loaded),
+        (11, 1),
+        "{r}: {:?}",
+        r.rejected
+    );
+    assert_eq!(city.buildings[0].source_id, "good");
+    let reason = |id: &str| {
+        r.rejected
+            .iter()
+            .find(|x| x.source_id == id)
+            .map(|x| x.reason.clone())
+            .unwrap_or_else(|| panic!("{id} not rejected"))
+    };
+    assert_eq!(reason("nan"), RejectReason::NonFiniteCoordinate);
+    assert_eq!(reason("two"), RejectReason::TooFewPoints);
+    assert_eq!(reason("flat"), RejectReason::ZeroArea);
+    assert!(matches!(reason("tall"), RejectReason::AbsurdHeight(_)));
+    assert!(matches!(reason("negative"), RejectReason::AbsurdHeight(_)));
+    assert!(matches!(
+        reason("garbage"),
+        RejectReason::InvalidGeometry(_)
+    ));
+    assert!(matches!(
+        reason("far"),
+        RejectReason::CoordinateOutOfRange(_)
+    ));
+    assert!(matches!(reason("nogeom"), RejectReason::MissingGeometry(_)));
+    assert!(matches!(
+        reason("numgeom"),
+        RejectReason::InvalidGeometry(_)
+    ));
+    assert_eq!(reason("thrice"), RejectReason::SelfIntersection);
+}
+
+#[test]
+fn malformed_files_are_errors_naming_the_file() {
+    let chelsea = std::fs::read(Path::new(CHELSEA_DIR).join("buildings.geojson")).unwrap();
+    let cases: Vec<(&str, Vec<u8>)> = vec![
+        ("empty.geojson", Vec::new()),
+        (
+            "invalid.geojson",
+            b"{\"type\": \"FeatureCollection\", \"features\": [".to_vec(),
+        ),
+        ("truncated.geojson", chelsea[..chelsea.len() / 3].to_vec()),
+        ("array.geojson", b"[1, 2, 3]".to_vec()),
+        (
+            "feature.geojson",
+            json!({"type": "Feature", "geometry": null, "properties": {}})
+                .to_string()
+                .into_bytes(),
+        ),
+        (
+            "nofeatures.geojson",
+            b"{\"type\": \"FeatureCollection\"}".to_vec(),
+        ),
+        (
+            "trailing.geojson",
+            b"{\"type\": \"FeatureCollection\", \"features\": []} x".to_vec(),
+        ),
+        (
+            "nothing.geojson",
+            collection(vec![]).to_string().into_bytes(),
+        ),
+    ];
+    for (name, bytes) in cases {
+        let path = temp_file(name, &bytes);
+        let err = geojson::load(&path, &LoadOptions::default()).expect_err(name);
+        assert!(err.to_string().contains(name), "{name}: {err}");
+    }
+    let missing = geojson::load(Path::new("/nonexistent/x.geojson"), &LoadOptions::default());
+    assert!(matches!(missing, Err(LoadError::Io { .. })));
+}
+
+#[test]
+fn corrupt_geojson_never_panics() {
+    let doc = collection(vec![
+        polygon(0.0, 0.0, 0.0002, json!({"id": "a", "height": 20})),
+        polygon(
+            0.00005,
+            0.00005,
+            0.0001,
+            json!({"kind": "building:part", "part_of": "a", "height": "25 m"}),
+        ),
+        polygon(0.001, 0.0, 0.0002, json!({"building:levels": "4"})),
+        json!({"type": "Feature", "geometry": {"type": "LineString",
+               "coordinates": [[0.0, -0.0001], [0.001, -0.0001]]},
+               "properties": {"highway": "residential"}}),
+    ])
+    .to_string()
+    .into_bytes();
+    let config = Config {
+        cases: fuzz_cases(96),
+        failure_persistence: None,
+        ..Config::default()
+    };
+    let mut runner =
+        TestRunner::new_with_rng(config, TestRng::from_seed(RngAlgorithm::ChaCha, &[11; 32]));
+    let strategy = (
+        prop::collection::vec(
+            (
+                any::<prop::sample::Index>(),
+                prop::sample::select(b"0123456789.-,[]{}\":nulE e".to_vec()),
+            ),
+            0..4,
+        ),
+        any::<prop::sample::Index>(),
+        any::<bool>(),
+    );
+    runner
+        .run(&strategy, |(edits, cut, truncate)| {
+            let mut bytes = doc.clone();
+            for (at, ch) in &edits {
+                let i = at.index(bytes.len());
+                bytes[i] = *ch;
+            }
+            if truncate {
+                bytes.truncate(cut.index(bytes.len()));
+            }
+            let path = temp_file("fuzz.geojson", &bytes);
+            match geojson::load(&path, &LoadOptions::default()) {
+                Err(e) => prop_assert!(e.to_string().contains(&*path.to_string_lossy()), "{e}"),
+                Ok(city) => {
+                    prop_assert!(city.report.is_balanced(), "{}", city.report);
+                    prop_assert!(city.check_invariants().is_ok());
+                }
+            }
+            Ok(())
+        })
+        .unwrap();
+    std::fs::remove_file(temp_file("fuzz.geojson", b"")).ok();
+}
+
+#[test]
+fn generated_city_loads_fast_and_whole() {
+    // The procedural generator's GeoJSON (local metres, parts linked by `part_of`), big enough
+    // to time: the printed rate is the number to compare with the 100k features/s target.
+    use citywalk_scenes::generate::{GenerateParams, write_geojson_file};
+    let path = temp_file("generated-20k.geojson", b"");
+    let params = GenerateParams::new(20_000, 5);
+    write_geojson_file(&params, &path, &mut |_| {}).unwrap();
+    let start = Instant::now();
+    let cpu = thread_cpu_ns();
+    let city = geojson::load(&path, &LoadOptions::default()).unwrap();
+    let elapsed = start.elapsed();
+    let cpu_s = thread_cpu_ns().saturating_sub(cpu) as f64 * 1e-9;
+    let r = &city.report;
+    let features = r.buildings_found + r.parts_found + r.streets_loaded;
+    println!(
+        "generated GeoJSON: {r} in {elapsed:.2?} (CPU {cpu_s:.3} s, {:.0} features/s)",
+        features as f64 / cpu_s.max(1e-9)
+    );
+    assert_eq!(city.frame.crs, Crs::Local);
+    assert_eq!(
+        (r.buildings_found, r.buildings_loaded),
+        (20_000, 20_000),
+        "{r}"
+    );
+    assert!(r.rejected.is_empty() && r.is_balanced());
+    let parts: usize = city.buildings.iter().map(|b| b.parts.len()).sum();
+    assert!(parts >= 20_000, "{parts}");
+    assert!(r.warnings.is_empty(), "{:?}", r.warnings.first());
+    std::fs::remove_file(&path).ok();
+}
+
+/// Proptest cases: `default`, or `CITYWALK_FUZZ_CASES` for a longer local run.
+fn fuzz_cases(default: u32) -> u32 {
+    std::env::var("CITYWALK_FUZZ_CASES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(default)
+}

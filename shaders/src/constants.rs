@@ -1,0 +1,62 @@
+// Constants shared by Rust and WGSL, defined once here. `build.rs` `include!`s this file and
+// emits every entry of `WGSL_U32` / `WGSL_F32` as a WGSL `const` at the top of each composed
+// shader, so the values are never typed twice. (Plain `//` comments: this file is also included
+// by the build script, where inner doc comments are not allowed.)
+
+/// `building_id` of the ground plane's vertices: not a building. The id pass writes 0 for it.
+pub const GROUND_ID: u32 = u32::MAX;
+
+/// Value of an id-buffer pixel that shows no building (sky or ground). A building with id `i`
+/// writes `i + ID_OFFSET`.
+pub const ID_BACKGROUND: u32 = 0;
+
+/// What the id pass adds to a building id, so that 0 stays free for the background.
+pub const ID_OFFSET: u32 = 1;
+
+/// Ambient share of the flat-shaded scene colour (the rest is the sun's Lambert term).
+pub const AMBIENT: f32 = 0.38;
+
+// ---- Hierarchical-Z pyramid build and occlusion cull (engine `hzb::build`, `hzb::cull`). ----
+
+/// Side of the square workgroup of the pyramid build (`wgsl/hzb_build.wgsl`).
+pub const HZB_BUILD_WORKGROUP: u32 = 8;
+
+/// Workgroup size of the cull pass (`wgsl/hzb_cull.wgsl`), one invocation per box.
+pub const HZB_CULL_WORKGROUP: u32 = 64;
+
+/// Cull status of a box that may be visible (drawn).
+pub const CULL_VISIBLE: u32 = 0;
+
+/// Cull status of a box entirely outside the view frustum (or behind the camera).
+pub const CULL_FRUSTUM_OUTSIDE: u32 = 1;
+
+/// Cull status of a box hidden behind the depth pyramid.
+pub const CULL_OCCLUDED: u32 = 2;
+
+/// A box corner whose clip-space `w` is at most this is behind the eye (`hzb::reference`).
+pub const HZB_BEHIND_W: f32 = 1e-6;
+
+/// Relative rounding allowance of the GPU cull: each clip coordinate may differ from the CPU
+/// reference's by this times the sum of the magnitudes of its terms (about 17 ulp, several times
+/// the worst case of a 4-term dot product on either side), and the GPU widens every comparison by
+/// it in the visible direction.
+pub const HZB_ROUNDING_REL: f32 = 2e-6;
+
+/// Every `u32` constant emitted into WGSL, by name.
+pub const WGSL_U32: &[(&str, u32)] = &[
+    ("GROUND_ID", GROUND_ID),
+    ("ID_BACKGROUND", ID_BACKGROUND),
+    ("ID_OFFSET", ID_OFFSET),
+    ("HZB_BUILD_WORKGROUP", HZB_BUILD_WORKGROUP),
+    ("HZB_CULL_WORKGROUP", HZB_CULL_WORKGROUP),
+    ("CULL_VISIBLE", CULL_VISIBLE),
+    ("CULL_FRUSTUM_OUTSIDE", CULL_FRUSTUM_OUTSIDE),
+    ("CULL_OCCLUDED", CULL_OCCLUDED),
+];
+
+/// Every `f32` constant emitted into WGSL, by name.
+pub const WGSL_F32: &[(&str, f32)] = &[
+    ("AMBIENT", AMBIENT),
+    ("HZB_BEHIND_W", HZB_BEHIND_W),
+    ("HZB_ROUNDING_REL", HZB_ROUNDING_REL),
+];

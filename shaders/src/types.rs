@@ -1,0 +1,228 @@
+//! `#[repr(C)]` twins of the WGSL structs the GPU reads. Each names its WGSL twin; the tests
+//! check size and member offsets against naga's layout of the composed shader.
+
+use bytemuck::{Pod, Zeroable};
+
+/// Per-view uniforms. WGSL twin: `View` in `wgsl/shared/view.wgsl`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct ViewUniforms {
+    /// World to clip, column-major (`glam::Mat4::to_cols_array_2d`).
+    pub view_proj: [[f32; 4]; 4],
+    /// Eye position in metres (w unused).
+    pub camera_position_m: [f32; 4],
+    /// Unit vector towards the sun (w unused).
+    pub sun_direction: [f32; 4],
+    /// Linear RGB sky colour (a unused).
+    pub sky_colour: [f32; 4],
+    /// x: fog density per metre, y: viewport width px, z: viewport height px, w: unused.
+    pub params: [f32; 4],
+}
+
+/// One vertex of the scene's vertex buffer. WGSL twin: `SceneVertex` in
+/// `wgsl/shared/scene.wgsl` (vertex attributes: `Float32x3` at 0, `Uint32` at 12).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct SceneVertex {
+    pub position_m: [f32; 3],
+    /// Building id, or [`crate::GROUND_ID`] for the ground plane.
+    pub building_id: u32,
+}
+
+/// Per-building bounds and index range. WGSL twin: `BuildingRecord` in
+/// `wgsl/shared/scene.wgsl`.
+///
+/// The building's triangles are `index_count` indices from `first_index` in the index buffer,
+/// relative to `base_vertex`: exactly the fields of one [`DrawIndexedIndirectArgs`].
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct BuildingRecord {
+    pub bounds_min_m: [f32; 3],
+    pub first_index: u32,
+    pub bounds_max_m: [f32; 3],
+    pub index_count: u32,
+    pub base_vertex: i32,
+    pub vertex_count: u32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+}
+
+impl BuildingRecord {
+    /// The indirect draw of this building alone (one instance, `first_instance` = 0).
+    pub fn draw_args(&self) -> DrawIndexedIndirectArgs {
+        DrawIndexedIndirectArgs {
+            index_count: self.index_count,
+            instance_count: 1,
+            first_index: self.first_index,
+            base_vertex: self.base_vertex,
+            first_instance: 0,
+        }
+    }
+}
+
+/// Arguments of one `draw_indexed_indirect`, in the order wgpu reads them. WGSL twin:
+/// `DrawIndexedIndirectArgs` in `wgsl/shared/scene.wgsl`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Pod, Zeroable)]
+pub struct DrawIndexedIndirectArgs {
+    pub index_count: u32,
+    pub instance_count: u32,
+    pub first_index: u32,
+    pub base_vertex: i32,
+    pub first_instance: u32,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::mem::{offset_of, size_of};
+
+    /// naga's (span, member offsets by name) of struct `name` in `source`.
+    fn naga_layout(source: &str, name: &str) -> (u32, Vec<(String, u32)>) {
+        let module = naga::front::wgsl::parse_str(source).expect("composed WGSL parses");
+        for (_, ty) in module.types.iter() {
+            if ty.name.as_deref() == Some(name)
+                && let naga::TypeInner::Struct { members, span } = &ty.inner
+            {
+                let members = members
+                    .iter()
+                    .map(|m| (m.name.clone().unwrap_or_default(), m.offset))
+                    .collect();
+                return (*span, members);
+            }
+        }
+        panic!("struct {name} not found in WGSL");
+    }
+
+    fn check(name: &str, rust_size: usize, rust_offsets: &[(&str, usize)]) {
+        for (file, source) in crate::ALL_WGSL {
+            let (span, members) = naga_layout(source, name);
+            assert_eq!(span as usize, rust_size, "{name} size in {file}");
+            assert_eq!(members.len(), rust_offsets.len(), "{name} member count");
+            for ((wgsl_name, wgsl_off), (rust_name, rust_off)) in members.iter().zip(rust_offsets) {
+                assert_eq!(wgsl_name, rust_name, "{name} member order");
+                assert_eq!(
+                    *wgsl_off as usize, *rust_off,
+                    "{name}.{rust_name} offset in {file}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn view_uniforms_match_wgsl() {
+        check(
+            "View",
+            size_of::<ViewUniforms>(),
+            &[
+                ("view_proj", offset_of!(ViewUniforms, view_proj)),
+                (
+                    "camera_position_m",
+                    offset_of!(ViewUniforms, camera_position_m),
+                ),
+                ("sun_direction", offset_of!(ViewUniforms, sun_direction)),
+                ("sky_colour", offset_of!(ViewUniforms, sky_colour)),
+                ("params", offset_of!(ViewUniforms, params)),
+            ],
+        );
+    }
+
+    #[test]
+    fn scene_vertex_matches_wgsl() {
+        assert_eq!(size_of::<SceneVertex>(), 16);
+        check(
+            "SceneVertex",
+            size_of::<SceneVertex>(),
+            &[
+                ("position_m", offset_of!(SceneVertex, position_m)),
+                ("building_id", offset_of!(SceneVertex, building_id)),
+            ],
+        );
+    }
+
+    #[test]
+    fn building_record_matches_wgsl() {
+        check(
+            "BuildingRecord",
+            size_of::<BuildingRecord>(),
+            &[
+                ("bounds_min_m", offset_of!(BuildingRecord, bounds_min_m)),
+                ("first_index", offset_of!(BuildingRecord, first_index)),
+                ("bounds_max_m", offset_of!(BuildingRecord, bounds_max_m)),
+                ("index_count", offset_of!(BuildingRecord, index_count)),
+                ("base_vertex", offset_of!(BuildingRecord, base_vertex)),
+                ("vertex_count", offset_of!(BuildingRecord, vertex_count)),
+                ("_pad0", offset_of!(BuildingRecord, _pad0)),
+                ("_pad1", offset_of!(BuildingRecord, _pad1)),
+            ],
+        );
+    }
+
+    #[test]
+    fn draw_indexed_indirect_args_match_wgsl_and_wgpu() {
+        // wgpu reads five consecutive 32-bit words.
+        assert_eq!(size_of::<DrawIndexedIndirectArgs>(), 20);
+        check(
+            "DrawIndexedIndirectArgs",
+            size_of::<DrawIndexedIndirectArgs>(),
+            &[
+                (
+                    "index_count",
+                    offset_of!(DrawIndexedIndirectArgs, index_count),
+                ),
+                (
+                    "instance_count",
+                    offset_of!(DrawIndexedIndirectArgs, instance_count),
+                ),
+                (
+                    "first_index",
+                    offset_of!(DrawIndexedIndirectArgs, first_index),
+                ),
+                (
+                    "base_vertex",
+                    offset_of!(DrawIndexedIndirectArgs, base_vertex),
+                ),
+                (
+                    "first_instance",
+                    offset_of!(DrawIndexedIndirectArgs, first_instance),
+                ),
+            ],
+        );
+    }
+
+    /// The value of WGSL `const name` in `source`, evaluated by naga.
+    fn wgsl_const(module: &naga::Module, name: &str) -> naga::Literal {
+        let (_, c) = module
+            .constants
+            .iter()
+            .find(|(_, c)| c.name.as_deref() == Some(name))
+            .unwrap_or_else(|| panic!("WGSL const {name} missing"));
+        match module.global_expressions[c.init] {
+            naga::Expression::Literal(l) => l,
+            ref other => panic!("WGSL const {name} is not a literal: {other:?}"),
+        }
+    }
+
+    #[test]
+    fn wgsl_constants_equal_the_rust_ones() {
+        for (file, source) in crate::ALL_WGSL {
+            let module = naga::front::wgsl::parse_str(source).expect("parses");
+            for (name, value) in crate::constants::WGSL_U32 {
+                assert_eq!(
+                    wgsl_const(&module, name),
+                    naga::Literal::U32(*value),
+                    "{name} in {file}"
+                );
+            }
+            for (name, value) in crate::constants::WGSL_F32 {
+                assert_eq!(
+                    wgsl_const(&module, name),
+                    naga::Literal::F32(*value),
+                    "{name} in {file}"
+                );
+            }
+        }
+        assert_eq!(crate::constants::GROUND_ID, u32::MAX);
+        assert_ne!(crate::ID_BACKGROUND, crate::ID_OFFSET);
+    }
+}

@@ -1,0 +1,157 @@
+// Hierarchical-Z occlusion cull (engine `hzb::cull`), the GPU twin of `hzb::reference`'s
+// `project_box`, `select_level` and `DepthPyramid::is_occluded`, one invocation per box.
+//
+// Each box is a `BuildingRecord` (bounds and index range). Its status is written as CULL_VISIBLE,
+// CULL_FRUSTUM_OUTSIDE or CULL_OCCLUDED; every visible box appends its DrawIndexedIndirectArgs
+// through an atomic counter.
+//
+// Float rounding: the GPU's matrix product and division may round differently from the CPU's
+// (FMA, reciprocal). Every comparison is widened in the visible direction by a bound on that
+// difference (HZB_ROUNDING_REL times the magnitude of the terms), so the GPU never culls a box
+// the CPU reference keeps: its rectangle contains the reference's, its nearest depth is not
+// smaller, and a larger rectangle reads a superset of the reference's pixels (pyramid texels are
+// nested), so its farthest depth is not larger.
+//
+// llvmpipe trap 1 (shared/GPU-NOTES.md): a mip level that varies per invocation returned another
+// level's data. The pyramid is read in a loop over levels with a uniform counter, and only when
+// the counter equals this box's level. Levels are i32 (GL trap 3).
+
+// Rust twin: citywalk_shaders::HzbCullParams.
+struct HzbCullParams {
+    // World to clip, reversed-Z (column-major).
+    view_proj: mat4x4<f32>,
+    // Viewport (= pyramid level 0) width and height in pixels.
+    viewport_px: vec2<u32>,
+    // Number of boxes (records) to test.
+    box_count: u32,
+    // Number of pyramid levels.
+    level_count: u32,
+}
+
+@group(0) @binding(0) var<uniform> params: HzbCullParams;
+@group(0) @binding(1) var<storage, read> records: array<BuildingRecord>;
+@group(0) @binding(2) var hzb: texture_2d<f32>;
+@group(0) @binding(3) var<storage, read_write> status: array<u32>;
+@group(0) @binding(4) var<storage, read_write> commands: array<DrawIndexedIndirectArgs>;
+@group(0) @binding(5) var<storage, read_write> draw_count: atomic<u32>;
+
+// Where a box lands: status CULL_VISIBLE with `rect` valid only when `has_rect`.
+struct Projection {
+    status: u32,
+    has_rect: bool,
+    // x0, y0, x1, y1 (inclusive pixels, y down).
+    rect: vec4<u32>,
+    nearest_depth: f32,
+}
+
+fn project(lo: vec3<f32>, hi: vec3<f32>) -> Projection {
+    var out: Projection;
+    out.status = CULL_VISIBLE;
+    out.has_rect = false;
+    let m = params.view_proj;
+    let m_abs = mat4x4<f32>(abs(m[0]), abs(m[1]), abs(m[2]), abs(m[3]));
+    var ndc_min = vec2<f32>(3.4e38);
+    var ndc_max = vec2<f32>(-3.4e38);
+    var nearest = 0.0;
+    var all_behind = true;
+    var crosses_near = false;
+    for (var i = 0u; i < 8u; i++) {
+        let corner = vec3<f32>(
+            select(lo.x, hi.x, (i & 1u) != 0u),
+            select(lo.y, hi.y, (i & 2u) != 0u),
+            select(lo.z, hi.z, (i & 4u) != 0u),
+        );
+        let clip = m * vec4<f32>(corner, 1.0);
+        let err = (m_abs * vec4<f32>(abs(corner), 1.0)) * HZB_ROUNDING_REL;
+        // Surely behind the eye only if behind with any rounding.
+        if clip.w > HZB_BEHIND_W - err.w {
+            all_behind = false;
+        }
+        // Possibly behind the eye or between it and the near plane: no safe rectangle.
+        if clip.w <= HZB_BEHIND_W + err.w || clip.z > clip.w - (err.z + err.w) {
+            crosses_near = true;
+            continue;
+        }
+        let ndc = clip.xyz / clip.w;
+        let ndc_err = (err.xyz + abs(ndc) * err.w) / clip.w + abs(ndc) * HZB_ROUNDING_REL;
+        ndc_min = min(ndc_min, ndc.xy - ndc_err.xy);
+        ndc_max = max(ndc_max, ndc.xy + ndc_err.xy);
+        nearest = max(nearest, ndc.z + ndc_err.z);
+    }
+    if all_behind {
+        out.status = CULL_FRUSTUM_OUTSIDE;
+        return out;
+    }
+    if crosses_near {
+        return out;
+    }
+    if ndc_max.x < -1.0 || ndc_min.x > 1.0 || ndc_max.y < -1.0 || ndc_min.y > 1.0 {
+        out.status = CULL_FRUSTUM_OUTSIDE;
+        return out;
+    }
+    let size = vec2<f32>(params.viewport_px);
+    // Pixel coordinates, widened by the rounding of this conversion.
+    let px_err = size * HZB_ROUNDING_REL;
+    let px_lo = clamp(
+        vec2<f32>(ndc_min.x * 0.5 + 0.5, 0.5 - ndc_max.y * 0.5) * size - px_err,
+        vec2<f32>(0.0),
+        size - 1.0,
+    );
+    let px_hi = clamp(
+        vec2<f32>(ndc_max.x * 0.5 + 0.5, 0.5 - ndc_min.y * 0.5) * size + px_err,
+        vec2<f32>(0.0),
+        size - 1.0,
+    );
+    out.has_rect = true;
+    out.rect = vec4<u32>(vec2<u32>(floor(px_lo)), vec2<u32>(floor(px_hi)));
+    out.nearest_depth = nearest;
+    return out;
+}
+
+// The finest level at which the rectangle spans at most two texels each way (reference
+// `select_level`: ceil, never floor).
+fn select_level(rect: vec4<u32>) -> u32 {
+    var level = 0u;
+    while ((rect.z >> level) - (rect.x >> level) > 1u || (rect.w >> level) - (rect.y >> level) > 1u) {
+        level += 1u;
+    }
+    return level;
+}
+
+@compute @workgroup_size(HZB_CULL_WORKGROUP, 1, 1)
+fn cull(@builtin(global_invocation_id) id: vec3<u32>) {
+    let index = id.x;
+    let in_range = index < params.box_count;
+    let record = records[min(index, max(params.box_count, 1u) - 1u)];
+    var p = project(record.bounds_min_m, record.bounds_max_m);
+    var wanted = -1;
+    if in_range && p.has_rect {
+        wanted = i32(min(select_level(p.rect), params.level_count - 1u));
+    }
+    // Uniform loop over levels; each invocation reads only at its own level (trap 1).
+    var farthest = 3.4e38;
+    for (var level = 0; level < i32(params.level_count); level++) {
+        if level == wanted {
+            // The level's logical region (the texture is padded to powers of two).
+            let last = (params.viewport_px - 1u) >> vec2<u32>(u32(level));
+            let lo = min(p.rect.xy >> vec2<u32>(u32(level)), last);
+            let hi = min(p.rect.zw >> vec2<u32>(u32(level)), last);
+            for (var y = lo.y; y <= hi.y; y++) {
+                for (var x = lo.x; x <= hi.x; x++) {
+                    farthest = min(farthest, textureLoad(hzb, vec2<i32>(i32(x), i32(y)), level).r);
+                }
+            }
+        }
+    }
+    if !in_range {
+        return;
+    }
+    if p.has_rect && p.nearest_depth < farthest {
+        p.status = CULL_OCCLUDED;
+    }
+    status[index] = p.status;
+    if p.status == CULL_VISIBLE {
+        let slot = atomicAdd(&draw_count, 1u);
+        commands[slot] = DrawIndexedIndirectArgs(record.index_count, 1u, record.first_index, record.base_vertex, 0u);
+    }
+}

@@ -1,0 +1,76 @@
+// Flat-shaded city: walls and roofs with per-building colour variation, a sun and ambient light,
+// distance fog towards the sky colour, and the ground plane. Reversed Z (see engine camera.rs).
+
+@group(0) @binding(0) var<uniform> view: View;
+
+struct VertexOutput {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) world_m: vec3<f32>,
+    @location(1) @interpolate(flat) building_id: u32,
+}
+
+@vertex
+fn vs_main(v: SceneVertex) -> VertexOutput {
+    var out: VertexOutput;
+    out.clip = view.view_proj * vec4<f32>(v.position_m, 1.0);
+    out.world_m = v.position_m;
+    out.building_id = v.building_id;
+    return out;
+}
+
+// sRGB colour to linear (a 2.2 power is close enough for material colours).
+fn srgb_to_linear(c: vec3<f32>) -> vec3<f32> {
+    return pow(c, vec3<f32>(2.2));
+}
+
+// Base colour (linear RGB) of a building: a few facade materials, varied per building.
+fn facade_colour(id: u32) -> vec3<f32> {
+    let h = hash_u32(id);
+    var palette = array<vec3<f32>, 6>(
+        vec3<f32>(0.80, 0.72, 0.58), // sandstone
+        vec3<f32>(0.64, 0.36, 0.27), // red brick
+        vec3<f32>(0.90, 0.88, 0.82), // white render
+        vec3<f32>(0.60, 0.61, 0.62), // concrete
+        vec3<f32>(0.78, 0.66, 0.48), // yellow stock brick
+        vec3<f32>(0.47, 0.56, 0.66), // glass and steel
+    );
+    let base = palette[h % 6u];
+    let jitter = f32((h >> 8u) & 255u) / 255.0;
+    return srgb_to_linear(base * (0.88 + 0.2 * jitter));
+}
+
+fn roof_colour(id: u32) -> vec3<f32> {
+    let h = hash_u32(id ^ 0x9e3779b9u);
+    let shade = 0.40 + 0.16 * f32(h & 255u) / 255.0;
+    return srgb_to_linear(vec3<f32>(shade * 1.02, shade, shade * 0.98));
+}
+
+@fragment
+fn fs_main(in: VertexOutput) -> @location(0) vec4<f32> {
+    // Flat normal from screen-space derivatives, turned towards the eye (meshes from files may
+    // have mixed winding; culling is off).
+    var n = normalize(cross(dpdy(in.world_m), dpdx(in.world_m)));
+    let to_eye = view.camera_position_m.xyz - in.world_m;
+    if dot(n, to_eye) < 0.0 {
+        n = -n;
+    }
+    var albedo: vec3<f32>;
+    if in.building_id == GROUND_ID {
+        // Ground: a faint checker of 50 m tiles helps judge distance and motion.
+        let tile = (i32(floor(in.world_m.x / 50.0)) + i32(floor(in.world_m.y / 50.0))) & 1;
+        albedo = srgb_to_linear(vec3<f32>(0.47, 0.50, 0.44) * (0.96 + 0.04 * f32(tile)));
+        n = vec3<f32>(0.0, 0.0, 1.0);
+    } else if n.z > 0.7 {
+        albedo = roof_colour(in.building_id);
+    } else {
+        albedo = facade_colour(in.building_id);
+    }
+    let sun = max(dot(n, view.sun_direction.xyz), 0.0);
+    // Sky light: surfaces facing up see more of the sky.
+    let sky = AMBIENT * (0.75 + 0.25 * n.z);
+    var colour = albedo * (sky + (1.0 - AMBIENT) * sun);
+    let distance_m = length(to_eye);
+    let fog = 1.0 - exp(-view.params.x * distance_m);
+    colour = mix(colour, view.sky_colour.rgb, clamp(fog, 0.0, 1.0));
+    return vec4<f32>(colour, 1.0);
+}

@@ -1,0 +1,43 @@
+// The scene's geometry as the GPU sees it.
+
+// One vertex of the city's vertex buffer (16 bytes).
+// Rust twin: citywalk_shaders::SceneVertex.
+struct SceneVertex {
+    @location(0) position_m: vec3<f32>,
+    // Building id, or GROUND_ID for the ground plane.
+    @location(1) building_id: u32,
+}
+
+// Per-building record in a storage buffer: bounds and the index range of its triangles.
+// Rust twin: citywalk_shaders::BuildingRecord.
+struct BuildingRecord {
+    bounds_min_m: vec3<f32>,
+    first_index: u32,
+    bounds_max_m: vec3<f32>,
+    index_count: u32,
+    base_vertex: i32,
+    vertex_count: u32,
+    _pad0: u32,
+    _pad1: u32,
+}
+
+// Arguments of one indexed indirect draw, as wgpu reads them.
+// Rust twin: citywalk_shaders::DrawIndexedIndirectArgs.
+struct DrawIndexedIndirectArgs {
+    index_count: u32,
+    instance_count: u32,
+    first_index: u32,
+    base_vertex: i32,
+    first_instance: u32,
+}
+
+// A well-mixed 32-bit hash (lowbias32 by Chris Wellons), for per-building colour variation.
+fn hash_u32(x_in: u32) -> u32 {
+    var x = x_in;
+    x ^= x >> 16u;
+    x *= 0x7feb352du;
+    x ^= x >> 15u;
+    x *= 0x846ca68bu;
+    x ^= x >> 16u;
+    return x;
+}

@@ -1,0 +1,603 @@
+//! The GPU hierarchical-Z passes against their CPU reference (`citywalk_engine::hzb::reference`):
+//! the pyramid texel for texel, the cull box for box, and the indirect draws it appends.
+//!
+//! Depth buffers are written by a fullscreen pass that copies a random `R32Float` texture into
+//! `frag_depth`, so the CPU knows every depth exactly; where the backend can copy depth to a
+//! buffer (not GL), the depth texture is also read back and must equal the input.
+
+use citywalk_engine::camera::Camera;
+use citywalk_engine::gpu::GpuContext;
+use citywalk_engine::hzb::cull::{CULL_FRUSTUM_OUTSIDE, CULL_OCCLUDED, CULL_VISIBLE};
+use citywalk_engine::hzb::reference::{BoxProjection, DepthPyramid, project_box};
+use citywalk_engine::hzb::{HzbCull, HzbPyramid};
+use citywalk_shaders::{BuildingRecord, DrawIndexedIndirectArgs};
+use citywalk_tests::gpu::gpu_or_skip;
+use glam::{Mat4, Vec3};
+use wgpu::util::DeviceExt;
+
+/// SplitMix64: a small fixed-seed generator for test data.
+struct Rng(u64);
+
+impl Rng {
+    fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+    /// Uniform in [0, 1) with 24 bits.
+    fn unit(&mut self) -> f32 {
+        (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
+    }
+    fn range(&mut self, lo: f32, hi: f32) -> f32 {
+        lo + (hi - lo) * self.unit()
+    }
+}
+
+const DEPTH_WRITER_WGSL: &str = r"
+@group(0) @binding(0) var values: texture_2d<f32>;
+
+@vertex
+fn vs_main(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
+    let uv = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
+    return vec4<f32>(uv * 2.0 - 1.0, 0.5, 1.0);
+}
+
+@fragment
+fn fs_main(@builtin(position) p: vec4<f32>) -> @builtin(frag_depth) f32 {
+    return textureLoad(values, vec2<i32>(p.xy), 0).r;
+}
+";
+
+/// Writes `values` (row-major, `width × height`) into a new `Depth32Float` texture.
+fn depth_texture(gpu: &GpuContext, width: u32, height: u32, values: &[f32]) -> wgpu::Texture {
+    let device = &gpu.device;
+    let size = wgpu::Extent3d {
+        width,
+        height,
+        depth_or_array_layers: 1,
+    };
+    let source = device.create_texture_with_data(
+        &gpu.queue,
+        &wgpu::TextureDescriptor {
+            label: Some("test depth values"),
+            size,
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::R32Float,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        },
+        wgpu::util::TextureDataOrder::LayerMajor,
+        bytemuck_cast(values),
+    );
+    let depth = device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("test depth"),
+        size,
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Depth32Float,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+            | wgpu::TextureUsages::TEXTURE_BINDING
+            | wgpu::TextureUsages::COPY_SRC,
+        view_formats: &[],
+    });
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("test depth writer"),
+        source: wgpu::ShaderSource::Wgsl(DEPTH_WRITER_WGSL.into()),
+    });
+    let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("test depth writer"),
+        entries: &[wgpu::BindGroupLayoutEntry {
+            binding: 0,
+            visibility: wgpu::ShaderStages::FRAGMENT,
+            ty: wgpu::BindingType::Texture {
+                sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                view_dimension: wgpu::TextureViewDimension::D2,
+                multisampled: false,
+            },
+            count: None,
+        }],
+    });
+    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some("test depth writer"),
+        bind_group_layouts: &[Some(&layout)],
+        immediate_size: 0,
+    });
+    let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some("test depth writer"),
+        layout: Some(&pipeline_layout),
+        vertex: wgpu::VertexState {
+            module: &module,
+            entry_point: Some("vs_main"),
+            compilation_options: Default::default(),
+            buffers: &[],
+        },
+        primitive: wgpu::PrimitiveState::default(),
+        depth_stencil: Some(wgpu::DepthStencilState {
+            format: wgpu::TextureFormat::Depth32Float,
+            depth_write_enabled: Some(true),
+            depth_compare: Some(wgpu::CompareFunction::Always),
+            stencil: wgpu::StencilState::default(),
+            bias: wgpu::DepthBiasState::default(),
+        }),
+        multisample: wgpu::MultisampleState::default(),
+        fragment: Some(wgpu::FragmentState {
+            module: &module,
+            entry_point: Some("fs_main"),
+            compilation_options: Default::default(),
+            targets: &[],
+        }),
+        multiview_mask: None,
+        cache: None,
+    });
+    let source_view = source.create_view(&wgpu::TextureViewDescriptor::default());
+    let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("test depth writer"),
+        layout: &layout,
+        entries: &[wgpu::BindGroupEntry {
+            binding: 0,
+            resource: wgpu::BindingResource::TextureView(&source_view),
+        }],
+    });
+    let depth_view = depth.create_view(&wgpu::TextureViewDescriptor::default());
+    let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+    {
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("test depth writer"),
+            color_attachments: &[],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &depth_view,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(Camera::DEPTH_CLEAR),
+                    store: wgpu::StoreOp::Store,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_pipeline(&pipeline);
+        pass.set_bind_group(0, &group, &[]);
+        pass.draw(0..3, 0..1);
+    }
+    gpu.queue.submit([encoder.finish()]);
+    depth
+}
+
+fn bytemuck_cast(values: &[f32]) -> &[u8] {
+    bytemuck::cast_slice(values)
+}
+
+/// Reads a `Depth32Float` texture back, or `None` where the backend cannot copy depth (GL).
+fn read_depth(
+    gpu: &GpuContext,
+    depth: &wgpu::Texture,
+    width: u32,
+    height: u32,
+) -> Option<Vec<f32>> {
+    if gpu.adapter_info.backend == wgpu::Backend::Gl {
+        return None;
+    }
+    let row = (width * 4).div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT)
+        * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+    let buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("test depth readback"),
+        size: u64::from(row) * u64::from(height),
+        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+        mapped_at_creation: false,
+    });
+    let mut encoder = gpu
+        .device
+        .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+    encoder.copy_texture_to_buffer(
+        wgpu::TexelCopyTextureInfo {
+            texture: depth,
+            mip_level: 0,
+            origin: wgpu::Origin3d::ZERO,
+            aspect: wgpu::TextureAspect::DepthOnly,
+        },
+        wgpu::TexelCopyBufferInfo {
+            buffer: &buffer,
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(row),
+                rows_per_image: Some(height),
+            },
+        },
+        depth.size(),
+    );
+    gpu.queue.submit([encoder.finish()]);
+    let slice = buffer.slice(..);
+    slice.map_async(wgpu::MapMode::Read, |r| r.expect("map depth readback"));
+    gpu.wait_idle();
+    let mapped = slice.get_mapped_range().expect("mapped depth");
+    let mut out = Vec::with_capacity((width * height) as usize);
+    for y in 0..height as usize {
+        let start = y * row as usize;
+        out.extend(
+            mapped[start..start + 4 * width as usize]
+                .chunks_exact(4)
+                .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+        );
+    }
+    Some(out)
+}
+
+/// Builds the pyramid of `values` on the GPU and reads every level back.
+fn gpu_pyramid(
+    gpu: &GpuContext,
+    width: u32,
+    height: u32,
+    values: &[f32],
+) -> (HzbPyramid, DepthPyramid) {
+    let depth = depth_texture(gpu, width, height, values);
+    if let Some(readback) = read_depth(gpu, &depth, width, height) {
+        assert!(
+            readback
+                .iter()
+                .zip(values)
+                .all(|(a, b)| a.to_bits() == b.to_bits()),
+            "{width}x{height}: the depth buffer does not hold the values written"
+        );
+    }
+    let pyramid = HzbPyramid::new(gpu, width, height).expect("pyramid");
+    let view = depth.create_view(&wgpu::TextureViewDescriptor::default());
+    let mut encoder = gpu
+        .device
+        .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+    pyramid.build(&mut encoder, &view);
+    gpu.queue.submit([encoder.finish()]);
+    let levels = pyramid.read_back(gpu).expect("pyramid readback");
+    (pyramid, levels)
+}
+
+/// Random reversed-Z depths: a tenth cleared (0, the sky), the rest uniform in [0, 1).
+fn random_depths(rng: &mut Rng, n: usize) -> Vec<f32> {
+    (0..n)
+        .map(|_| if rng.unit() < 0.1 { 0.0 } else { rng.unit() })
+        .collect()
+}
+
+/// The GPU pyramid equals the CPU reference texel for texel (bit-exact) at common, odd and tiny
+/// sizes, every level.
+#[test]
+fn gpu_pyramid_equals_reference_texel_for_texel() {
+    let Some(gpu) = gpu_or_skip("gpu_pyramid_equals_reference_texel_for_texel") else {
+        return;
+    };
+    let mut rng = Rng(0x4859_5a42);
+    let sizes = [
+        (1280, 720),
+        (1366, 768),
+        (1001, 777),
+        (640, 480),
+        (1, 1),
+        (3, 5),
+        (17, 9),
+        (2, 1),
+        (1, 7),
+        (33, 65),
+    ];
+    for (w, h) in sizes {
+        let values = random_depths(&mut rng, (w * h) as usize);
+        let (pyramid, gpu_levels) = gpu_pyramid(&gpu, w, h, &values);
+        let cpu = DepthPyramid::build(w, h, &values);
+        assert_eq!(pyramid.level_count() as usize, cpu.levels.len(), "{w}x{h}");
+        assert_eq!(gpu_levels.levels.len(), cpu.levels.len(), "{w}x{h}");
+        for (l, (g, c)) in gpu_levels.levels.iter().zip(&cpu.levels).enumerate() {
+            assert_eq!(
+                (g.width, g.height),
+                (c.width, c.height),
+                "{w}x{h} level {l} size"
+            );
+            if let Some(i) =
+                (0..c.depth.len()).find(|&i| g.depth[i].to_bits() != c.depth[i].to_bits())
+            {
+                panic!(
+                    "{w}x{h} level {l}: texel ({}, {}) GPU {} CPU {}",
+                    i as u32 % c.width,
+                    i as u32 / c.width,
+                    g.depth[i],
+                    c.depth[i]
+                );
+            }
+        }
+    }
+}
+
+/// A depth buffer seen from a camera: sky (0) above, random walls (screen rectangles reaching
+/// the bottom edge) at 8–80 m.
+fn walls_depth(rng: &mut Rng, camera: &Camera, width: u32, height: u32) -> Vec<f32> {
+    let mut depth = vec![0.0f32; (width * height) as usize];
+    for _ in 0..25 {
+        let w = (rng.range(0.05, 0.4) * width as f32) as u32;
+        let x0 = (rng.unit() * width as f32) as u32;
+        let y0 = (rng.range(0.2, 0.8) * height as f32) as u32;
+        let d = camera.near_m / rng.range(8.0, 80.0);
+        for y in y0..height {
+            for x in x0..(x0 + w).min(width) {
+                let t = &mut depth[(y * width + x) as usize];
+                *t = t.max(d);
+            }
+        }
+    }
+    depth
+}
+
+/// Random boxes around a camera: most in front (1–250 m), and some crossing the near plane,
+/// behind the camera, on the frustum's edges, and huge ones covering the whole screen.
+fn random_boxes(rng: &mut Rng, camera: &Camera, aspect: f32, n: usize) -> Vec<(Vec3, Vec3)> {
+    let forward = camera.forward();
+    let right = camera.right();
+    let up = right.cross(forward);
+    let t = (camera.fov_y_rad * 0.5).tan();
+    let along = |ndc_x: f32, ndc_y: f32, d: f32| {
+        camera.position + d * (forward + ndc_x * t * aspect * right + ndc_y * t * up)
+    };
+    (0..n)
+        .map(|i| {
+            let (centre, half) = match i % 10 {
+                0..=5 => (
+                    along(
+                        rng.range(-1.6, 1.6),
+                        rng.range(-1.6, 1.6),
+                        rng.range(1.0, 250.0),
+                    ),
+                    Vec3::new(
+                        rng.range(0.1, 15.0),
+                        rng.range(0.1, 15.0),
+                        rng.range(0.1, 15.0),
+                    ),
+                ),
+                6 => (
+                    camera.position
+                        + Vec3::new(
+                            rng.range(-1.0, 1.0),
+                            rng.range(-1.0, 1.0),
+                            rng.range(-1.0, 1.0),
+                        ),
+                    Vec3::splat(rng.range(0.05, 2.0)),
+                ),
+                7 => (
+                    camera.position - forward * rng.range(2.0, 100.0)
+                        + Vec3::new(
+                            rng.range(-20.0, 20.0),
+                            rng.range(-20.0, 20.0),
+                            rng.range(-5.0, 5.0),
+                        ),
+                    Vec3::splat(rng.range(0.2, 10.0)),
+                ),
+                8 => {
+                    // On a random edge of the frustum, a little inside or outside.
+                    let s = if rng.unit() < 0.5 { -1.0 } else { 1.0 };
+                    let edge = s * rng.range(0.97, 1.03);
+                    let other = rng.range(-1.0, 1.0);
+                    let (x, y) = if rng.unit() < 0.5 {
+                        (edge, other)
+                    } else {
+                        (other, edge)
+                    };
+                    (
+                        along(x, y, rng.range(2.0, 200.0)),
+                        Vec3::splat(rng.range(0.02, 3.0)),
+                    )
+                }
+                _ => (
+                    along(
+                        rng.range(-0.3, 0.3),
+                        rng.range(-0.3, 0.3),
+                        rng.range(30.0, 120.0),
+                    ),
+                    Vec3::splat(rng.range(25.0, 400.0)),
+                ),
+            };
+            (centre - half, centre + half)
+        })
+        .collect()
+}
+
+/// Status of one box by the CPU reference.
+fn cpu_status(pyramid: &DepthPyramid, vp: Mat4, lo: Vec3, hi: Vec3, w: u32, h: u32) -> u32 {
+    match project_box(vp, lo, hi, w, h) {
+        BoxProjection::Outside => CULL_FRUSTUM_OUTSIDE,
+        BoxProjection::CrossesNear => CULL_VISIBLE,
+        BoxProjection::Rect {
+            rect,
+            nearest_depth,
+        } => {
+            if pyramid.is_occluded(rect, nearest_depth) {
+                CULL_OCCLUDED
+            } else {
+                CULL_VISIBLE
+            }
+        }
+    }
+}
+
+/// Records with unique draw ranges, so that each command names its box.
+fn records_for(boxes: &[(Vec3, Vec3)]) -> Vec<BuildingRecord> {
+    boxes
+        .iter()
+        .enumerate()
+        .map(|(i, (lo, hi))| BuildingRecord {
+            bounds_min_m: lo.to_array(),
+            first_index: i as u32 * 7,
+            bounds_max_m: hi.to_array(),
+            index_count: 3 * (i as u32 % 50 + 1),
+            base_vertex: i as i32 * 3 - 1000,
+            vertex_count: 4,
+            _pad0: 0,
+            _pad1: 0,
+        })
+        .collect()
+}
+
+fn key(c: &DrawIndexedIndirectArgs) -> (u32, u32, i32, u32, u32) {
+    (
+        c.first_index,
+        c.index_count,
+        c.base_vertex,
+        c.instance_count,
+        c.first_instance,
+    )
+}
+
+/// The GPU cull against `project_box` + `is_occluded` on the CPU with the same matrices and the
+/// same pyramid, for thousands of boxes from three cameras at two viewport sizes.
+///
+/// Rule asserted: the GPU is never less conservative — where it says occluded the CPU says
+/// occluded, where it says frustum-outside the CPU says outside (zero exceptions) — and the two
+/// agree on at least 99.9 % of boxes (the GPU widens its comparisons by a rounding bound, so it
+/// may keep a few boxes the CPU culls, never the reverse). The indirect commands are exactly the
+/// draws of the boxes the GPU reports visible.
+#[test]
+fn gpu_cull_matches_reference_and_never_culls_more() {
+    let Some(gpu) = gpu_or_skip("gpu_cull_matches_reference_and_never_culls_more") else {
+        return;
+    };
+    let mut rng = Rng(0x0c11_0000);
+    let cameras = [
+        Camera::new(Vec3::new(0.0, 0.0, 1.7), 0.3, 0.05),
+        Camera::new(Vec3::new(120.0, -40.0, 35.0), 2.2, -0.35),
+        Camera::new(Vec3::new(-500.0, 800.0, 3.0), -1.2, 0.2),
+    ];
+    let mut cull = HzbCull::new(&gpu, 1024);
+    let (mut total, mut agree) = (0usize, 0usize);
+    let mut cpu_counts = [0usize; 3];
+    for (c, camera) in cameras.iter().enumerate() {
+        let (w, h) = if c == 1 { (1001, 777) } else { (1280, 720) };
+        let depth = walls_depth(&mut rng, camera, w, h);
+        let (pyramid, gpu_levels) = gpu_pyramid(&gpu, w, h, &depth);
+        let cpu_pyramid = DepthPyramid::build(w, h, &depth);
+        assert!(
+            gpu_levels == cpu_pyramid,
+            "camera {c}: GPU pyramid differs from the reference"
+        );
+        let vp = camera.view_proj(w as f32 / h as f32);
+        let boxes = random_boxes(&mut rng, camera, w as f32 / h as f32, 4000);
+        let records = records_for(&boxes);
+        let records_buffer = gpu
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("test records"),
+                contents: bytemuck::cast_slice(&records),
+                usage: wgpu::BufferUsages::STORAGE,
+            });
+        let mut encoder = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+        cull.encode(
+            &gpu,
+            &mut encoder,
+            &records_buffer,
+            records.len() as u32,
+            &pyramid,
+            vp,
+        )
+        .expect("cull");
+        gpu.queue.submit([encoder.finish()]);
+        let results = cull
+            .read_back(&gpu, records.len() as u32)
+            .expect("cull readback");
+        assert_eq!(results.status.len(), boxes.len());
+        for (i, ((lo, hi), &g)) in boxes.iter().zip(&results.status).enumerate() {
+            let cpu = cpu_status(&cpu_pyramid, vp, *lo, *hi, w, h);
+            cpu_counts[cpu as usize] += 1;
+            assert!(
+                g == cpu || g == CULL_VISIBLE,
+                "camera {c} box {i} [{lo}, {hi}]: GPU status {g}, CPU status {cpu} ({:?})",
+                project_box(vp, *lo, *hi, w, h)
+            );
+            total += 1;
+            agree += usize::from(g == cpu);
+        }
+        // The commands are exactly the GPU-visible boxes' draws.
+        let mut expected: Vec<_> = records
+            .iter()
+            .zip(&results.status)
+            .filter(|(_, s)| **s == CULL_VISIBLE)
+            .map(|(r, _)| key(&r.draw_args()))
+            .collect();
+        let mut written: Vec<_> = results.commands.iter().map(key).collect();
+        expected.sort_unstable();
+        written.sort_unstable();
+        assert_eq!(written, expected, "camera {c}: indirect commands");
+    }
+    eprintln!(
+        "{agree} of {total} boxes agree; CPU: {} visible, {} outside, {} occluded",
+        cpu_counts[0], cpu_counts[1], cpu_counts[2]
+    );
+    // Every outcome is exercised.
+    for (s, n) in cpu_counts.iter().enumerate() {
+        assert!(*n * 20 > total, "status {s} only {n} times of {total}");
+    }
+    assert!(
+        agree as f64 >= 0.999 * total as f64,
+        "only {agree} of {total} boxes agree"
+    );
+}
+
+/// Wall-clock timings (submit + wait) on this adapter: pyramid build at 1280×720 and culls of
+/// 10k and 100k boxes. Run with `cargo test --release -p citywalk-tests --test hzb_gpu --
+/// --ignored --nocapture`.
+#[test]
+#[ignore = "timing, run by hand"]
+fn hzb_gpu_timings() {
+    let Some(gpu) = gpu_or_skip("hzb_gpu_timings") else {
+        return;
+    };
+    let mut rng = Rng(7);
+    let camera = Camera::new(Vec3::new(0.0, 0.0, 1.7), 0.3, 0.05);
+    let (w, h) = (1280, 720);
+    let depth_values = walls_depth(&mut rng, &camera, w, h);
+    let depth = depth_texture(&gpu, w, h, &depth_values);
+    let view = depth.create_view(&wgpu::TextureViewDescriptor::default());
+    let pyramid = HzbPyramid::new(&gpu, w, h).expect("pyramid");
+    let time = |f: &dyn Fn(&mut wgpu::CommandEncoder)| {
+        let mut samples = Vec::new();
+        for i in 0..25 {
+            let mut encoder = gpu
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+            f(&mut encoder);
+            let start = std::time::Instant::now();
+            gpu.queue.submit([encoder.finish()]);
+            gpu.wait_idle();
+            if i >= 5 {
+                samples.push(start.elapsed().as_secs_f64() * 1e3);
+            }
+        }
+        samples.sort_by(f64::total_cmp);
+        (samples[samples.len() / 2], samples[0])
+    };
+    let (median, best) = time(&|e| pyramid.build(e, &view));
+    eprintln!(
+        "{}: pyramid build {w}x{h} ({} levels): median {median:.2} ms, best {best:.2} ms",
+        gpu.adapter_summary(),
+        pyramid.level_count()
+    );
+    let vp = camera.view_proj(w as f32 / h as f32);
+    for n in [10_000usize, 100_000] {
+        let boxes = random_boxes(&mut rng, &camera, w as f32 / h as f32, n);
+        let records = records_for(&boxes);
+        let records_buffer = gpu
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("timing records"),
+                contents: bytemuck::cast_slice(&records),
+                usage: wgpu::BufferUsages::STORAGE,
+            });
+        let cull = std::cell::RefCell::new(HzbCull::new(&gpu, n as u32));
+        let (median, best) = time(&|e| {
+            cull.borrow_mut()
+                .encode(&gpu, e, &records_buffer, n as u32, &pyramid, vp)
+                .expect("cull");
+        });
+        eprintln!("cull {n} boxes: median {median:.2} ms, best {best:.2} ms");
+    }
+}
