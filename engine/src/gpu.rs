@@ -57,17 +57,31 @@ impl GpuContext {
         pollster::block_on(Self::headless_async())
     }
 
-    /// Async form of [`GpuContext::headless`].
+    /// Async form of [`GpuContext::headless`]. Without `WGPU_BACKEND`, the primary backends
+    /// (Vulkan, Metal, DX12) are tried first and GL only when they offer no adapter, which also
+    /// keeps EGL's start-up noise out of the common case.
     pub async fn headless_async() -> Result<GpuContext, GpuError> {
-        let instance = Self::instance_from_env();
-        let adapters = instance.enumerate_adapters(wgpu::Backends::all()).await;
-        let adapter = adapters
-            .into_iter()
-            .max_by_key(|a| adapter_rank(&a.get_info()))
-            .ok_or(GpuError::NoAdapter {
-                backends: wgpu::Backends::from_env().unwrap_or(wgpu::Backends::all()),
-            })?;
-        Self::from_adapter(instance, adapter).await
+        let attempts = match wgpu::Backends::from_env() {
+            Some(backends) => vec![backends],
+            None => vec![wgpu::Backends::PRIMARY, wgpu::Backends::SECONDARY],
+        };
+        for backends in &attempts {
+            let mut descriptor = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
+            descriptor.backends = *backends;
+            let instance = wgpu::Instance::new(descriptor);
+            let adapters = instance.enumerate_adapters(*backends).await;
+            if let Some(adapter) = adapters
+                .into_iter()
+                .max_by_key(|a| adapter_rank(&a.get_info()))
+            {
+                return Self::from_adapter(instance, adapter).await;
+            }
+        }
+        Err(GpuError::NoAdapter {
+            backends: attempts
+                .into_iter()
+                .fold(wgpu::Backends::empty(), |a, b| a | b),
+        })
     }
 
     /// A context whose adapter can present to `surface` (created from `instance`, which must

@@ -3,9 +3,12 @@
 
 pub mod bench;
 pub mod camera;
+pub mod camera_path_io;
 pub mod controller;
+pub mod frame;
 pub mod gpu;
 pub mod hzb;
+pub mod lod;
 pub mod oracle;
 pub mod render;
 pub mod scene_gpu;

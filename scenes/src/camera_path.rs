@@ -147,7 +147,10 @@ impl CameraPath {
                     let [x, y, z, yaw, pitch] = values[..] else {
                         return Err(err(
                             n,
-                            format!("pose needs 5 numbers (x y z yaw pitch), got {}", values.len()),
+                            format!(
+                                "pose needs 5 numbers (x y z yaw pitch), got {}",
+                                values.len()
+                            ),
                         ));
                     };
                     if !values.iter().all(|v| v.is_finite()) {
@@ -324,7 +327,11 @@ impl Obstacles {
     fn blocked(&self, city: &City, p: Coord<f64>) -> bool {
         self.tree
             .locate_in_envelope_intersecting(AABB::from_point([p.x, p.y]))
-            .any(|b| city.buildings[b.building].footprint.contains(&Point::from(p)))
+            .any(|b| {
+                city.buildings[b.building]
+                    .footprint
+                    .contains(&Point::from(p))
+            })
     }
 }
 
@@ -507,9 +514,10 @@ fn street_route(city: &City) -> Option<LineString<f64>> {
     }
     // Keep the longest piece of the route inside the (grown) core.
     use geo::BooleanOps;
-    let pieces = core
-        .grown_polygon()
-        .clip(&geo::MultiLineString::new(vec![LineString::new(route)]), false);
+    let pieces = core.grown_polygon().clip(
+        &geo::MultiLineString::new(vec![LineString::new(route)]),
+        false,
+    );
     let line = pieces
         .0
         .into_iter()

@@ -264,7 +264,10 @@ impl City {
             for p in &b.parts {
                 crate::validate::check_multipolygon(&p.footprint)
                     .map_err(|r| format!("part {}: footprint {r}", p.source_id))?;
-                if !(p.top_m > p.base_m) || p.base_m < b.base_m || p.top_m > b.top_m {
+                if p.top_m.partial_cmp(&p.base_m) != Some(std::cmp::Ordering::Greater)
+                    || p.base_m < b.base_m
+                    || p.top_m > b.top_m
+                {
                     return Err(format!(
                         "part {} heights {}..{} outside building {}..{}",
                         p.source_id, p.base_m, p.top_m, b.base_m, b.top_m

@@ -7,8 +7,8 @@
 pub mod blocks;
 pub mod camera_path;
 pub mod city;
-pub mod extrude;
 pub mod cluster_tree;
+pub mod extrude;
 pub mod frame;
 pub mod frustum;
 pub mod generate;
@@ -24,5 +24,5 @@ pub use city::{
     Building, BuildingId, BuildingPart, City, HeightSource, Street, StreetClass, TriangleMesh,
 };
 pub use frame::{Crs, Frame};
-pub use load::{LoadOptions, load_city, load_cities};
+pub use load::{LoadOptions, load_cities, load_city};
 pub use report::{LoadError, LoadReport, LoadWarning, RejectReason, Rejection};

@@ -44,7 +44,9 @@ pub fn clean_footprint(polygons: &[Vec<Vec<Coord<f64>>>]) -> Result<CleanFootpri
     }
     for rings in polygons {
         let Some((outer, holes)) = rings.split_first() else {
-            return Err(RejectReason::MissingGeometry("polygon without rings".into()));
+            return Err(RejectReason::MissingGeometry(
+                "polygon without rings".into(),
+            ));
         };
         let outer = clean_ring(outer)?;
         let mut kept_holes = Vec::new();

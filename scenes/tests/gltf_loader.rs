@@ -198,7 +198,7 @@ fn make_glb(boxes: &[([f32; 3], [f32; 3], u32)], batched: bool, node_json: &str)
     bin.extend(ids.iter().flat_map(|v| v.to_le_bytes()));
     let index_offset = bin.len();
     bin.extend(indices.iter().flat_map(|v| v.to_le_bytes()));
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     let n = positions.len() / 3;
@@ -224,7 +224,7 @@ fn make_glb(boxes: &[([f32; 3], [f32; 3], u32)], batched: bool, node_json: &str)
 
 fn glb_container(json: &str, bin: &[u8]) -> Vec<u8> {
     let mut json = json.as_bytes().to_vec();
-    while json.len() % 4 != 0 {
+    while !json.len().is_multiple_of(4) {
         json.push(b' ');
     }
     let total = 12 + 8 + json.len() + 8 + bin.len();
@@ -243,11 +243,11 @@ fn glb_container(json: &str, bin: &[u8]) -> Vec<u8> {
 
 fn make_b3dm(batch_table: &str, glb: &[u8]) -> Vec<u8> {
     let mut ft = r#"{"BATCH_LENGTH":3}"#.as_bytes().to_vec();
-    while (28 + ft.len()) % 8 != 0 {
+    while !(28 + ft.len()).is_multiple_of(8) {
         ft.push(b' ');
     }
     let mut bt = batch_table.as_bytes().to_vec();
-    while (28 + ft.len() + bt.len()) % 8 != 0 {
+    while !(28 + ft.len() + bt.len()).is_multiple_of(8) {
         bt.push(b' ');
     }
     let total = 28 + ft.len() + bt.len() + glb.len();

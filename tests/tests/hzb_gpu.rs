@@ -601,3 +601,125 @@ fn hzb_gpu_timings() {
         eprintln!("cull {n} boxes: median {median:.2} ms, best {best:.2} ms");
     }
 }
+
+/// The frame-script path on a real scene: depth from the brute renderer, the pyramid built from
+/// that depth target, the cull of the scene's own building records. The GPU statuses follow the
+/// CPU reference with the rule above, and no building that the id-buffer oracle sees (at least
+/// one pixel) is culled.
+#[test]
+fn gpu_cull_of_a_rendered_city_never_hides_a_visible_building() {
+    let Some(gpu) = gpu_or_skip("gpu_cull_of_a_rendered_city_never_hides_a_visible_building")
+    else {
+        return;
+    };
+    use citywalk_engine::oracle::Oracle;
+    use citywalk_engine::render::{BruteRenderer, OffscreenTarget};
+    use citywalk_engine::scene_gpu::SceneGpu;
+
+    let mut rng = Rng(0x5eed_c17e);
+    // A 20 × 20 grid of blocks 25 m apart, buildings 10–20 m wide and 4–60 m tall: streets at
+    // least 5 m wide.
+    let mut specs = Vec::new();
+    for gy in 0..20 {
+        for gx in 0..20 {
+            let (x0, y0) = (f64::from(gx) * 25.0, f64::from(gy) * 25.0);
+            let (w, d) = (rng.range(10.0, 20.0), rng.range(10.0, 20.0));
+            specs.push((
+                x0,
+                y0,
+                x0 + f64::from(w),
+                y0 + f64::from(d),
+                rng.range(4.0, 60.0),
+            ));
+        }
+    }
+    let city = citywalk_tests::city_builder::boxes(&specs);
+    let scene = SceneGpu::upload_city(&gpu, &city);
+    let n = scene.building_count() as u32;
+    let renderer = BruteRenderer::new(&gpu, BruteRenderer::PNG_FORMAT);
+    let oracle = Oracle::new(&gpu);
+    let (w, h) = (640, 360);
+    let target = OffscreenTarget::new(&gpu, w, h, BruteRenderer::PNG_FORMAT).expect("target");
+    let pyramid = HzbPyramid::new(&gpu, w, h).expect("pyramid");
+    let mut cull = HzbCull::new(&gpu, n);
+    let (mut occluded, mut total, mut agree) = (0usize, 0usize, 0usize);
+    for k in 0..6 {
+        // In a street (x = 22.5 + 25 i), pedestrian height, random heading.
+        let position = Vec3::new(
+            22.5 + 25.0 * (k * 3 % 19) as f32,
+            rng.range(0.0, 480.0),
+            rng.range(1.5, 12.0),
+        );
+        let camera = Camera::new(
+            position,
+            rng.range(0.0, std::f32::consts::TAU),
+            rng.range(-0.2, 0.2),
+        );
+        let vp = camera.view_proj(w as f32 / h as f32);
+        let mut encoder = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+        renderer.encode(
+            &gpu,
+            &mut encoder,
+            &scene,
+            &camera,
+            &target.colour_view,
+            &target.depth,
+        );
+        pyramid.build(&mut encoder, &target.depth.view);
+        cull.encode(&gpu, &mut encoder, &scene.records_buffer, n, &pyramid, vp)
+            .expect("cull");
+        gpu.queue.submit([encoder.finish()]);
+        let results = cull.read_back(&gpu, n).expect("cull readback");
+        let gpu_levels = pyramid.read_back(&gpu).expect("pyramid readback");
+        let level0 = &gpu_levels.levels[0];
+        let cpu_pyramid = DepthPyramid::build(w, h, &level0.depth);
+        assert!(
+            gpu_levels == cpu_pyramid,
+            "camera {k}: pyramid differs from the reference"
+        );
+        let seen = oracle
+            .visible_set(&gpu, &scene, &camera, w, h)
+            .expect("oracle");
+        assert!(!seen.is_empty(), "camera {k} sees no building");
+        for (i, r) in scene.records.iter().enumerate() {
+            let (lo, hi) = (Vec3::from(r.bounds_min_m), Vec3::from(r.bounds_max_m));
+            let cpu = cpu_status(&cpu_pyramid, vp, lo, hi, w, h);
+            let g = results.status[i];
+            assert!(
+                g == cpu || g == CULL_VISIBLE,
+                "camera {k} building {i}: GPU {g}, CPU {cpu}"
+            );
+            if seen.contains(citywalk_scenes::BuildingId(i as u32)) {
+                assert_eq!(
+                    g, CULL_VISIBLE,
+                    "camera {k}: building {i} is seen but culled ({g})"
+                );
+            }
+            occluded += usize::from(g == CULL_OCCLUDED);
+            agree += usize::from(g == cpu);
+            total += 1;
+        }
+        assert_eq!(
+            results.commands.len(),
+            results
+                .status
+                .iter()
+                .filter(|s| **s == CULL_VISIBLE)
+                .count(),
+            "camera {k}: one command per visible building"
+        );
+    }
+    eprintln!(
+        "rendered city: {occluded} of {total} culled by occlusion, {agree} agree with the CPU"
+    );
+    assert!(
+        occluded * 10 > total,
+        "too little occlusion to test: {occluded} of {total}"
+    );
+    assert!(
+        agree as f64 >= 0.999 * total as f64,
+        "only {agree} of {total} agree"
+    );
+}

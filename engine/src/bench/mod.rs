@@ -1,9 +1,12 @@
 //! The occlusion benchmark: scenes × camera paths × culling modes, every frame checked against
 //! the exact visibility oracle, written as `frames.csv`, `bench.json` and `summary.md`.
 
+pub mod baseline;
+pub mod decimate;
 pub mod mode;
 pub mod output;
 pub mod pixel_error;
+pub mod plots;
 pub mod run;
 
 pub use mode::Mode;

@@ -3,8 +3,9 @@
 //! Modes build on each other: `brute` draws everything; `frustum` tests every building's box
 //! against the view frustum; `quadtree` culls whole urban blocks top-down through the
 //! B-Quadtree (Pina et al. 2013, §3-4: hierarchical frustum culling of blocks). The GPU
-//! occlusion modes (`hzb`, `occluders`, `lod`, `all`) are named so the command line can refuse
-//! them clearly until the runtime implements them.
+//! occlusion modes `hzb` and `occluders` select on the GPU inside the two-phase frame
+//! ([`crate::frame::CullingRenderer`]), not here; modes the runtime does not implement yet are
+//! named so the command line can refuse them clearly.
 
 use std::fmt;
 
@@ -66,7 +67,13 @@ impl Mode {
     pub fn is_available(self) -> bool {
         matches!(
             self,
-            Mode::Brute | Mode::Frustum | Mode::Quadtree | Mode::DropOneVisibleForTest
+            Mode::Brute
+                | Mode::Frustum
+                | Mode::Quadtree
+                | Mode::Hzb
+                | Mode::Occluders
+                | Mode::Lod
+                | Mode::DropOneVisibleForTest
         )
     }
 
@@ -121,7 +128,8 @@ pub struct CullingData<'a> {
 }
 
 /// The buildings `mode` draws for a camera with `view_proj`, in id order, or `None` for a mode
-/// the runtime does not implement yet. `visible_first` is the first building of the oracle's
+/// the runtime does not implement yet, or one not selected here (`lod` needs the scene's
+/// cluster tree: `crate::lod::scene::LodScene::select`). `visible_first` is the first building of the oracle's
 /// visible set, used only by the test-only mode.
 pub fn select(
     mode: Mode,
@@ -178,9 +186,13 @@ mod tests {
             Mode::parse_list("brute, frustum,brute").unwrap(),
             vec![Mode::Brute, Mode::Frustum]
         );
-        assert!(Mode::parse_list("fast").unwrap_err().contains("unknown mode"));
         assert!(
-            Mode::parse_list("brute,hzb")
+            Mode::parse_list("fast")
+                .unwrap_err()
+                .contains("unknown mode")
+        );
+        assert!(
+            Mode::parse_list("brute,all")
                 .unwrap_err()
                 .contains("not implemented yet")
         );

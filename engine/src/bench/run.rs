@@ -11,11 +11,13 @@ use citywalk_scenes::quadtree::BQuadtree;
 use crate::bench::mode::{CullingData, Mode, select};
 use crate::bench::pixel_error::pixel_error;
 use crate::camera::Camera;
+use crate::frame::{CullingOptions, CullingRenderer, OccluderMeshes, Visibility};
 use crate::gpu::GpuContext;
+use crate::lod::scene::LodScene;
 use crate::oracle::Oracle;
+use crate::render::BruteRenderer;
 use crate::render::selected::SelectedRenderer;
 use crate::render::targets::{OffscreenTarget, ReadbackError};
-use crate::render::BruteRenderer;
 use crate::scene_gpu::SceneGpu;
 
 /// One scene ready for benchmarking: its geometry on the GPU and its culling structures.
@@ -25,6 +27,12 @@ pub struct BenchScene {
     pub gpu_scene: SceneGpu,
     pub blocks: UrbanBlocks,
     pub quadtree: BQuadtree,
+    /// Buildings and cluster meshes with the cluster tree, for the `lod` mode (`None` when the
+    /// package has no cluster tree).
+    pub lod: Option<LodScene>,
+    /// The package's virtual occluders on the GPU, for the `occluders` mode (`None` when the
+    /// package has none).
+    pub occluders: Option<OccluderMeshes>,
 }
 
 /// What to measure.
@@ -72,6 +80,12 @@ pub enum BenchError {
     Readback(#[from] ReadbackError),
     #[error("mode '{0}' is not implemented yet")]
     ModeNotAvailable(Mode),
+    #[error("mode 'lod' needs the scene's cluster tree, and scene '{0}' has none")]
+    NoClusterTree(String),
+    #[error("mode 'occluders' needs the scene's virtual occluders, and scene '{0}' has none")]
+    NoOccluders(String),
+    #[error("rendering a culled frame failed: {0}")]
+    Frame(#[from] crate::frame::FrameError),
     #[error("writing {path}: {reason}")]
     Write { path: PathBuf, reason: String },
 }
@@ -82,6 +96,10 @@ pub struct BenchRenderers {
     brute: BruteRenderer,
     selected: SelectedRenderer,
     oracle: Oracle,
+    /// The two-phase HiZ frame (`hzb`, `occluders`), with each mode's visible set carried from
+    /// frame to frame along a path.
+    culling: CullingRenderer,
+    visibility: std::collections::HashMap<Mode, Visibility>,
 }
 
 impl BenchRenderers {
@@ -90,7 +108,14 @@ impl BenchRenderers {
             brute: BruteRenderer::new(gpu, BruteRenderer::PNG_FORMAT),
             selected: SelectedRenderer::new(gpu, BruteRenderer::PNG_FORMAT),
             oracle: Oracle::new(gpu),
+            culling: CullingRenderer::new(gpu, BruteRenderer::PNG_FORMAT),
+            visibility: std::collections::HashMap::new(),
         }
+    }
+
+    /// Forgets every mode's last visible set (the start of a camera path).
+    pub fn reset_visibility(&mut self) {
+        self.visibility.clear();
     }
 }
 
@@ -107,7 +132,8 @@ pub fn pose_camera(path: &CameraPath, i: usize) -> Camera {
 }
 
 /// Renders one frame of `mode` into `target`; returns (drawn buildings, draw calls, select ms,
-/// frame ms).
+/// frame ms, triangles). For `lod`, a building counts as drawn when it is drawn itself or
+/// through a drawn cluster containing it, and triangles are the buildings' and clusters'.
 fn render_mode(
     gpu: &GpuContext,
     renderers: &mut BenchRenderers,
@@ -116,7 +142,10 @@ fn render_mode(
     camera: &Camera,
     visible_first: Option<u32>,
     target: &OffscreenTarget,
-) -> Result<(Vec<u32>, u32, f64, f64), BenchError> {
+) -> Result<(Vec<u32>, u32, f64, f64, u64), BenchError> {
+    if let Some(options) = culling_options(mode) {
+        return render_culled(gpu, renderers, scene, mode, &options, camera, target);
+    }
     let aspect = target.width as f32 / target.height as f32;
     let data = CullingData {
         scene: &scene.gpu_scene,
@@ -129,7 +158,45 @@ fn render_mode(
         .create_command_encoder(&wgpu::CommandEncoderDescriptor {
             label: Some("bench frame"),
         });
-    let (drawn, draw_calls, select_ms) = if mode == Mode::Brute {
+    let building_triangles = |drawn: &[u32]| -> u64 {
+        drawn
+            .iter()
+            .filter_map(|&b| scene.gpu_scene.records.get(b as usize))
+            .map(|r| u64::from(r.index_count / 3))
+            .sum()
+    };
+    let (drawn, draw_calls, select_ms, triangles) = if mode == Mode::Lod {
+        // Screen-space LOD (Chang et al. 2008 §8) on top of B-Quadtree frustum culling.
+        let lod = scene
+            .lod
+            .as_ref()
+            .ok_or_else(|| BenchError::NoClusterTree(scene.name.clone()))?;
+        let frustum = citywalk_scenes::frustum::Frustum::from_view_proj(camera.view_proj(aspect));
+        let mut visible_blocks = vec![false; scene.blocks.blocks.len()];
+        for block in scene.quadtree.cull(&frustum) {
+            if let Some(v) = visible_blocks.get_mut(block as usize) {
+                *v = true;
+            }
+        }
+        let frame = lod.select(
+            camera,
+            target.width,
+            target.height,
+            lod.default_criterion(camera),
+            Some(&visible_blocks),
+        );
+        let select_ms = start.elapsed().as_secs_f64() * 1e3;
+        let calls = renderers.selected.encode(
+            gpu,
+            &mut encoder,
+            &lod.gpu_scene,
+            camera,
+            &frame.draw_ids,
+            &target.colour_view,
+            &target.depth,
+        );
+        (frame.covered, calls, select_ms, frame.triangles)
+    } else if mode == Mode::Brute {
         renderers.brute.encode(
             gpu,
             &mut encoder,
@@ -139,7 +206,9 @@ fn render_mode(
             &target.depth,
         );
         let n = scene.gpu_scene.building_count() as u32;
-        ((0..n).collect(), n + 1, 0.0)
+        let all: Vec<u32> = (0..n).collect();
+        let triangles = building_triangles(&all);
+        (all, n + 1, 0.0, triangles)
     } else {
         let drawn = select(mode, &data, camera.view_proj(aspect), visible_first)
             .ok_or(BenchError::ModeNotAvailable(mode))?;
@@ -153,12 +222,13 @@ fn render_mode(
             &target.colour_view,
             &target.depth,
         );
-        (drawn, calls, select_ms)
+        let triangles = building_triangles(&drawn);
+        (drawn, calls, select_ms, triangles)
     };
     gpu.queue.submit([encoder.finish()]);
     gpu.wait_idle();
     let frame_ms = start.elapsed().as_secs_f64() * 1e3;
-    Ok((drawn, draw_calls, select_ms, frame_ms))
+    Ok((drawn, draw_calls, select_ms, frame_ms, triangles))
 }
 
 /// Runs one path of one scene through every configured mode. Each mode renders the path's
@@ -182,6 +252,8 @@ pub fn run_path(
     for &mode in &config.modes {
         render_mode(gpu, renderers, scene, mode, &warm_camera, None, &target)?;
     }
+    // Each path starts with nothing visible from a previous frame.
+    renderers.reset_visibility();
     for i in 0..path.poses.len() {
         let camera = pose_camera(path, i);
         let visible = renderers
@@ -206,7 +278,7 @@ pub fn run_path(
         gpu.queue.submit([encoder.finish()]);
         let reference_rgba = reference.read_colour(gpu)?;
         for &mode in &config.modes {
-            let (drawn, draw_calls, select_ms, frame_ms) = render_mode(
+            let (drawn, draw_calls, select_ms, frame_ms, triangles) = render_mode(
                 gpu,
                 renderers,
                 scene,
@@ -221,11 +293,6 @@ pub fn run_path(
                 .iter()
                 .filter(|b| drawn.binary_search(b).is_err())
                 .count();
-            let triangles = drawn
-                .iter()
-                .filter_map(|&b| scene.gpu_scene.records.get(b as usize))
-                .map(|r| u64::from(r.index_count / 3))
-                .sum();
             if let Some(dir) = &config.frames_dir
                 && config.png_every > 0
                 && i % config.png_every == 0
@@ -268,4 +335,54 @@ fn save_png(file: &std::path::Path, w: u32, h: u32, rgba: Vec<u8>) -> Result<(),
     };
     let image = image::RgbaImage::from_raw(w, h, rgba).ok_or_else(|| err("bad size".into()))?;
     image.save(file).map_err(|e| err(e.to_string()))
+}
+
+/// The options of the two-phase HiZ frame for `mode`, or `None` for a mode that is not one.
+fn culling_options(mode: Mode) -> Option<CullingOptions> {
+    match mode {
+        Mode::Hzb => Some(CullingOptions::default()),
+        Mode::Occluders => Some(CullingOptions {
+            occluders: true,
+            ..CullingOptions::default()
+        }),
+        _ => None,
+    }
+}
+
+/// One frame of `hzb` or `occluders` through [`CullingRenderer`]: the drawn set is the early
+/// pass's plus what the cull kept; draw calls count non-empty draws (ground, early buildings,
+/// occluders, late buildings). The culling runs on the GPU inside the frame, so `select_ms` is
+/// the whole frame's CPU wall time before submission is not separated: it is reported as 0.
+fn render_culled(
+    gpu: &GpuContext,
+    renderers: &mut BenchRenderers,
+    scene: &BenchScene,
+    mode: Mode,
+    options: &CullingOptions,
+    camera: &Camera,
+    target: &OffscreenTarget,
+) -> Result<(Vec<u32>, u32, f64, f64, u64), BenchError> {
+    let occluders = if options.occluders {
+        Some(
+            scene
+                .occluders
+                .as_ref()
+                .ok_or_else(|| BenchError::NoOccluders(scene.name.clone()))?,
+        )
+    } else {
+        None
+    };
+    let visibility = renderers.visibility.entry(mode).or_default();
+    let out = renderers.culling.render(
+        gpu,
+        &scene.gpu_scene,
+        occluders,
+        options,
+        visibility,
+        camera,
+        &target.colour_view,
+        (target.width, target.height),
+    )?;
+    let s = &out.stats;
+    Ok((out.drawn, s.draw_calls, 0.0, s.cpu_ms, s.triangles))
 }

@@ -195,7 +195,7 @@ impl HzbCull {
             return Err(CullError::TooManyBoxes { box_count, max });
         }
         let record_capacity = records.size() / size_of::<BuildingRecord>() as u64;
-        if record_capacity < u64::from(box_count.max(1)) {
+        if record_capacity < u64::from(box_count) {
             return Err(CullError::RecordsTooSmall {
                 records: record_capacity,
                 box_count,

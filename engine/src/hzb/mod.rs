@@ -1,5 +1,20 @@
-//! The hierarchical-Z depth pyramid: its CPU reference (`reference`), which the GPU pass is
-//! tested against, and the occlusion test of a box against it.
+//! The hierarchical-Z depth pyramid: its CPU reference (`reference`), which the GPU passes are
+//! tested against, and the occlusion test of a box against it; the GPU pyramid build (`build`)
+//! and the GPU occlusion cull (`cull`).
+//!
+//! Use in a two-phase frame (early pass → pyramid → cull → late pass), with one
+//! [`HzbPyramid`] per viewport size (make a new one on resize) and one [`HzbCull`]:
+//!
+//! ```text
+//! early pass: draw last frame's visible set into depth (DepthTarget)
+//! pyramid.build(&mut encoder, &depth.view);
+//! cull.encode(&gpu, &mut encoder, &scene.records_buffer, n, &pyramid, view_proj)?;
+//! late pass:  multi_draw_indexed_indirect_count(cull.commands_buffer(), 0,
+//!                                               cull.count_buffer(), 0, n)
+//!             or, without MULTI_DRAW_INDIRECT_COUNT,
+//!             multi_draw_indexed_indirect(cull.commands_buffer(), 0, n)
+//! cull.status_buffer(): per building CULL_VISIBLE / CULL_FRUSTUM_OUTSIDE / CULL_OCCLUDED
+//! ```
 
 pub mod build;
 pub mod cull;

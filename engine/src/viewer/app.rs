@@ -13,11 +13,13 @@ use winit::keyboard::PhysicalKey;
 use winit::window::{CursorGrabMode, Window, WindowId};
 
 use super::input::{Command, InputTracker, KEY_HELP};
+use super::overlay::{Overlay, OverlayStats};
 use super::screenshot::{ScreenshotError, to_rgba_image};
 use super::surface::{Acquired, WindowSurface};
 use super::{ViewerError, ViewerOptions};
 use crate::camera::Camera;
-use crate::controller::{CameraRig, CollisionWorld};
+use crate::camera_path_io::{PathPlayer, PathRecorder, pose_from_camera};
+use crate::controller::{CameraRig, CollisionWorld, Mode};
 use crate::render::targets::read_texture;
 use crate::render::{BruteRenderer, OffscreenTarget};
 use crate::scene_gpu::SceneGpu;
@@ -40,6 +42,15 @@ pub(super) struct App {
     frames_drawn: u32,
     screenshot_taken: bool,
     error: Option<ViewerError>,
+    /// Recording the camera (R), one pose per frame drawn.
+    recorder: Option<PathRecorder>,
+    /// Playing a path (`--play`); `None` once a stopping path is over.
+    player: Option<PathPlayer>,
+    /// The overlay's field of view slider (degrees), applied to the controllers' cameras.
+    fov_y_deg: f32,
+    /// The last measured frame rate and frame time, for the overlay.
+    last_fps: Option<f32>,
+    frame_ms: f32,
 }
 
 /// Everything that exists only while there is a window.
@@ -47,6 +58,7 @@ struct Graphics {
     surface: WindowSurface,
     renderer: BruteRenderer,
     scene: SceneGpu,
+    overlay: Overlay,
 }
 
 /// Mouse look is on while the right button is held, or after M until M / Esc.
@@ -72,11 +84,20 @@ impl App {
             start = %rig.camera().to_arg_string(),
             "viewer ready; {KEY_HELP}"
         );
+        let player = (options.play.as_ref()).map(|p| PathPlayer::new(p.path.clone(), p.end));
+        if let Some(p) = &options.play {
+            tracing::info!(poses = p.path.poses.len(), name = %p.path.name, "playing a camera path");
+        }
         App {
             city,
             world,
             rig,
             options,
+            recorder: None,
+            player,
+            fov_y_deg: Camera::DEFAULT_FOV_Y_RAD.to_degrees(),
+            last_fps: None,
+            frame_ms: 0.0,
             input: InputTracker::default(),
             look: MouseLook::default(),
             gfx: None,
@@ -88,8 +109,11 @@ impl App {
         }
     }
 
-    /// The outcome once the event loop has returned.
-    pub(super) fn finish(self) -> Result<(), ViewerError> {
+    /// The outcome once the event loop has returned. A recording still running is written.
+    pub(super) fn finish(mut self) -> Result<(), ViewerError> {
+        if let Some(recorder) = self.recorder.take() {
+            save_recording(&recorder)?;
+        }
         if let Some(e) = self.error {
             return Err(e);
         }
@@ -117,10 +141,17 @@ impl App {
         let surface = WindowSurface::new(window, self.options.screenshot.is_some())?;
         let renderer = BruteRenderer::new(&surface.gpu, surface.config.format);
         let scene = SceneGpu::upload_city(&surface.gpu, &self.city);
+        let overlay = Overlay::new(
+            &surface.gpu,
+            &surface.window,
+            surface.config.format,
+            self.options.overlay,
+        );
         Ok(Graphics {
             surface,
             renderer,
             scene,
+            overlay,
         })
     }
 
@@ -161,25 +192,116 @@ impl App {
             }
             Command::Escape if self.look.active() => self.set_mouse_look(false, false),
             Command::Escape => event_loop.exit(),
+            Command::ToggleRecording => self.toggle_recording(),
+            Command::ToggleOverlay => {
+                if let Some(gfx) = &mut self.gfx {
+                    gfx.overlay.visible = !gfx.overlay.visible;
+                }
+            }
+        }
+    }
+
+    /// R: starts recording, or stops and writes the path (a failed write is logged; the
+    /// viewer goes on).
+    fn toggle_recording(&mut self) {
+        match self.recorder.take() {
+            Some(recorder) => {
+                if let Err(e) = save_recording(&recorder) {
+                    tracing::error!("{e}");
+                }
+            }
+            None => {
+                let recorder = PathRecorder::new(&self.options.record_to, "recorded");
+                tracing::info!(
+                    path = %recorder.output().display(),
+                    "recording the camera path (one pose per frame); R stops and writes it"
+                );
+                self.recorder = Some(recorder);
+            }
+        }
+    }
+
+    /// The camera of this frame: the next pose of the path played, else the active controller
+    /// advanced by `dt_s` (with the overlay's field of view). A stopping path hands over to fly
+    /// mode at its last pose.
+    fn next_camera(&mut self, dt_s: f32) -> Camera {
+        let input = self.input.take();
+        if let Some(player) = &mut self.player {
+            if let Some(camera) = player.next_camera() {
+                return camera;
+            }
+            if let Some(last) = player.path().poses.last() {
+                self.rig.fly.position = last.position;
+                self.rig.fly.yaw_rad = last.yaw_deg.to_radians();
+                self.rig.fly.pitch_rad = last
+                    .pitch_deg
+                    .to_radians()
+                    .clamp(-Camera::MAX_PITCH_RAD, Camera::MAX_PITCH_RAD);
+                self.rig.mode = Mode::Fly;
+            }
+            tracing::info!("the path is over; fly mode from its last pose");
+            self.player = None;
+        }
+        self.rig.update(dt_s, &input, &self.world);
+        Camera {
+            fov_y_rad: self.fov_y_deg.to_radians(),
+            ..self.rig.camera()
+        }
+    }
+
+    /// What the overlay shows for the frame drawn with `camera`.
+    fn overlay_stats(&self, camera: &Camera, scene: &SceneGpu) -> OverlayStats {
+        let pose = pose_from_camera(camera);
+        OverlayStats {
+            fps: self.last_fps,
+            frame_ms: self.frame_ms,
+            mode: if self.player.is_some() {
+                "path".to_string()
+            } else {
+                self.rig.mode.name().to_string()
+            },
+            position_m: pose.position,
+            yaw_deg: pose.yaw_deg,
+            pitch_deg: pose.pitch_deg,
+            // The brute-force renderer submits every building.
+            buildings_drawn: scene.building_count(),
+            buildings_total: scene.building_count(),
+            triangles_drawn: scene.triangle_count,
+            renderer: "brute force (no culling)".to_string(),
+            recording_poses: self.recorder.as_ref().map(PathRecorder::len),
+            playback: self.player.as_ref().map(PathPlayer::progress),
         }
     }
 
     /// One frame: advance the camera, draw, present; in screenshot mode save the last frame.
     fn redraw(&mut self, event_loop: &ActiveEventLoop) -> Result<(), ViewerError> {
         let now = Instant::now();
-        let dt_s = (now - self.last_frame).as_secs_f32().min(MAX_DT_S);
+        let frame_s = (now - self.last_frame).as_secs_f32();
+        self.frame_ms = frame_s * 1e3;
         self.last_frame = now;
-        self.rig.update(dt_s, &self.input.take(), &self.world);
-        let camera = self.rig.camera();
+        let camera = self.next_camera(frame_s.min(MAX_DT_S));
 
+        let Some(gfx) = &self.gfx else {
+            return Ok(());
+        };
+        let stats = self.overlay_stats(&camera, &gfx.scene);
         let Some(gfx) = &mut self.gfx else {
             return Ok(());
         };
+        let controls = gfx.overlay.prepare(
+            &gfx.surface.gpu,
+            &gfx.surface.window,
+            &stats,
+            self.fov_y_deg,
+        );
         let Acquired::Frame(frame) = gfx.surface.acquire()? else {
             return Ok(());
         };
         gfx.draw(&frame.texture, &camera);
         self.frames_drawn += 1;
+        if let Some(recorder) = &mut self.recorder {
+            recorder.push(&camera);
+        }
         let shot = (self.options.screenshot.as_ref())
             .filter(|shot| !self.screenshot_taken && self.frames_drawn >= shot.frames);
         if let Some(shot) = shot {
@@ -196,17 +318,25 @@ impl App {
         gfx.surface.gpu.queue.present(frame);
 
         if let Some(fps) = self.fps.tick(now) {
+            self.last_fps = Some(fps);
             gfx.surface
                 .window
                 .set_title(&status_line(&self.options.title, &self.rig, fps));
+        }
+        self.fov_y_deg = controls.fov_y_deg;
+        if controls.toggle_mode {
+            self.command(event_loop, Command::ToggleMode);
+        }
+        if controls.toggle_recording {
+            self.command(event_loop, Command::ToggleRecording);
         }
         Ok(())
     }
 }
 
 impl Graphics {
-    /// Draws the scene from `camera` into the surface texture.
-    fn draw(&self, target: &wgpu::Texture, camera: &Camera) {
+    /// Draws the scene from `camera` and the overlay into the surface texture.
+    fn draw(&mut self, target: &wgpu::Texture, camera: &Camera) {
         let gpu = &self.surface.gpu;
         let view = target.create_view(&wgpu::TextureViewDescriptor::default());
         let mut encoder = gpu
@@ -222,13 +352,15 @@ impl Graphics {
             &view,
             self.surface.depth(),
         );
+        self.overlay
+            .paint(gpu, &mut encoder, &view, target.width(), target.height());
         gpu.queue.submit([encoder.finish()]);
     }
 
     /// The frame just drawn into `target`, read back before it is presented; where the surface
     /// cannot be copied from, the same view drawn again offscreen.
     fn capture(
-        &self,
+        &mut self,
         target: &wgpu::Texture,
         camera: &Camera,
     ) -> Result<RgbaImage, ScreenshotError> {
@@ -251,11 +383,24 @@ impl Graphics {
                 &offscreen.colour_view,
                 &offscreen.depth,
             );
+            self.overlay
+                .paint(gpu, &mut encoder, &offscreen.colour_view, width, height);
             gpu.queue.submit([encoder.finish()]);
             offscreen.read_colour(gpu)?
         };
         to_rgba_image(texels, width, height, format)
     }
+}
+
+/// Writes a recording and says where.
+fn save_recording(recorder: &PathRecorder) -> Result<(), ViewerError> {
+    let file = recorder.save()?;
+    tracing::info!(
+        path = %file.display(),
+        poses = recorder.len(),
+        "camera path written (play it with `citywalk view SCENE --play PATH`)"
+    );
+    Ok(())
 }
 
 /// The title bar: scene, mode, eye position and frame rate.
@@ -310,6 +455,18 @@ impl ApplicationHandler for App {
     }
 
     fn window_event(&mut self, event_loop: &ActiveEventLoop, _id: WindowId, event: WindowEvent) {
+        if let Some(gfx) = &mut self.gfx {
+            let consumed = gfx.overlay.window_event(&gfx.surface.window, &event);
+            let keyboard = matches!(event, WindowEvent::KeyboardInput { .. });
+            let pointer = matches!(
+                event,
+                WindowEvent::MouseInput { .. } | WindowEvent::MouseWheel { .. }
+            );
+            // egui claims Tab for focus moves: keys go to egui only while it has focus.
+            if (keyboard && gfx.overlay.wants_keyboard()) || (pointer && consumed) {
+                return;
+            }
+        }
         match event {
             WindowEvent::CloseRequested => event_loop.exit(),
             WindowEvent::Resized(size) => {

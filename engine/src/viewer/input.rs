@@ -23,6 +23,10 @@ pub enum Command {
     Overview,
     /// Escape: leave mouse look, or quit when it is off.
     Escape,
+    /// R: start recording the camera path, or stop and write it.
+    ToggleRecording,
+    /// H: show or hide the overlay panel.
+    ToggleOverlay,
 }
 
 impl Command {
@@ -32,6 +36,8 @@ impl Command {
             KeyCode::KeyM => Some(Command::ToggleMouseLook),
             KeyCode::KeyO | KeyCode::Home => Some(Command::Overview),
             KeyCode::Escape => Some(Command::Escape),
+            KeyCode::KeyR => Some(Command::ToggleRecording),
+            KeyCode::KeyH => Some(Command::ToggleOverlay),
             _ => None,
         }
     }
@@ -116,7 +122,8 @@ impl InputTracker {
 /// The key help shown in the log when the viewer starts.
 pub const KEY_HELP: &str = "WASD / arrows move, Shift runs, mouse looks while the right button \
 is held (M toggles mouse look, Esc releases it or quits), F / Tab switch walk <-> fly, \
-fly: E / Space up, Q / Ctrl down, wheel changes speed, O goes to the overview";
+fly: E / Space up, Q / Ctrl down, wheel changes speed, O goes to the overview, R starts / stops \
+recording the camera path, H shows / hides the overlay";
 
 #[cfg(test)]
 mod tests {
@@ -155,6 +162,14 @@ mod tests {
         assert_eq!(
             t.key(KeyCode::Tab, ElementState::Pressed, false),
             Some(Command::ToggleMode)
+        );
+        assert_eq!(
+            t.key(KeyCode::KeyR, ElementState::Pressed, false),
+            Some(Command::ToggleRecording)
+        );
+        assert_eq!(
+            t.key(KeyCode::KeyH, ElementState::Pressed, false),
+            Some(Command::ToggleOverlay)
         );
         t.release_all();
         assert_eq!(t.take(), InputState::default());

@@ -1,18 +1,23 @@
 //! The interactive viewer: a winit window with a wgpu surface, walk and fly modes
-//! ([`crate::controller`]), and a title bar showing mode, position and frame rate.
+//! ([`crate::controller`]), an egui overlay with the frame statistics ([`overlay`]; H hides it),
+//! a title bar showing mode, position and frame rate, recording of the camera into a `.path`
+//! file (R starts and stops) and playback of a path (`--play`).
 //!
 //! `--screenshot` mode renders a fixed number of frames through the real window and surface,
 //! writes the last one to PNG and exits; the Xvfb test drives the viewer that way.
 
 mod app;
 pub mod input;
+pub mod overlay;
 pub mod screenshot;
 mod surface;
 
 use std::path::PathBuf;
 
 use citywalk_scenes::City;
+use citywalk_scenes::camera_path::CameraPath;
 
+use crate::camera_path_io::{PlayEnd, RecordError};
 use crate::controller::Mode;
 use crate::gpu::GpuError;
 
@@ -27,6 +32,20 @@ pub struct ViewerOptions {
     pub screenshot: Option<ScreenshotRequest>,
     /// A name for the title bar (the scene's file name).
     pub title: String,
+    /// Where R writes the recorded camera path.
+    pub record_to: PathBuf,
+    /// Play this path, one pose per frame, instead of the controllers.
+    pub play: Option<PlayRequest>,
+    /// Show the overlay panel at start (H toggles it).
+    pub overlay: bool,
+}
+
+/// `--play PATH [--loop]`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlayRequest {
+    pub path: CameraPath,
+    /// Loop, or stop at the last pose and hand the camera to fly mode there.
+    pub end: PlayEnd,
 }
 
 /// `--screenshot PATH --frames N`.
@@ -56,6 +75,8 @@ pub enum ViewerError {
         #[source]
         source: image::ImageError,
     },
+    #[error(transparent)]
+    Record(#[from] RecordError),
     #[error("the window closed after {drawn} of {wanted} frames; no screenshot was taken")]
     ScreenshotNotTaken { drawn: u32, wanted: u32 },
 }

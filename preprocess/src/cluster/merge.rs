@@ -20,8 +20,9 @@ use citywalk_scenes::cluster_tree::HullMerge;
 use spade::{ConstrainedDelaunayTriangulation, HasPosition, Point2, Triangulation};
 
 use super::geom::{
-    Pt, convex_hull, crossing_point, point_on_segment, point_segment_distance, ring_contains_ring,
-    ring_is_simple_ccw, segments_cross_properly, signed_area, touching_edge_pairs,
+    Pt, convex_hull, crossing_point, orient, point_on_segment, point_segment_distance,
+    ring_contains_ring, ring_is_simple_ccw, segments_cross_properly, signed_area,
+    touching_edge_pairs,
 };
 use super::leaves::VertexStore;
 
@@ -267,6 +268,43 @@ fn bridge_disjoint(
     }
 }
 
+/// The crossing point of edge `a0a1` of one counter-clockwise ring and edge `b0b1` of another,
+/// moved (when f64 rounding put it inside either ring) along the outward bisector of the two
+/// edges until it lies on or to the right of both edge lines (exact orientation). The outline
+/// through it then contains both rings exactly, not just up to rounding, so containment stays
+/// exact however many levels of the tree are stacked above it (depth reduction makes a node
+/// the direct parent of hulls many merges below it). Returns the rounded point when no such
+/// point is found within 1 mm; the merge's validity check then decides.
+fn crossing_outside(a0: Pt, a1: Pt, b0: Pt, b1: Pt) -> Pt {
+    let x = crossing_point(a0, a1, b0, b1);
+    let outside = |p: Pt| orient(a0, a1, p) <= 0.0 && orient(b0, b1, p) <= 0.0;
+    if outside(x) {
+        return x;
+    }
+    // Outward (right-hand) unit normals of the two counter-clockwise edges.
+    let normal = |p: Pt, q: Pt| {
+        let n = [q[1] - p[1], p[0] - q[0]];
+        let len = n[0].hypot(n[1]);
+        if len > 0.0 {
+            [n[0] / len, n[1] / len]
+        } else {
+            [0.0, 0.0]
+        }
+    };
+    let (na, nb) = (normal(a0, a1), normal(b0, b1));
+    let dir = [na[0] + nb[0], na[1] + nb[1]];
+    let scale = x[0].abs().max(x[1].abs()).max(1.0);
+    let mut step = scale * f64::EPSILON;
+    while step < 1e-3 {
+        let p = [x[0] + dir[0] * step, x[1] + dir[1] * step];
+        if outside(p) {
+            return p;
+        }
+        step *= 2.0;
+    }
+    x
+}
+
 /// The outer outline of the union of two touching or overlapping rings, with intersection
 /// points inserted (Yang et al. 2011 §3.2, Figure 4a). `None` when the trace fails.
 fn union_outline(
@@ -289,7 +327,7 @@ fn union_outline(
             v[b1 as usize],
         );
         if segments_cross_properly(pa0, pa1, pb0, pb1) {
-            let x = store.intern(crossing_point(pa0, pa1, pb0, pb1));
+            let x = store.intern(crossing_outside(pa0, pa1, pb0, pb1));
             split_a[i].push(x);
             split_b[j].push(x);
             continue;

@@ -217,7 +217,8 @@ pub fn build_cluster_tree(
     let mut nodes: Vec<ClusterNode> = Vec::with_capacity(order.len());
     for (id, &(x, _, d)) in order.iter().enumerate() {
         nodes.push(ClusterNode {
-            footprint: vec![rings[x as usize].clone()],
+            // Each binary node is at most one final node: move its ring, do not copy it.
+            footprint: vec![std::mem::take(&mut rings[x as usize])],
             area_m2: areas[x as usize],
             height_m: 0.0,
             h_min_m: 0.0,
@@ -227,7 +228,7 @@ pub fn build_cluster_tree(
             neg_space_box_m: [0.0; 3],
             bounds_min: [0.0; 3],
             bounds_max: [0.0; 3],
-            children: children[id].clone(),
+            children: std::mem::take(&mut children[id]),
             buildings: range[id],
             depth: d,
             merge_distance: dist[x as usize],

@@ -445,3 +445,163 @@ fn chelsea_extract() {
         tree.stats
     );
 }
+
+/// Exact containment of simple counter-clockwise rings, independent of `ring_contains_ring`
+/// and without its tolerance: `inner`'s boundary can only leave `outer` through a proper
+/// crossing, through a vertex of `outer` on one of its edges, or at one of its vertices on an
+/// edge of `outer`; each is decided with exact orientation tests.
+fn contains_exactly(v: &[geom::Pt], outer: &[u32], inner: &[u32]) -> bool {
+    use geom::{Side, locate, orient, point_on_segment, segments_cross_properly};
+    let (n, m) = (inner.len(), outer.len());
+    let p = |r: &[u32], k: usize| v[r[k % r.len()] as usize];
+    // Whether direction V→t points into the closed interior of `outer` at its vertex k.
+    let into_at_vertex = |k: usize, t: geom::Pt| {
+        let (pv, vv, nv) = (p(outer, k + m - 1), p(outer, k), p(outer, k + 1));
+        if orient(pv, vv, nv) >= 0.0 {
+            orient(vv, nv, t) >= 0.0 && orient(vv, t, pv) >= 0.0
+        } else {
+            !(orient(vv, pv, t) > 0.0 && orient(vv, t, nv) > 0.0)
+        }
+    };
+    for i in 0..n {
+        let (a, b) = (p(inner, i), p(inner, i + 1));
+        if locate(v, outer, a) == Side::Outside {
+            return false;
+        }
+        for k in 0..m {
+            let (c, d) = (p(outer, k), p(outer, k + 1));
+            if segments_cross_properly(a, b, c, d) {
+                return false;
+            }
+            if point_on_segment(a, b, c) {
+                for t in [a, b] {
+                    if t != c && !into_at_vertex(k, t) {
+                        return false;
+                    }
+                }
+            }
+            if point_on_segment(c, d, a) && a != c && a != d {
+                for t in [p(inner, i + n - 1), b] {
+                    if orient(c, d, t) < 0.0 {
+                        return false;
+                    }
+                }
+            }
+        }
+    }
+    true
+}
+
+/// A fixed-seed sweep of generated cities (100 to 2,000 buildings, with and without streets)
+/// under Yang's and Chang's parameter sets; every tree must pass `check_invariants`, and every
+/// node must contain its children exactly (no tolerance).
+#[test]
+fn generated_cities_sweep_trees_are_valid() {
+    let chang = ClusterParams {
+        distance: ClusterDistance::ChangSizeWeighted,
+        merge: HullMerge::ChangCases,
+        simplify: HullSimplify::ChangSmallestArea,
+        ..ClusterParams::default()
+    };
+    let mut failures = Vec::new();
+    // 8 cities of 100 to 2,000 buildings, with and without streets, plus the two reported
+    // cases (300 buildings seed 11 with streets, 400 buildings seed 5 without).
+    let cases = (0..8u64)
+        .flat_map(|k| [true, false].map(|s| (100 + (k as usize * 1900) / 7, 1000 + k, s)))
+        .chain([(300, 11, true), (400, 5, false)]);
+    for (buildings, seed, streets) in cases {
+        {
+            let mut c = citywalk_scenes::generate::generate_city(
+                &citywalk_scenes::generate::GenerateParams::new(buildings, seed),
+            )
+            .expect("generated city");
+            if !streets {
+                c.streets.clear();
+            }
+            let blocks = if streets {
+                crate::blocks::build_blocks(&c).block_of_building
+            } else {
+                vec![0; c.buildings.len()]
+            };
+            for p in [ClusterParams::default(), chang.clone()] {
+                let case = format!("{buildings} buildings, seed {seed}, streets {streets}, {p:?}");
+                let tree = build_cluster_tree(&c, &blocks, &p).expect("tree");
+                if let Err(e) = tree.check_invariants(&c) {
+                    failures.push(format!("{case}: {e}"));
+                }
+                for (i, node) in tree.nodes.iter().enumerate() {
+                    for &ch in &node.children {
+                        let inner = &tree.nodes[ch as usize].footprint[0];
+                        if !contains_exactly(&tree.vertices, &node.footprint[0], inner) {
+                            failures.push(format!("{case}: node {i} does not hold child {ch}"));
+                        }
+                    }
+                }
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+#[test]
+fn exact_containment_check_sees_a_boundary_leaving_through_vertices() {
+    // A 10 × 5 square with a notch from the top whose sides stop at (3, 1) and (1, 1) and whose
+    // floor dips to y = 0.8 between them.
+    let v: Vec<geom::Pt> = vec![
+        [0.0, 0.0],
+        [10.0, 0.0],
+        [10.0, 5.0],
+        [3.0, 5.0],
+        [3.0, 1.0],
+        [2.5, 0.8],
+        [1.5, 0.8],
+        [1.0, 1.0],
+        [1.0, 5.0],
+        [0.0, 5.0],
+        // A rectangle whose top edge y = 1 touches the notch only at its corners but runs
+        // through the notch between them.
+        [0.5, 0.5],
+        [9.0, 0.5],
+        [9.0, 1.0],
+        [0.5, 1.0],
+        // The same rectangle with its top at y = 0.8 (on the notch's floor: contained).
+        [9.0, 0.8],
+        [0.5, 0.8],
+    ];
+    let outer: Vec<u32> = (0..10).collect();
+    assert!(geom::ring_is_simple_ccw(&v, &outer));
+    assert!(!contains_exactly(&v, &outer, &[10, 11, 12, 13]));
+    assert!(contains_exactly(&v, &outer, &[10, 11, 14, 15]));
+    // The builder's and the checker's test agree (it once sampled only edge midpoints).
+    assert!(!geom::ring_contains_ring(&v, &outer, &[10, 11, 12, 13]));
+    assert!(geom::ring_contains_ring(&v, &outer, &[10, 11, 14, 15]));
+}
+
+/// Timing of the tree on a generated 100k city (release; `--ignored`).
+#[test]
+#[ignore = "timing, run on demand in release"]
+fn timing_generated_100k() {
+    let c = citywalk_scenes::generate::generate_city(
+        &citywalk_scenes::generate::GenerateParams::new(100_000, 7),
+    )
+    .expect("generated city");
+    let blocks = crate::blocks::build_blocks(&c);
+    let t = std::time::Instant::now();
+    let tree =
+        build_cluster_tree(&c, &blocks.block_of_building, &ClusterParams::default()).expect("tree");
+    let seconds = t.elapsed().as_secs_f64();
+    // A digest of the result, to compare builds that must not change it.
+    let mut h = std::hash::DefaultHasher::new();
+    for v in &tree.vertices {
+        std::hash::Hash::hash(&(v[0].to_bits(), v[1].to_bits()), &mut h);
+    }
+    for n in &tree.nodes {
+        std::hash::Hash::hash(&(&n.footprint, &n.children, n.buildings), &mut h);
+    }
+    eprintln!(
+        "100k tree: {seconds:.2} s, {} nodes, {} fallbacks, digest {:x}",
+        tree.nodes.len(),
+        tree.stats.merge_fallbacks,
+        std::hash::Hasher::finish(&h)
+    );
+}

@@ -241,8 +241,10 @@ fn near_boundary(verts: &[Pt], ring: &[u32], p: Pt, tol: f64) -> bool {
 }
 
 /// Whether ring `inner` lies inside the closed region of ring `outer` (both simple), up to
-/// [`CONTAIN_TOL_M`]: every vertex and edge midpoint of `inner` is inside, on or within the
-/// tolerance of `outer`, and every proper crossing of edges is within the tolerance of
+/// [`CONTAIN_TOL_M`]: every vertex of `inner` is inside, on or within the tolerance of
+/// `outer`; so is the midpoint of every piece of an `inner` edge between the vertices of
+/// `outer` that lie on it (an edge can leave and re-enter through vertices of `outer` without
+/// any proper crossing); and every proper crossing of edges is within the tolerance of
 /// touching.
 pub fn ring_contains_ring(verts: &[Pt], outer: &[u32], inner: &[u32]) -> bool {
     let tol = CONTAIN_TOL_M;
@@ -255,13 +257,64 @@ pub fn ring_contains_ring(verts: &[Pt], outer: &[u32], inner: &[u32]) -> bool {
     {
         return false;
     }
+    let outside =
+        |p: Pt| locate(verts, outer, p) == Side::Outside && !near_boundary(verts, outer, p, tol);
+    // Positions of `outer`'s vertex indices: on the shared vertex array a vertex of `outer` is
+    // on its boundary and an edge of `outer` lies on it, so neither needs locating (hulls
+    // reuse most of their children's vertices and edges).
+    let mut at: Vec<(u32, u32)> = outer
+        .iter()
+        .enumerate()
+        .map(|(k, &o)| (o, k as u32))
+        .collect();
+    at.sort_unstable();
+    let find = |x: u32| at.binary_search_by_key(&x, |e| e.0).ok().map(|k| at[k].1);
+    let m = outer.len() as u32;
     let n = inner.len();
+    let mut cuts: Vec<f64> = Vec::new();
     for i in 0..n {
-        let a = verts[inner[i] as usize];
-        let b = verts[inner[(i + 1) % n] as usize];
-        let mid = [0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1])];
-        for p in [a, mid] {
-            if locate(verts, outer, p) == Side::Outside && !near_boundary(verts, outer, p, tol) {
+        let (ia, ib) = (inner[i], inner[(i + 1) % n]);
+        let (pa, pb) = (find(ia), find(ib));
+        if let (Some(x), Some(y)) = (pa, pb)
+            && ((x + 1) % m == y || (y + 1) % m == x)
+        {
+            continue;
+        }
+        let a = verts[ia as usize];
+        let b = verts[ib as usize];
+        if pa.is_none() && outside(a) {
+            return false;
+        }
+        // Parameters along a→b of the vertices of `outer` lying exactly on the edge.
+        let d = [b[0] - a[0], b[1] - a[1]];
+        let len2 = d[0] * d[0] + d[1] * d[1];
+        let (lo, hi) = (
+            [a[0].min(b[0]), a[1].min(b[1])],
+            [a[0].max(b[0]), a[1].max(b[1])],
+        );
+        cuts.clear();
+        cuts.extend([0.0, 1.0]);
+        if len2 > 0.0 {
+            for &o in outer {
+                let c = verts[o as usize];
+                if c[0] >= lo[0]
+                    && c[0] <= hi[0]
+                    && c[1] >= lo[1]
+                    && c[1] <= hi[1]
+                    && c != a
+                    && c != b
+                    && orient(a, b, c) == 0.0
+                {
+                    cuts.push(((c[0] - a[0]) * d[0] + (c[1] - a[1]) * d[1]) / len2);
+                }
+            }
+        }
+        if cuts.len() > 2 {
+            cuts.sort_by(f64::total_cmp);
+        }
+        for w in cuts.windows(2) {
+            let t = 0.5 * (w[0] + w[1]);
+            if outside([a[0] + t * d[0], a[1] + t * d[1]]) {
                 return false;
             }
         }

@@ -6,12 +6,17 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::Context;
+use citywalk_engine::bench::baseline::{BaselineTarget, DecimatedBaseline};
+use citywalk_engine::bench::decimate::decimate_city;
+use citywalk_engine::bench::plots::write_plots;
 use citywalk_engine::bench::{
     AdapterSummary, BenchConfig, BenchRenderers, BenchReport, BenchScene, FrameRecord, Mode,
     run_path, summarise, write_outputs,
 };
 use citywalk_engine::gpu::GpuContext;
-use citywalk_engine::scene_gpu::SceneGpu;
+use citywalk_engine::lod::LodCriterion;
+use citywalk_engine::lod::scene::LodScene;
+use citywalk_engine::scene_gpu::{SceneGeometry, SceneGpu};
 use citywalk_scenes::camera_path::{self, CameraPath};
 
 use crate::scene_input::load_scene;
@@ -20,25 +25,33 @@ use crate::scene_input::load_scene;
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Scenes: packages (.cwk) or any loadable input (preprocessed on the fly).
-    #[arg(required = true)]
+    #[arg(required_unless_present = "list_modes")]
     pub scenes: Vec<PathBuf>,
     /// Output folder for frames.csv, bench.json, summary.md, path files and PNG frames.
+    #[arg(long, required_unless_present = "list_modes")]
+    pub out: Option<PathBuf>,
+    /// Print the modes this build implements, comma-separated, and exit.
     #[arg(long)]
-    pub out: PathBuf,
+    pub list_modes: bool,
     /// Camera paths generated per scene: street, flyover, dive.
     #[arg(long, default_value = "street,flyover,dive")]
     pub paths: String,
     /// Path files to replay in addition to (or, with --paths "", instead of) generated ones.
     #[arg(long = "path-file")]
     pub path_files: Vec<PathBuf>,
-    /// Culling modes: brute, frustum, quadtree (hzb, occluders, lod, all are not built yet).
+    /// Culling modes: brute, frustum, quadtree, hzb, occluders, lod (all is not built yet).
     #[arg(long, default_value = "brute,frustum,quadtree")]
     pub modes: String,
+    /// LOD criterion of the `lod` mode: auto (Chang ε = τ = 1 px at street level, 2 px above
+    /// the roofs), chang-walkthrough, chang-flyover, chang-paper (ε = 100, τ = 2 px),
+    /// yang-paper (δh = 20 px, δa = 200 px).
+    #[arg(long, default_value = "auto", value_parser = LodCriterion::parse)]
+    pub lod_criterion: Option<LodCriterion>,
     /// Frames per generated path.
     #[arg(long, default_value_t = 60)]
     pub frames: usize,
     /// Viewport in pixels, WIDTHxHEIGHT.
-    #[arg(long, default_value = "1280x720", value_parser = crate::render::parse_size)]
+    #[arg(long, default_value = "1280x720", value_parser = crate::cli_args::parse_size)]
     pub size: (u32, u32),
     /// Write a PNG of every N-th frame of each path and mode (0: none).
     #[arg(long, default_value_t = 0)]
@@ -46,15 +59,36 @@ pub struct Args {
     /// Print bench.json to standard output as well.
     #[arg(long)]
     pub json: bool,
+    /// Also measure the baseline a user would pick instead: the whole city decimated with
+    /// meshoptimizer and drawn unculled, as the pseudo-mode `decimated`. `decimate:N` (N
+    /// triangles), `decimate:P%` (P % of the city's triangles) or `decimate:MODE` (the mean
+    /// triangles per frame MODE drew on the scene; MODE must be among --modes).
+    #[arg(long, value_parser = BaselineTarget::parse)]
+    pub baseline: Option<BaselineTarget>,
 }
 
+/// The `--lod-criterion` of this run, set once by [`run`] (unset: auto), read where the scenes
+/// are loaded; kept out of the shared `run_benchmark_with` signature.
+static LOD_CRITERION: std::sync::OnceLock<Option<LodCriterion>> = std::sync::OnceLock::new();
+
 pub fn run(args: Args) -> anyhow::Result<()> {
+    let _ = LOD_CRITERION.set(args.lod_criterion);
+    if args.list_modes {
+        let available: Vec<&str> = Mode::NAMED
+            .into_iter()
+            .filter(|m| m.is_available())
+            .map(Mode::name)
+            .collect();
+        println!("{}", available.join(","));
+        return Ok(());
+    }
+    let out = args.out.clone().context("--out is required")?;
     let modes = Mode::parse_list(&args.modes).map_err(anyhow::Error::msg)?;
     let config = BenchConfig {
         modes,
         width: args.size.0,
         height: args.size.1,
-        frames_dir: (args.png_every > 0).then(|| args.out.clone()),
+        frames_dir: (args.png_every > 0).then(|| out.clone()),
         png_every: args.png_every,
     };
     let path_kinds = parse_path_kinds(&args.paths)?;
@@ -63,24 +97,33 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .iter()
         .map(|p| CameraPath::read(p).with_context(|| format!("reading path {}", p.display())))
         .collect::<Result<_, _>>()?;
-    let report = run_benchmark(
+    if let Some(BaselineTarget::MeanOfMode(mode)) = args.baseline
+        && !config.modes.contains(&mode)
+    {
+        anyhow::bail!("--baseline decimate:{mode} needs mode '{mode}' in --modes");
+    }
+    let report = run_benchmark_with(
         &args.scenes,
-        &args.out,
+        &out,
         &path_kinds,
         &replayed,
         args.frames,
         &config,
+        args.baseline,
     )?;
-    print!("{}", citywalk_engine::bench::output::summary_markdown(&report));
+    print!(
+        "{}",
+        citywalk_engine::bench::output::summary_markdown(&report)
+    );
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     }
-    println!("wrote {}", args.out.display());
+    println!("wrote {}", out.display());
     let false_culls = report.false_culls();
     if false_culls > 0 {
         anyhow::bail!(
             "{false_culls} false culls: visible buildings were culled (see {}/frames.csv)",
-            args.out.display()
+            out.display()
         );
     }
     Ok(())
@@ -107,6 +150,19 @@ pub fn run_benchmark(
     frames: usize,
     config: &BenchConfig,
 ) -> anyhow::Result<BenchReport> {
+    run_benchmark_with(scenes, out, path_kinds, replayed, frames, config, None)
+}
+
+/// [`run_benchmark`], plus the decimated-city baseline of each scene when `baseline` is given.
+pub fn run_benchmark_with(
+    scenes: &[PathBuf],
+    out: &Path,
+    path_kinds: &[String],
+    replayed: &[CameraPath],
+    frames: usize,
+    config: &BenchConfig,
+    baseline: Option<BaselineTarget>,
+) -> anyhow::Result<BenchReport> {
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let gpu = GpuContext::headless()?;
     eprintln!("adapter: {}", gpu.adapter_summary());
@@ -122,6 +178,17 @@ pub fn run_benchmark(
             gpu_scene: SceneGpu::upload_city(&gpu, &city),
             blocks: package.blocks.clone(),
             quadtree: package.quadtree.clone(),
+            lod: package
+                .cluster_tree
+                .clone()
+                .map(|tree| LodScene {
+                    criterion: LOD_CRITERION.get().copied().flatten(),
+                    ..LodScene::upload(&gpu, &city, tree)
+                }),
+            occluders: package
+                .occluders
+                .as_ref()
+                .map(|set| citywalk_engine::frame::OccluderMeshes::upload(&gpu, set)),
         };
         eprintln!(
             "{name}: {} buildings, {} triangles, ready in {:.1} s",
@@ -155,6 +222,28 @@ pub fn run_benchmark(
             );
             records.extend(rows);
         }
+        if let Some(target) = baseline {
+            let started = Instant::now();
+            let geometry = SceneGeometry::from_city(&city);
+            let budget = target
+                .triangles(&name, geometry.building_triangle_count(), &records)
+                .with_context(|| format!("{name}: no frames to size the baseline by"))?;
+            let decimated = decimate_city(&geometry, budget);
+            let decimated_gpu = SceneGpu::upload(&gpu, &decimated.geometry(&geometry));
+            eprintln!(
+                "{name}: decimated to {} triangles (budget {budget}, {:?}) in {:.1} s",
+                decimated.triangles,
+                decimated.method,
+                started.elapsed().as_secs_f64()
+            );
+            let mut runner = DecimatedBaseline::new(&gpu);
+            for path in &paths {
+                let rows = runner
+                    .run_path(&gpu, &scene, &decimated_gpu, path, config)
+                    .with_context(|| format!("{name}, path {}, decimated", path.name))?;
+                records.extend(rows);
+            }
+        }
     }
     let info = &gpu.adapter_info;
     let report = BenchReport {
@@ -167,6 +256,8 @@ pub fn run_benchmark(
         entries: summarise(&records),
     };
     write_outputs(out, &records, &report)?;
+    let plots = write_plots(out, &records)?;
+    eprintln!("{} plots", plots.len());
     Ok(report)
 }
 

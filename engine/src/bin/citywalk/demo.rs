@@ -25,7 +25,7 @@ pub struct Args {
     #[arg(long, default_value_t = 24)]
     pub frames: usize,
     /// Viewport in pixels, WIDTHxHEIGHT.
-    #[arg(long, default_value = "1280x720", value_parser = crate::render::parse_size)]
+    #[arg(long, default_value = "1280x720", value_parser = crate::cli_args::parse_size)]
     pub size: (u32, u32),
 }
 
@@ -95,7 +95,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &config,
     )?;
     println!();
-    print!("{}", citywalk_engine::bench::output::summary_markdown(&report));
+    print!(
+        "{}",
+        citywalk_engine::bench::output::summary_markdown(&report)
+    );
     println!();
     println!(
         "wrote {0}/summary.md, {0}/bench.json, {0}/frames.csv, PNG frames and camera paths in {0}/ ({1:.1} s in all)",

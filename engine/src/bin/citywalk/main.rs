@@ -4,9 +4,11 @@
 use clap::{Parser, Subcommand};
 
 mod bench;
+mod cli_args;
 mod demo;
 mod generate;
 mod inspect;
+mod path_arg;
 mod preprocess;
 mod render;
 mod scene_input;
@@ -41,8 +43,9 @@ enum Command {
 fn main() -> anyhow::Result<()> {
     tracing_subscriber::fmt()
         .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info,wgpu_core=warn,wgpu_hal=warn,naga=warn")),
+            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| {
+                tracing_subscriber::EnvFilter::new("info,wgpu_core=warn,wgpu_hal=warn,naga=warn")
+            }),
         )
         .with_writer(std::io::stderr)
         .init();

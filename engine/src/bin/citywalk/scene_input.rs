@@ -44,3 +44,18 @@ pub fn load_scene(path: &Path) -> anyhow::Result<ScenePackage> {
     preprocess(city, &PreprocessParams::default(), &NoProgress)
         .with_context(|| format!("cannot preprocess {}", path.display()))
 }
+
+/// Opens the city of a scene for drawing: a package's buildings and streets as stored, or any
+/// other input loaded as it is (no preprocessing: rendering and viewing need only the city).
+pub fn load_city(path: &Path) -> anyhow::Result<citywalk_scenes::City> {
+    let named_package = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("cwk"));
+    if is_package(path)? || named_package {
+        let package = ScenePackage::read(path)
+            .with_context(|| format!("cannot read the scene package {}", path.display()))?;
+        return Ok(package.city());
+    }
+    citywalk_scenes::load_city(path, &LoadOptions::default())
+        .with_context(|| format!("cannot load {}", path.display()))
+}

@@ -1,21 +1,28 @@
-//! `citywalk view SCENE`: open a window and walk (or fly) through a scene.
+//! `citywalk view SCENE`: open a window and walk (or fly) through a scene, record the camera
+//! path (R) or play one back (`--play`).
 
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
+use citywalk_engine::camera_path_io::PlayEnd;
 use citywalk_engine::controller::Mode;
-use citywalk_engine::viewer::{self, ScreenshotRequest, ViewerOptions};
+use citywalk_engine::viewer::{self, PlayRequest, ScreenshotRequest, ViewerOptions};
+
+use crate::path_arg::PathSource;
+
+/// Poses of a default path generated for `--play street|flyover|dive` (10 s at 60 fps).
+const GENERATED_PLAY_POSES: usize = 600;
 
 /// Arguments of `citywalk view`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// The scene: GeoJSON, CityJSON, glTF/GLB or OSM PBF.
+    /// The scene: a package (.cwk) or any input (OSM PBF, GeoJSON, CityJSON, glTF/GLB).
     pub scene: PathBuf,
     /// Start in fly mode at the overview camera (default: walk mode on a street near the centre).
     #[arg(long)]
     pub fly: bool,
     /// Window size in pixels, WIDTHxHEIGHT.
-    #[arg(long, default_value = "1280x720", value_parser = parse_size)]
+    #[arg(long, default_value = "1280x720", value_parser = crate::cli_args::parse_size)]
     pub size: (u32, u32),
     /// Render `--frames` frames, write the last one to this PNG and exit.
     #[arg(long, requires = "frames")]
@@ -23,10 +30,34 @@ pub struct Args {
     /// Number of frames to render before the screenshot.
     #[arg(long, requires = "screenshot", value_parser = clap::value_parser!(u32).range(1..))]
     pub frames: Option<u32>,
+    /// Play a camera path, one pose per frame: a `.path` file, or `street`, `flyover` or `dive`
+    /// (generated for the scene, 600 poses). At its end the camera switches to fly mode there.
+    #[arg(long)]
+    pub play: Option<PathBuf>,
+    /// Loop the path given with `--play` instead of stopping at its end.
+    #[arg(long = "loop", requires = "play")]
+    pub looping: bool,
+    /// Where R (start / stop recording the camera, one pose per frame) writes the path.
+    #[arg(long, default_value = "recorded.path")]
+    pub record: PathBuf,
+    /// Start with the overlay panel hidden (H shows it).
+    #[arg(long)]
+    pub no_overlay: bool,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let city = load_scene(&args.scene)?;
+    let play = match &args.play {
+        Some(arg) => Some(PlayRequest {
+            path: PathSource::of(arg).load(&city, GENERATED_PLAY_POSES)?,
+            end: if args.looping {
+                PlayEnd::Loop
+            } else {
+                PlayEnd::Stop
+            },
+        }),
+        None => None,
+    };
     let options = ViewerOptions {
         mode: if args.fly { Mode::Fly } else { Mode::Walk },
         size_px: args.size,
@@ -39,14 +70,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default(),
+        record_to: args.record,
+        play,
+        overlay: !args.no_overlay,
     };
     viewer::run(city, options).context("citywalk view")
 }
 
 /// The one place the viewer loads its scene.
 fn load_scene(path: &Path) -> anyhow::Result<citywalk_scenes::City> {
-    let city = citywalk_scenes::load_city(path, &citywalk_scenes::LoadOptions::default())
-        .with_context(|| format!("loading {}", path.display()))?;
+    let city = crate::scene_input::load_city(path)?;
     tracing::info!(
         buildings = city.buildings.len(),
         streets = city.streets.len(),
@@ -55,33 +88,4 @@ fn load_scene(path: &Path) -> anyhow::Result<citywalk_scenes::City> {
         path.display()
     );
     Ok(city)
-}
-
-/// Parses `WIDTHxHEIGHT`.
-fn parse_size(s: &str) -> Result<(u32, u32), String> {
-    let (w, h) = s
-        .split_once(['x', 'X'])
-        .ok_or_else(|| format!("expected WIDTHxHEIGHT, got {s:?}"))?;
-    let parse = |v: &str| {
-        v.trim()
-            .parse::<u32>()
-            .ok()
-            .filter(|n| (1..=16384).contains(n))
-            .ok_or_else(|| format!("size {v:?} is not a whole number of pixels in 1..=16384"))
-    };
-    Ok((parse(w)?, parse(h)?))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::parse_size;
-
-    #[test]
-    fn sizes_parse() {
-        assert_eq!(parse_size("320x200"), Ok((320, 200)));
-        assert_eq!(parse_size("64X48"), Ok((64, 48)));
-        assert!(parse_size("320").is_err());
-        assert!(parse_size("0x10").is_err());
-        assert!(parse_size("axb").is_err());
-    }
 }

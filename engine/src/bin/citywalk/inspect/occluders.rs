@@ -14,13 +14,12 @@ use citywalk_preprocess::occluders::quality::{
 };
 use citywalk_preprocess::occluders::{OccluderParams, build_occluders};
 use citywalk_scenes::occluder::FacadeKind;
-use citywalk_scenes::{LoadOptions, load_city};
 use serde::Serialize;
 
 /// Arguments of this inspection.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Any input citywalk loads (OSM PBF, GeoJSON, CityJSON, glTF/GLB).
+    /// A scene package (.cwk) or any input citywalk loads (OSM PBF, GeoJSON, CityJSON, glTF/GLB).
     scene: PathBuf,
     /// Print the report as JSON on stdout.
     #[arg(long)]
@@ -62,8 +61,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             args.facade
         )
     })?;
-    let city = load_city(&args.scene, &LoadOptions::default())
-        .with_context(|| format!("cannot load {}", args.scene.display()))?;
+    let city = crate::scene_input::load_city(&args.scene)?;
     let params = OccluderParams {
         facade,
         ..OccluderParams::default()

@@ -1,0 +1,73 @@
+#!/usr/bin/env bash
+# Regenerates BENCHMARKS.md: every figure in it comes from one run of this script.
+#
+#   bash .ci/benchmarks.sh            # full set (generated 10k / 100k / 1M, Porto, Chelsea, Den Haag)
+#   FRAMES=20 bash .ci/benchmarks.sh  # fewer frames per camera path
+#
+# Needs ../shared/data beside the repository (the project's real datasets) and a release build;
+# writes its raw outputs under out/benchmarks/ and BENCHMARKS.md at the repository root.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+root=$(pwd)
+data="$root/../shared/data"
+out="$root/out/benchmarks"
+frames="${FRAMES:-30}"
+size="${SIZE:-1280x720}"
+mkdir -p "$out"
+if [ -f /usr/share/vulkan/icd.d/lvp_icd.x86_64.json ] && [ -z "${VK_ICD_FILENAMES:-}" ] \
+  && ! command -v nvidia-smi >/dev/null 2>&1; then
+  export VK_ICD_FILENAMES=/usr/share/vulkan/icd.d/lvp_icd.x86_64.json
+fi
+
+if [ -n "${CITYWALK_BIN:-}" ]; then
+  cw="$CITYWALK_BIN" # a binary built elsewhere (for example copied to a GPU machine)
+else
+  cargo build --release -p citywalk-engine --bin citywalk
+  cw="$root/target/release/citywalk"
+fi
+
+echo "== machine" >&2
+{
+  echo "cpu: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ *//') ($(nproc) cores)"
+  echo "memory: $(free -g | awk '/Mem:/ {print $2}') GiB"
+  echo "os: $(. /etc/os-release && echo "$PRETTY_NAME")"
+  echo "rustc: $(rustc --version)"
+  echo "citywalk: $(git rev-parse --short HEAD 2>/dev/null || echo unknown)"
+  if command -v nvidia-smi >/dev/null 2>&1; then
+    echo "gpu: $(nvidia-smi --query-gpu=name,driver_version --format=csv,noheader)"
+  fi
+} > "$out/machine.txt"
+
+echo "== generated cities" >&2
+for n in 10000 100000 1000000; do
+  f="$out/generated-$n.geojson"
+  [ -f "$f" ] || "$cw" generate --buildings "$n" --seed 1 -o "$f"
+done
+
+echo "== preprocessing" >&2
+preprocess() { # name input...
+  local name=$1; shift
+  "$cw" preprocess "$@" -o "$out/$name.cwk" --json > "$out/preprocess-$name.json"
+}
+preprocess generated-10k "$out/generated-10000.geojson"
+preprocess generated-100k "$out/generated-100000.geojson"
+preprocess generated-1m "$out/generated-1000000.geojson"
+preprocess porto "$data/osm_porto_center/porto.osm.pbf"
+preprocess chelsea "$root/scenes/data/chelsea.osm.pbf"
+preprocess denhaag "$data/cityjson_denhaag/DenHaag_01.json"
+
+echo "== occluders and cluster tree levels" >&2
+"$cw" inspect occluders "$out/denhaag.cwk" --json > "$out/occluders-denhaag.json"
+"$cw" inspect occluders "$out/chelsea.cwk" --json > "$out/occluders-chelsea.json"
+"$cw" inspect tree "$out/chelsea.cwk" --level 4 -o "$out/tree-chelsea.png" > "$out/tree-chelsea.txt"
+"$cw" inspect tree "$out/porto.cwk" --level 4 -o "$out/tree-porto.png" > "$out/tree-porto.txt"
+
+echo "== occlusion benchmark" >&2
+modes="${MODES:-$("$cw" bench --list-modes)}"
+"$cw" bench "$out/generated-10k.cwk" "$out/generated-100k.cwk" "$out/chelsea.cwk" \
+  "$out/porto.cwk" "$out/denhaag.cwk" --out "$out/bench" --frames "$frames" --size "$size" \
+  --modes "$modes" --png-every 0
+
+echo "== BENCHMARKS.md" >&2
+python3 .ci/benchmarks_md.py "$out" > BENCHMARKS.md
+echo "wrote BENCHMARKS.md" >&2

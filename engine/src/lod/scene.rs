@@ -1,0 +1,114 @@
+//! Buildings and cluster meshes in one GPU scene, so a LOD cut is one
+//! [`SelectedRenderer`](crate::render::selected::SelectedRenderer) draw list.
+//!
+//! Layout: draw ids `0..building_count` are the buildings (the same ids and geometry as
+//! [`SceneGeometry::from_city`]), then id `building_count + n` is the cluster mesh of tree node
+//! `n` (empty for leaves, which draw nothing under that id). One combined scene was chosen
+//! over two scenes drawn into the same targets because the selected renderer clears its
+//! targets at the start of its pass; the cost is a second copy of the building geometry.
+
+use citywalk_scenes::City;
+use citywalk_scenes::TriangleMesh;
+use citywalk_scenes::city::Building;
+use citywalk_scenes::cluster_tree::ClusterTree;
+use citywalk_scenes::extrude::building_mesh;
+use glam::Vec3;
+
+use crate::camera::Camera;
+use crate::gpu::GpuContext;
+use crate::lod::{LodCriterion, LodCut, LodTree, LodView};
+use crate::scene_gpu::{SceneGeometry, SceneGpu};
+
+/// The combined scene of buildings and cluster meshes, with the tree the cut walks.
+#[derive(Debug)]
+pub struct LodScene {
+    pub gpu_scene: SceneGpu,
+    /// Number of buildings; cluster node `n` has draw id `building_count + n`.
+    pub building_count: u32,
+    pub tree: LodTree,
+    /// The criterion of [`LodScene::default_criterion`]; `None` picks the Chang walkthrough or
+    /// flyover preset by the camera's altitude.
+    pub criterion: Option<LodCriterion>,
+}
+
+/// One frame's LOD selection.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct LodFrame {
+    pub cut: LodCut,
+    /// Draw ids into [`LodScene::gpu_scene`].
+    pub draw_ids: Vec<u32>,
+    /// Buildings shown, themselves or through a drawn cluster ([`LodCut::covered_buildings`]).
+    pub covered: Vec<u32>,
+    /// Triangles of the drawn buildings and clusters.
+    pub triangles: u64,
+}
+
+/// The combined geometry on the CPU (see the module documentation for the id layout).
+pub fn lod_geometry(city: &City, tree: &ClusterTree) -> SceneGeometry {
+    let mut meshes: Vec<TriangleMesh> = city.buildings.iter().map(building_mesh).collect();
+    let mut fallback: Vec<(Vec3, Vec3)> = city.buildings.iter().map(Building::bounds).collect();
+    for node in &tree.nodes {
+        meshes.push(node.mesh.clone());
+        fallback.push((
+            Vec3::from_array(node.bounds_min),
+            Vec3::from_array(node.bounds_max),
+        ));
+    }
+    SceneGeometry::from_meshes(&meshes, &fallback)
+}
+
+impl LodScene {
+    /// Uploads the buildings of `city` and the cluster meshes of `tree` (built from `city`).
+    pub fn upload(gpu: &GpuContext, city: &City, tree: ClusterTree) -> LodScene {
+        LodScene {
+            gpu_scene: SceneGpu::upload(gpu, &lod_geometry(city, &tree)),
+            building_count: city.buildings.len() as u32,
+            tree: LodTree::new(tree),
+            criterion: None,
+        }
+    }
+
+    /// The cut of `camera` on a `width_px`×`height_px` viewport under `criterion` (frustum
+    /// culling on the tree; `visible_blocks` as in [`LodTree::cut`]) and what it draws.
+    pub fn select(
+        &self,
+        camera: &Camera,
+        width_px: u32,
+        height_px: u32,
+        criterion: LodCriterion,
+        visible_blocks: Option<&[bool]>,
+    ) -> LodFrame {
+        let view = LodView::new(camera, width_px, height_px);
+        let cut = self.tree.cut(&view, criterion, visible_blocks);
+        let draw_ids = self.draw_ids(&cut);
+        LodFrame {
+            covered: cut.covered_buildings(&self.tree.tree),
+            triangles: self.triangles(&draw_ids),
+            draw_ids,
+            cut,
+        }
+    }
+
+    /// What the benchmark's `lod` mode uses: [`LodScene::criterion`] if set, else the Chang
+    /// preset for `camera` ([`LodCriterion::chang_for_altitude`] against the tallest building).
+    pub fn default_criterion(&self, camera: &Camera) -> LodCriterion {
+        self.criterion.unwrap_or_else(|| {
+            LodCriterion::chang_for_altitude(camera.position.z, self.tree.top_m())
+        })
+    }
+
+    /// The draw ids of `cut`: its buildings, then its clusters offset by the building count.
+    pub fn draw_ids(&self, cut: &LodCut) -> Vec<u32> {
+        let mut ids = cut.buildings.clone();
+        ids.extend(cut.clusters.iter().map(|&c| self.building_count + c));
+        ids
+    }
+
+    /// Triangles drawn for `ids` (buildings' and clusters').
+    pub fn triangles(&self, ids: &[u32]) -> u64 {
+        ids.iter()
+            .filter_map(|&i| self.gpu_scene.records.get(i as usize))
+            .map(|r| u64::from(r.index_count / 3))
+            .sum()
+    }
+}

@@ -1,0 +1,165 @@
+//! `citywalk bench` end to end on a tiny GeoJSON city: its files (frames.csv, bench.json,
+//! summary.md, plots), the decimated baseline, and the refusal of modes it does not know or
+//! does not have yet.
+//!
+//! Without a GPU adapter (software ones count) the run is skipped with a message, except under
+//! CI (env `CI` set), where it fails — the rule of `citywalk_tests::gpu::gpu_or_skip`.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use citywalk_engine::bench::Mode;
+use citywalk_engine::bench::plots::PLOT_SIZE;
+use citywalk_engine::gpu::GpuContext;
+
+/// A 3 × 3 grid of buildings (30 m squares, 9 to 33 m tall) with the streets between them, in
+/// local metres.
+fn write_scene(path: &Path) {
+    let mut features = Vec::new();
+    for i in 0..3 {
+        for j in 0..3 {
+            let (x, y) = (f64::from(i) * 50.0, f64::from(j) * 50.0);
+            let ring = [
+                [x, y],
+                [x + 30.0, y],
+                [x + 30.0, y + 30.0],
+                [x, y + 30.0],
+                [x, y],
+            ];
+            features.push(serde_json::json!({
+                "type": "Feature",
+                "id": format!("b{i}{j}"),
+                "properties": { "building": "yes", "height": 9.0 + 3.0 * f64::from(i * 3 + j) },
+                "geometry": { "type": "Polygon", "coordinates": [ring] }
+            }));
+        }
+    }
+    for k in 0..4 {
+        let c = f64::from(k) * 50.0 - 10.0;
+        for line in [[[-20.0, c], [150.0, c]], [[c, -20.0], [c, 150.0]]] {
+            features.push(serde_json::json!({
+                "type": "Feature",
+                "properties": { "highway": "residential" },
+                "geometry": { "type": "LineString", "coordinates": line }
+            }));
+        }
+    }
+    let scene = serde_json::json!({
+        "type": "FeatureCollection",
+        "crs": { "type": "name", "properties": { "name": "citywalk:local" } },
+        "features": features
+    });
+    std::fs::write(path, scene.to_string()).expect("write the test scene");
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir =
+        std::env::temp_dir().join(format!("citywalk-bench-cli-{name}-{}", std::process::id()));
+    // A leftover from an earlier run with the same id would hide missing outputs.
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    dir
+}
+
+fn bench(scene: &Path, out: &Path, extra: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_citywalk"))
+        .arg("bench")
+        .arg(scene)
+        .arg("--out")
+        .arg(out)
+        .args(["--paths", "street", "--frames", "4", "--size", "96x64"])
+        .args(extra)
+        .output()
+        .expect("run citywalk bench")
+}
+
+fn gpu_available(test: &str) -> bool {
+    match GpuContext::headless() {
+        Ok(_) => true,
+        Err(e) if std::env::var_os("CI").is_some() => {
+            panic!("{test}: CI is set and no GPU context could be made: {e}")
+        }
+        Err(e) => {
+            eprintln!("{test}: SKIPPED (no GPU, CI unset): {e}");
+            false
+        }
+    }
+}
+
+#[test]
+fn bench_writes_its_files_and_plots() {
+    if !gpu_available("bench_cli") {
+        return;
+    }
+    let dir = temp_dir("run");
+    let scene = dir.join("tiny.geojson");
+    write_scene(&scene);
+    let out = dir.join("out");
+    let run = bench(
+        &scene,
+        &out,
+        &["--modes", "brute,frustum", "--baseline", "decimate:25%"],
+    );
+    let log = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "citywalk bench failed:\n{log}");
+    let csv = std::fs::read_to_string(out.join("frames.csv")).expect("frames.csv");
+    // Header + 4 frames × (2 modes + the decimated baseline).
+    assert_eq!(csv.lines().count(), 1 + 4 * 3, "{csv}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("bench.json")).expect("json"))
+            .expect("bench.json parses");
+    let modes: Vec<&str> = json["entries"]
+        .as_array()
+        .expect("entries")
+        .iter()
+        .filter_map(|e| e["mode"].as_str())
+        .collect();
+    assert_eq!(modes, ["brute", "frustum", "decimated"]);
+    assert_eq!(json["size"], serde_json::json!([96, 64]));
+    let summary = std::fs::read_to_string(out.join("summary.md")).expect("summary.md");
+    assert!(
+        summary.contains("| tiny | street | decimated |"),
+        "{summary}"
+    );
+    for kind in ["frame-ms", "triangles", "pixel-error", "culled"] {
+        let file = out.join(format!("plot-tiny-street-{kind}.png"));
+        let image = image::open(&file)
+            .unwrap_or_else(|e| panic!("{}: {e}\n{log}", file.display()))
+            .to_rgb8();
+        assert_eq!(image.dimensions(), PLOT_SIZE);
+        let first = *image.get_pixel(0, 0);
+        assert!(image.pixels().any(|p| *p != first), "{kind} plot is blank");
+    }
+    std::fs::remove_dir_all(&dir).expect("clean up");
+}
+
+#[test]
+fn unknown_and_unbuilt_modes_are_refused() {
+    let dir = temp_dir("refuse");
+    let scene = dir.join("tiny.geojson");
+    write_scene(&scene);
+    let out = dir.join("out");
+    let run = bench(&scene, &out, &["--modes", "brute,warp-speed"]);
+    let log = String::from_utf8_lossy(&run.stderr);
+    assert!(!run.status.success());
+    assert!(log.contains("unknown mode 'warp-speed'"), "{log}");
+    assert!(!out.join("bench.json").exists());
+
+    let run = bench(&scene, &out, &["--baseline", "decimate:nothing"]);
+    assert!(!run.status.success());
+    assert!(
+        String::from_utf8_lossy(&run.stderr).contains("unknown mode 'nothing'"),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+
+    // Modes named but not built yet (their list shrinks as the runtime grows).
+    for mode in Mode::NAMED.into_iter().filter(|m| !m.is_available()) {
+        let run = bench(&scene, &out, &["--modes", mode.name()]);
+        let log = String::from_utf8_lossy(&run.stderr);
+        assert!(!run.status.success(), "{mode} ran");
+        assert!(log.contains("not implemented yet"), "{mode}: {log}");
+        assert!(!out.join("bench.json").exists());
+    }
+    std::fs::remove_dir_all(&dir).expect("clean up");
+}

@@ -1,0 +1,227 @@
+//! The benchmark harness on a tiny scene: its oracle accounting, that it catches a broken
+//! culler, its JSON, and the decimated-city baseline.
+
+use citywalk_engine::bench::baseline::{DECIMATED_MODE, DecimatedBaseline};
+use citywalk_engine::bench::decimate::decimate_city;
+use citywalk_engine::bench::run::pose_camera;
+use citywalk_engine::bench::{
+    AdapterSummary, BenchConfig, BenchRenderers, BenchReport, BenchScene, FrameRecord, Mode,
+    run_path, summarise,
+};
+use citywalk_engine::gpu::GpuContext;
+use citywalk_engine::oracle::Oracle;
+use citywalk_engine::scene_gpu::{SceneGeometry, SceneGpu};
+use citywalk_scenes::City;
+use citywalk_scenes::blocks::UrbanBlocks;
+use citywalk_scenes::camera_path::{CameraPath, CameraPose};
+use citywalk_scenes::quadtree::BQuadtree;
+use citywalk_tests::city_builder::boxes;
+use citywalk_tests::gpu::gpu_or_skip;
+use glam::Vec3;
+
+const W: u32 = 160;
+const H: u32 = 120;
+
+/// A 6 × 6 grid of boxes, 20 m wide on a 35 m pitch, 8 to 40 m tall.
+fn grid_city() -> City {
+    let mut specs = Vec::new();
+    for i in 0..6 {
+        for j in 0..6 {
+            let (x, y) = (f64::from(i) * 35.0, f64::from(j) * 35.0);
+            let h = 8.0 + ((i * 5 + j * 3) % 5) as f32 * 8.0;
+            specs.push((x, y, x + 20.0, y + 20.0, h));
+        }
+    }
+    boxes(&specs)
+}
+
+/// A walk along the street between the first two rows, turning as it goes.
+fn walk() -> CameraPath {
+    CameraPath {
+        name: "walk".into(),
+        fov_y_deg: 60.0,
+        poses: (0..6)
+            .map(|k| CameraPose {
+                position: Vec3::new(-20.0 + 30.0 * k as f32, 27.5, 1.7),
+                yaw_deg: -40.0 + 25.0 * k as f32,
+                pitch_deg: 5.0,
+            })
+            .collect(),
+    }
+}
+
+fn bench_scene(gpu: &GpuContext, city: &City) -> BenchScene {
+    BenchScene {
+        name: "grid".into(),
+        gpu_scene: SceneGpu::upload_city(gpu, city),
+        blocks: UrbanBlocks::default(),
+        quadtree: BQuadtree::default(),
+        lod: None,
+        occluders: None,
+    }
+}
+
+fn config(modes: Vec<Mode>) -> BenchConfig {
+    BenchConfig {
+        modes,
+        width: W,
+        height: H,
+        frames_dir: None,
+        png_every: 0,
+    }
+}
+
+fn report(records: &[FrameRecord]) -> BenchReport {
+    BenchReport {
+        adapter: AdapterSummary {
+            name: "test".into(),
+            backend: "test".into(),
+            device_type: "test".into(),
+        },
+        size: [W, H],
+        entries: summarise(records),
+    }
+}
+
+#[test]
+fn oracle_counts_match_the_id_image_and_a_dropped_building_is_caught() {
+    let Some(gpu) = gpu_or_skip("bench_harness_oracle") else {
+        return;
+    };
+    let city = grid_city();
+    let scene = bench_scene(&gpu, &city);
+    let path = walk();
+    let mut renderers = BenchRenderers::new(&gpu);
+    let records = run_path(
+        &gpu,
+        &mut renderers,
+        &scene,
+        &path,
+        &config(vec![Mode::Brute, Mode::DropOneVisibleForTest]),
+    )
+    .expect("run");
+    assert_eq!(records.len(), 2 * path.poses.len());
+
+    // The harness's visible count is the number of distinct ids in the id image.
+    let oracle = Oracle::new(&gpu);
+    for r in &records {
+        let image = oracle
+            .id_image(&gpu, &scene.gpu_scene, &pose_camera(&path, r.frame), W, H)
+            .expect("id image");
+        let mut ids: Vec<u32> = (0..H)
+            .flat_map(|y| (0..W).map(move |x| (x, y)))
+            .filter_map(|(x, y)| image.building_at(x, y).map(|b| b.0))
+            .collect();
+        ids.sort_unstable();
+        ids.dedup();
+        assert_eq!(r.visible, ids.len(), "frame {} {}", r.frame, r.mode);
+    }
+    assert!(
+        records.iter().any(|r| r.visible > 3),
+        "the walk sees little"
+    );
+
+    // Brute force culls nothing; the broken mode culls one visible building per frame.
+    for r in &records {
+        match r.mode.as_str() {
+            "brute" => {
+                assert_eq!(r.false_culls, 0);
+                assert_eq!(r.drawn, 36);
+                assert_eq!(r.pixel_error_grey, 0.0);
+            }
+            _ => {
+                assert_eq!(
+                    r.false_culls,
+                    usize::from(r.visible > 0),
+                    "frame {}",
+                    r.frame
+                );
+                assert_eq!(r.drawn, 35);
+            }
+        }
+    }
+    let report = report(&records);
+    assert!(report.false_culls() > 0, "the harness missed a false cull");
+    let broken = report
+        .entries
+        .iter()
+        .find(|e| e.mode == Mode::DropOneVisibleForTest.name())
+        .expect("entry");
+    assert!(broken.false_culls > 0);
+    assert!(
+        broken.pixel_error_mean > 0.0,
+        "a dropped building changes the image"
+    );
+
+    // bench.json's documented keys.
+    let json: serde_json::Value = serde_json::to_value(&report).expect("json");
+    assert!(json.get("adapter").is_some() && json.get("size").is_some());
+    for e in json["entries"].as_array().expect("entries") {
+        for key in [
+            "scene",
+            "path",
+            "mode",
+            "frames",
+            "false_culls",
+            "visible_mean",
+            "drawn_mean",
+            "culled_fraction_mean",
+            "triangles_mean",
+            "draw_calls_mean",
+            "frame_ms_median",
+            "speedup_vs_brute",
+            "pixel_error_mean",
+        ] {
+            assert!(e.get(key).is_some(), "missing {key}");
+        }
+    }
+}
+
+#[test]
+fn decimated_baseline_is_measured_against_brute_force() {
+    let Some(gpu) = gpu_or_skip("bench_harness_decimated") else {
+        return;
+    };
+    let city = grid_city();
+    let scene = bench_scene(&gpu, &city);
+    let path = walk();
+    let geometry = SceneGeometry::from_city(&city);
+    let total = geometry.building_triangle_count();
+    let target = total / 4;
+    let decimated = decimate_city(&geometry, target);
+    assert!(
+        decimated.triangles.abs_diff(target) as f64 <= 0.1 * target as f64,
+        "{} triangles for a target of {target}",
+        decimated.triangles
+    );
+    let decimated_gpu = SceneGpu::upload(&gpu, &decimated.geometry(&geometry));
+    let mut runner = DecimatedBaseline::new(&gpu);
+    let records = runner
+        .run_path(
+            &gpu,
+            &scene,
+            &decimated_gpu,
+            &path,
+            &config(vec![Mode::Brute]),
+        )
+        .expect("run");
+    assert_eq!(records.len(), path.poses.len());
+    for r in &records {
+        assert_eq!(r.mode, DECIMATED_MODE);
+        assert_eq!(r.triangles as usize, decimated.triangles);
+        assert!(r.false_culls <= r.visible);
+        assert!((0.0..=1.0).contains(&r.pixel_error_grey));
+        assert!(r.pixel_error_colour <= r.pixel_error_grey);
+    }
+    let mean_error = records.iter().map(|r| r.pixel_error_grey).sum::<f64>() / records.len() as f64;
+    assert!(
+        mean_error > 0.0,
+        "a quarter of the triangles drew the same image"
+    );
+    // Its false culls are not culling bugs and do not fail the benchmark.
+    let mut with_broken = records.clone();
+    for r in &mut with_broken {
+        r.false_culls += 1;
+    }
+    assert_eq!(report(&with_broken).false_culls(), 0);
+}

@@ -1,0 +1,358 @@
+//! The screen-space LOD cut (Chang et al. 2008 §8, Yang et al. 2011 §4) on a generated,
+//! preprocessed city: CPU consistency and monotonicity properties, and on the GPU zero false
+//! culls against the ID-buffer oracle, fewer triangles from the air, full detail nearby.
+
+use std::sync::OnceLock;
+
+use citywalk_engine::bench::run::pose_camera;
+use citywalk_engine::camera::Camera;
+use citywalk_engine::lod::scene::{LodFrame, LodScene};
+use citywalk_engine::lod::{LodCriterion, LodCut, LodTree, LodView, distance_to_box};
+use citywalk_engine::oracle::Oracle;
+use citywalk_engine::scene_gpu::SceneGpu;
+use citywalk_preprocess::pipeline::{NoProgress, PreprocessParams, preprocess};
+use citywalk_scenes::City;
+use citywalk_scenes::camera_path;
+use citywalk_scenes::cluster_tree::ClusterTree;
+use citywalk_scenes::frustum::Containment;
+use citywalk_scenes::generate::{GenerateParams, generate_city};
+use citywalk_tests::gpu::gpu_or_skip;
+use glam::Vec3;
+use proptest::prelude::*;
+use proptest::test_runner::RngSeed;
+
+/// The 1500-building generated city (seed 7) and its cluster tree, built once per test binary.
+fn city_and_tree() -> &'static (City, ClusterTree) {
+    static CELL: OnceLock<(City, ClusterTree)> = OnceLock::new();
+    CELL.get_or_init(|| {
+        let city = generate_city(&GenerateParams::new(1500, 7)).expect("generate");
+        let package = preprocess(city.clone(), &PreprocessParams::default(), &NoProgress)
+            .expect("preprocess");
+        let tree = package.cluster_tree.clone().expect("cluster tree");
+        (package.city(), tree)
+    })
+}
+
+fn lod_tree() -> &'static LodTree {
+    static CELL: OnceLock<LodTree> = OnceLock::new();
+    CELL.get_or_init(|| LodTree::new(city_and_tree().1.clone()))
+}
+
+/// For every building, the depth of the node covering it in `cut` (a drawn cluster containing
+/// it, or its own leaf), counting covers; landmarks drawn beside their cluster are not covers.
+fn cover_depths(tree: &ClusterTree, cut: &LodCut) -> Vec<(u32, Option<u32>)> {
+    let mut out = vec![(0u32, None); tree.building_order.len()];
+    for &c in &cut.clusters {
+        let node = &tree.nodes[c as usize];
+        assert!(!node.is_leaf(), "cluster {c} of the cut is a leaf");
+        for b in &tree.building_order[node.buildings.0 as usize..node.buildings.1 as usize] {
+            let slot = &mut out[b.index()];
+            slot.0 += 1;
+            slot.1 = Some(node.depth);
+        }
+    }
+    for node in &tree.nodes {
+        if !node.is_leaf() {
+            continue;
+        }
+        let b = tree.building_order[node.buildings.0 as usize];
+        if cut.buildings.binary_search(&b.0).is_ok() && cut.landmarks.binary_search(&b.0).is_err() {
+            let slot = &mut out[b.index()];
+            slot.0 += 1;
+            slot.1 = Some(node.depth);
+        }
+    }
+    out
+}
+
+/// Landmarks are buildings drawn beside a drawn cluster that lists them.
+fn check_landmarks(tree: &ClusterTree, cut: &LodCut) {
+    for &l in &cut.landmarks {
+        assert!(cut.buildings.binary_search(&l).is_ok());
+        assert!(
+            cut.clusters
+                .iter()
+                .any(|&c| tree.nodes[c as usize].landmarks.iter().any(|b| b.0 == l)),
+            "landmark {l} drawn without a drawn cluster listing it"
+        );
+    }
+}
+
+fn criterion_strategy() -> impl Strategy<Value = LodCriterion> {
+    prop_oneof![
+        (0.5f32..400.0, 0.5f32..50.0)
+            .prop_map(|(epsilon_px, tau_px)| LodCriterion::Chang { epsilon_px, tau_px }),
+        (1.0f32..100.0, 10.0f32..2000.0).prop_map(|(delta_h_px, delta_a_px)| {
+            LodCriterion::Yang {
+                delta_h_px,
+                delta_a_px,
+            }
+        }),
+    ]
+}
+
+/// A camera somewhere over or around the city, looking anywhere.
+fn camera_strategy() -> impl Strategy<Value = Camera> {
+    (
+        -0.3f32..1.3,
+        -0.3f32..1.3,
+        1.5f32..1500.0,
+        0.0f32..360.0,
+        -80.0f32..30.0,
+    )
+        .prop_map(|(fx, fy, z, yaw, pitch)| {
+            let (lo, hi) = root_bounds();
+            let p = Vec3::new(lo.x + fx * (hi.x - lo.x), lo.y + fy * (hi.y - lo.y), z);
+            Camera::new(p, yaw.to_radians(), pitch.to_radians())
+        })
+}
+
+fn root_bounds() -> (Vec3, Vec3) {
+    let tree = &city_and_tree().1;
+    let root = &tree.nodes[tree.root as usize];
+    (
+        Vec3::from_array(root.bounds_min),
+        Vec3::from_array(root.bounds_max),
+    )
+}
+
+fn config(cases: u32, seed: u64) -> ProptestConfig {
+    ProptestConfig {
+        cases,
+        rng_seed: RngSeed::Fixed(seed),
+        failure_persistence: None,
+        ..ProptestConfig::default()
+    }
+}
+
+proptest! {
+    #![proptest_config(config(48, 0x10d_c07))]
+
+    /// Without culling every building is covered exactly once; with frustum culling at most
+    /// once, and exactly once when its own bounds are not outside the frustum.
+    #[test]
+    fn cut_covers_every_building_once(
+        camera in camera_strategy(),
+        criterion in criterion_strategy(),
+        height_px in 200u32..2000,
+    ) {
+        let lod = lod_tree();
+        let tree = &lod.tree;
+        let view = LodView::new(&camera, height_px * 4 / 3, height_px);
+        let full = lod.cut(&view.without_culling(), criterion, None);
+        check_landmarks(tree, &full);
+        for (b, (count, _)) in cover_depths(tree, &full).iter().enumerate() {
+            prop_assert_eq!(*count, 1, "building {} covered {} times without culling", b, count);
+        }
+        let culled = lod.cut(&view, criterion, None);
+        check_landmarks(tree, &culled);
+        let frustum = view.frustum.expect("frustum");
+        let (city, _) = city_and_tree();
+        for (b, (count, _)) in cover_depths(tree, &culled).iter().enumerate() {
+            prop_assert!(*count <= 1, "building {} covered {} times", b, count);
+            let (lo, hi) = city.buildings[b].bounds();
+            if frustum.classify_aabb(lo, hi) != Containment::Outside {
+                prop_assert_eq!(*count, 1, "building {} in the frustum is not covered", b);
+            }
+        }
+    }
+
+    /// A camera lowered straight down while above every roof is nearer to every node, and a
+    /// taller viewport has more pixels per metre: neither makes any building coarser.
+    #[test]
+    fn closer_camera_is_never_coarser(
+        camera in camera_strategy(),
+        criterion in criterion_strategy(),
+        drop in 0.0f32..1.0,
+        height_px in 200u32..1500,
+    ) {
+        let lod = lod_tree();
+        let tree = &lod.tree;
+        let (_, hi) = root_bounds();
+        let mut high = camera;
+        high.position.z = hi.z + 1.0 + camera.position.z;
+        let mut low = high;
+        low.position.z = hi.z + 1.0 + drop * camera.position.z;
+        for node in &tree.nodes {
+            let (a, b) = (Vec3::from_array(node.bounds_min), Vec3::from_array(node.bounds_max));
+            prop_assert!(distance_to_box(low.position, a, b) <= distance_to_box(high.position, a, b));
+        }
+        let far = lod.cut(&LodView::new(&high, height_px, height_px).without_culling(), criterion, None);
+        let near = lod.cut(&LodView::new(&low, height_px, height_px).without_culling(), criterion, None);
+        let big = lod.cut(
+            &LodView::new(&high, height_px * 2, height_px * 2).without_culling(),
+            criterion,
+            None,
+        );
+        let far_depths = cover_depths(tree, &far);
+        for (finer, what) in [(&near, "nearer"), (&big, "larger viewport")] {
+            for (b, ((_, d_far), (_, d_fine))) in
+                far_depths.iter().zip(cover_depths(tree, finer)).enumerate()
+            {
+                prop_assert!(d_fine >= *d_far, "building {} coarser with the {} camera", b, what);
+            }
+        }
+    }
+}
+
+/// Street-level and aerial cameras of the generated paths.
+fn cameras(city: &City) -> Vec<(&'static str, Camera)> {
+    let street = camera_path::street_walk(city, 4);
+    let flyover = camera_path::flyover(city, 3);
+    let mut out: Vec<(&'static str, Camera)> = (0..street.poses.len())
+        .map(|i| ("street", pose_camera(&street, i)))
+        .collect();
+    out.extend((0..flyover.poses.len()).map(|i| ("aerial", pose_camera(&flyover, i))));
+    let (lo, hi) = root_bounds();
+    out.push(("aerial", Camera::overview(lo, hi)));
+    out
+}
+
+/// Every oracle-visible building is covered by the cut (zero false culls) at two viewport
+/// sizes under both criteria, aerial cameras draw fewer triangles than brute force, and the
+/// renderer draws the combined scene.
+#[test]
+fn lod_cut_has_no_false_culls_and_saves_triangles_from_the_air() {
+    let Some(gpu) = gpu_or_skip("lod_cut_has_no_false_culls_and_saves_triangles_from_the_air")
+    else {
+        return;
+    };
+    let (city, tree) = city_and_tree();
+    let scene = SceneGpu::upload_city(&gpu, city);
+    let lod = LodScene::upload(&gpu, city, tree.clone());
+    let oracle = Oracle::new(&gpu);
+    let brute_triangles = scene.triangle_count as u64;
+    let criteria = [
+        LodCriterion::CHANG_PAPER,
+        LodCriterion::YANG_PAPER,
+        LodCriterion::CHANG_FLYOVER,
+        LodCriterion::CHANG_WALKTHROUGH,
+    ];
+    let mut aerial_saving = [0u32; 4];
+    let mut aerial = 0;
+    for (w, h) in [(1001, 777), (640, 480)] {
+        for (kind, camera) in cameras(city) {
+            let visible = oracle
+                .visible_set(&gpu, &scene, &camera, w, h)
+                .expect("oracle");
+            if kind == "aerial" {
+                aerial += 1;
+            }
+            for (k, &criterion) in criteria.iter().enumerate() {
+                let frame: LodFrame = lod.select(&camera, w, h, criterion, None);
+                let missed: Vec<u32> = (0..city.buildings.len() as u32)
+                    .filter(|&b| visible.contains(citywalk_scenes::BuildingId(b)))
+                    .filter(|b| frame.covered.binary_search(b).is_err())
+                    .collect();
+                assert!(
+                    missed.is_empty(),
+                    "{kind} camera {camera:?} {w}x{h} {criterion:?}: visible buildings {missed:?} \
+                     not drawn"
+                );
+                if kind == "aerial" && frame.triangles < brute_triangles {
+                    aerial_saving[k] += 1;
+                }
+                eprintln!(
+                    "{kind} {w}x{h} {criterion:?}: {} clusters, {} buildings, {} of {brute_triangles} triangles",
+                    frame.cut.clusters.len(),
+                    frame.cut.buildings.len(),
+                    frame.triangles
+                );
+            }
+        }
+    }
+    // The paper tolerances must save on every aerial frame; the 1-2 px presets may keep full
+    // detail where the whole city is in view.
+    for k in [0, 1] {
+        assert_eq!(
+            aerial_saving[k], aerial,
+            "{:?}: only {} of {aerial} aerial frames drew fewer triangles than brute force",
+            criteria[k], aerial_saving[k]
+        );
+    }
+    // Both criteria really coarsen somewhere: the overview draws clusters.
+    let (lo, hi) = root_bounds();
+    let overview = Camera::overview(lo, hi);
+    for criterion in [LodCriterion::CHANG_PAPER, LodCriterion::YANG_PAPER] {
+        let frame = lod.select(&overview, 1001, 777, criterion, None);
+        assert!(
+            !frame.cut.clusters.is_empty(),
+            "{criterion:?} draws no cluster from the overview"
+        );
+    }
+    // The combined scene renders: the LOD frame is not empty sky.
+    let mut renderer = citywalk_engine::render::selected::SelectedRenderer::new(
+        &gpu,
+        citywalk_engine::render::BruteRenderer::PNG_FORMAT,
+    );
+    let target = citywalk_engine::render::targets::OffscreenTarget::new(
+        &gpu,
+        320,
+        240,
+        citywalk_engine::render::BruteRenderer::PNG_FORMAT,
+    )
+    .expect("target");
+    let frame = lod.select(&overview, 320, 240, LodCriterion::YANG_PAPER, None);
+    let mut encoder = gpu
+        .device
+        .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
+    let calls = renderer.encode(
+        &gpu,
+        &mut encoder,
+        &lod.gpu_scene,
+        &overview,
+        &frame.draw_ids,
+        &target.colour_view,
+        &target.depth,
+    );
+    gpu.queue.submit([encoder.finish()]);
+    assert_eq!(calls as usize, frame.draw_ids.len() + 1);
+    let rgba = target.read_colour(&gpu).expect("read");
+    let centre = ((120 * 320 + 160) * 4) as usize;
+    let corner = 0usize;
+    assert_ne!(
+        rgba[centre..centre + 3],
+        rgba[corner..corner + 3],
+        "the overview's centre looks like the sky"
+    );
+}
+
+/// At street level, most buildings near the camera are drawn as themselves under both
+/// criteria.
+#[test]
+fn street_level_draws_nearby_buildings_themselves() {
+    let (city, _) = city_and_tree();
+    let lod = lod_tree();
+    for (kind, camera) in cameras(city) {
+        if kind != "street" {
+            continue;
+        }
+        let near: Vec<u32> = city
+            .buildings
+            .iter()
+            .enumerate()
+            .filter(|(_, b)| {
+                let (lo, hi) = b.bounds();
+                distance_to_box(camera.position, lo, hi) < 60.0
+            })
+            .map(|(i, _)| i as u32)
+            .collect();
+        assert!(!near.is_empty(), "no building within 60 m of {camera:?}");
+        for criterion in [LodCriterion::CHANG_WALKTHROUGH, LodCriterion::YANG_PAPER] {
+            let cut = lod.cut(
+                &LodView::new(&camera, 1001, 777).without_culling(),
+                criterion,
+                None,
+            );
+            let themselves = near
+                .iter()
+                .filter(|b| cut.buildings.binary_search(b).is_ok())
+                .count();
+            assert!(
+                themselves * 10 >= near.len() * 8,
+                "{criterion:?}: only {themselves} of {} buildings within 60 m drawn themselves",
+                near.len()
+            );
+        }
+    }
+}
