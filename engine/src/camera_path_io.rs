@@ -67,7 +67,8 @@ impl PathRecorder {
     /// has one field of view).
     pub fn push(&mut self, camera: &Camera) {
         if self.path.poses.is_empty() {
-            self.path.fov_y_deg = camera.fov_y_rad.to_degrees();
+            // Rounded to 1e-4° so that 60° does not come back as 60.000004° from radians.
+            self.path.fov_y_deg = (camera.fov_y_rad.to_degrees() * 1e4).round() / 1e4;
         }
         self.path.poses.push(pose_from_camera(camera));
     }
@@ -199,6 +200,7 @@ mod tests {
         assert_eq!(recorder.save().expect("saved"), file.as_path());
         let read = CameraPath::read(&file).expect("the recording parses");
         assert_eq!(read.name, "recorded");
+        assert_eq!(read.fov_y_deg, 60.0);
         assert_eq!(read.poses.len(), 7);
 
         let mut player = PathPlayer::new(read, PlayEnd::Stop);

@@ -110,7 +110,8 @@ impl Visibility {
     /// Sets the flags from a cull status (`CULL_VISIBLE` = visible).
     fn update(&mut self, status: &[u32]) {
         self.visible.clear();
-        self.visible.extend(status.iter().map(|&s| s == CULL_VISIBLE));
+        self.visible
+            .extend(status.iter().map(|&s| s == CULL_VISIBLE));
     }
 
     /// Adjusts to a scene of `building_count` buildings: a visibility of another size belongs
@@ -226,14 +227,18 @@ impl OccluderMeshes {
         self.occluders
             .iter()
             .enumerate()
-            .filter(|(_, o)| !drawn_early.get(o.building as usize).copied().unwrap_or(false))
+            .filter(|(_, o)| {
+                !drawn_early
+                    .get(o.building as usize)
+                    .copied()
+                    .unwrap_or(false)
+            })
             .filter(|(_, o)| {
                 let centre = (o.bounds_min_m + o.bounds_max_m) * 0.5;
                 let radius_m = (o.bounds_max_m - o.bounds_min_m).length() * 0.5;
                 let distance_m = centre.distance(camera.position);
                 (distance_m <= radius_m || radius_m / distance_m * px_per_rad > min_px)
-                    && frustum.classify_aabb(o.bounds_min_m, o.bounds_max_m)
-                        != Containment::Outside
+                    && frustum.classify_aabb(o.bounds_min_m, o.bounds_max_m) != Containment::Outside
             })
             .map(|(i, _)| i)
             .collect()
@@ -535,7 +540,8 @@ impl CullingRenderer {
             selected.iter().map(|&i| meshes.occluders[i].draw).collect();
         let bytes: &[u8] = bytemuck::cast_slice(&draws);
         self.occluder_draws.reserve(&gpu.device, bytes.len() as u64);
-        gpu.queue.write_buffer(&self.occluder_draws.buffer, 0, bytes);
+        gpu.queue
+            .write_buffer(&self.occluder_draws.buffer, 0, bytes);
         let targets = self.targets.as_ref().expect("fit_targets ran");
         encoder.copy_texture_to_texture(
             targets.depth.texture.as_image_copy(),
@@ -833,7 +839,10 @@ struct EarlySet {
 }
 
 /// Scene vertices into depth only (the occluders), reversed-Z `Greater`.
-fn depth_only_pipeline(device: &wgpu::Device, layout: &wgpu::BindGroupLayout) -> wgpu::RenderPipeline {
+fn depth_only_pipeline(
+    device: &wgpu::Device,
+    layout: &wgpu::BindGroupLayout,
+) -> wgpu::RenderPipeline {
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some("occluder depth"),
         source: wgpu::ShaderSource::Wgsl(SCENE_WGSL.into()),

@@ -1,6 +1,8 @@
 //! The viewer through a real window: `citywalk view --screenshot` under Xvfb (`xvfb-run -a`),
 //! in walk and fly mode, on a small GeoJSON city written here. The screenshot must exist, have
-//! the requested size and not be (nearly) one flat colour.
+//! the requested size and not be (nearly) one flat colour. Then a five-pose path is played
+//! (`--play`) twice, with and without the overlay panel: the two screenshots of its last pose
+//! must differ (the panel is drawn) and the one without the panel must show the scene.
 //!
 //! Without Xvfb or a GPU adapter (software ones count: lavapipe, llvmpipe) the test is skipped
 //! with a message, except under CI (env `CI` set), where it fails.
@@ -53,6 +55,15 @@ fn write_scene(path: &Path) {
         "features": features
     });
     std::fs::write(path, scene.to_string()).expect("write the test scene");
+}
+
+/// Five poses walking north along the street at x = 40 m, the last one the screenshot's.
+fn write_path(path: &Path) {
+    let mut text = String::from("citywalk-path 1\nname test walk\nfov_y_deg 60\n");
+    for i in 0..5 {
+        text.push_str(&format!("pose 40 {} 1.7 90 5\n", -15 + 10 * i));
+    }
+    std::fs::write(path, text).expect("write the test path");
 }
 
 fn has_program(name: &str) -> bool {
@@ -145,7 +156,16 @@ fn viewer_writes_a_screenshot_through_a_real_window() {
     std::fs::create_dir_all(&dir).expect("create a temporary directory");
     let scene = dir.join("grid.geojson");
     write_scene(&scene);
-    for (name, extra) in [("walk", &[][..]), ("fly", &["--fly"][..])] {
+    let path_file = dir.join("walk.path");
+    write_path(&path_file);
+    let path_arg = path_file.to_str().expect("a UTF-8 temporary path");
+    let mut played = Vec::new();
+    for (name, extra) in [
+        ("walk", &[][..]),
+        ("fly", &["--fly"][..]),
+        ("play", &["--play", path_arg, "--no-overlay"][..]),
+        ("play-overlay", &["--play", path_arg][..]),
+    ] {
         let out = dir.join(format!("{name}.png"));
         match run_viewer(&scene, &out, extra) {
             Outcome::NoAdapter(log) => {
@@ -165,9 +185,24 @@ fn viewer_writes_a_screenshot_through_a_real_window() {
                     "{name} screenshot is {:.1} % one colour",
                     share * 100.0
                 );
+                if name.starts_with("play") {
+                    played.push(image);
+                }
             }
         }
     }
+    let [plain, with_panel] = &played[..] else {
+        panic!("two playback screenshots expected, got {}", played.len());
+    };
+    let differing = plain
+        .pixels()
+        .zip(with_panel.pixels())
+        .filter(|(a, b)| a != b)
+        .count();
+    assert!(
+        differing > (WIDTH * HEIGHT / 50) as usize,
+        "the overlay panel changed only {differing} pixels of the same pose"
+    );
     // Best effort: a leftover temporary directory is harmless.
     let _ = std::fs::remove_dir_all(&dir);
 }

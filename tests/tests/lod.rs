@@ -4,7 +4,8 @@
 
 use std::sync::OnceLock;
 
-use citywalk_engine::bench::run::pose_camera;
+use citywalk_engine::bench::Mode;
+use citywalk_engine::bench::run::{BenchConfig, BenchRenderers, BenchScene, pose_camera, run_path};
 use citywalk_engine::camera::Camera;
 use citywalk_engine::lod::scene::{LodFrame, LodScene};
 use citywalk_engine::lod::{LodCriterion, LodCut, LodTree, LodView, distance_to_box};
@@ -16,21 +17,28 @@ use citywalk_scenes::camera_path;
 use citywalk_scenes::cluster_tree::ClusterTree;
 use citywalk_scenes::frustum::Containment;
 use citywalk_scenes::generate::{GenerateParams, generate_city};
+use citywalk_scenes::package::ScenePackage;
 use citywalk_tests::gpu::gpu_or_skip;
 use glam::Vec3;
 use proptest::prelude::*;
 use proptest::test_runner::RngSeed;
 
-/// The 1500-building generated city (seed 7) and its cluster tree, built once per test binary.
-fn city_and_tree() -> &'static (City, ClusterTree) {
-    static CELL: OnceLock<(City, ClusterTree)> = OnceLock::new();
+/// The 1500-building generated city (seed 7), its package and cluster tree, built once per
+/// test binary.
+fn prepared() -> &'static (City, ClusterTree, ScenePackage) {
+    static CELL: OnceLock<(City, ClusterTree, ScenePackage)> = OnceLock::new();
     CELL.get_or_init(|| {
         let city = generate_city(&GenerateParams::new(1500, 7)).expect("generate");
         let package = preprocess(city.clone(), &PreprocessParams::default(), &NoProgress)
             .expect("preprocess");
         let tree = package.cluster_tree.clone().expect("cluster tree");
-        (package.city(), tree)
+        (package.city(), tree, package)
     })
+}
+
+fn city_and_tree() -> (&'static City, &'static ClusterTree) {
+    let (city, tree, _) = prepared();
+    (city, tree)
 }
 
 fn lod_tree() -> &'static LodTree {
@@ -355,4 +363,82 @@ fn street_level_draws_nearby_buildings_themselves() {
             );
         }
     }
+}
+
+/// The benchmark's `lod` mode (Chang presets by altitude on top of B-Quadtree culling) runs
+/// through the harness with zero false culls, counting buildings drawn through clusters.
+#[test]
+fn bench_lod_mode_has_no_false_culls() {
+    let Some(gpu) = gpu_or_skip("bench_lod_mode_has_no_false_culls") else {
+        return;
+    };
+    let (city, tree, package) = prepared();
+    let config = BenchConfig {
+        modes: vec![Mode::Quadtree, Mode::Lod],
+        width: 640,
+        height: 480,
+        frames_dir: None,
+        png_every: 0,
+    };
+    let mut renderers = BenchRenderers::new(&gpu);
+    for criterion in [None, Some(LodCriterion::YANG_PAPER)] {
+        let scene = BenchScene {
+            name: "generated".into(),
+            gpu_scene: SceneGpu::upload_city(&gpu, city),
+            blocks: package.blocks.clone(),
+            quadtree: package.quadtree.clone(),
+            lod: Some(LodScene {
+                criterion,
+                ..LodScene::upload(&gpu, city, tree.clone())
+            }),
+            occluders: None,
+        };
+        for path in [
+            camera_path::street_walk(city, 3),
+            camera_path::flyover(city, 3),
+        ] {
+            let rows = run_path(&gpu, &mut renderers, &scene, &path, &config).expect("run");
+            let lod_rows: Vec<_> = rows.iter().filter(|r| r.mode == "lod").collect();
+            assert_eq!(lod_rows.len(), path.poses.len());
+            for r in &rows {
+                assert_eq!(r.false_culls, 0, "{criterion:?} {}: {r:?}", path.name);
+            }
+            if criterion.is_some() && path.name == "flyover" {
+                let quad: u64 = rows
+                    .iter()
+                    .filter(|r| r.mode == "quadtree")
+                    .map(|r| r.triangles)
+                    .sum();
+                let lod: u64 = lod_rows.iter().map(|r| r.triangles).sum();
+                assert!(lod < quad, "Yang flyover: {lod} triangles, quadtree {quad}");
+            }
+        }
+    }
+}
+
+/// Chang et al. §8 landmarks: from the overview, with τ = 2 px, the generated city's tall
+/// landmarks are drawn beside the clusters that absorbed them; with τ = 10000 px (the paper's
+/// Fig. 13(c), "not maintaining landmarks") none is.
+#[test]
+fn landmarks_are_drawn_beside_their_clusters_under_tau() {
+    let lod = lod_tree();
+    let (lo, hi) = root_bounds();
+    let view = LodView::new(&Camera::overview(lo, hi), 1001, 777);
+    let kept = lod.cut(&view, LodCriterion::CHANG_PAPER, None);
+    check_landmarks(&lod.tree, &kept);
+    assert!(
+        !kept.landmarks.is_empty(),
+        "no landmark drawn from the overview ({} clusters)",
+        kept.clusters.len()
+    );
+    let dropped = lod.cut(
+        &view,
+        LodCriterion::Chang {
+            epsilon_px: 100.0,
+            tau_px: 10_000.0,
+        },
+        None,
+    );
+    assert!(dropped.landmarks.is_empty());
+    assert_eq!(dropped.clusters, kept.clusters);
 }

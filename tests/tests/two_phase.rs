@@ -6,6 +6,8 @@
 
 use std::path::PathBuf;
 
+use citywalk_engine::bench::pixel_error::pixel_error;
+use citywalk_engine::bench::{BenchConfig, BenchError, BenchRenderers, BenchScene, Mode, run_path};
 use citywalk_engine::camera::Camera;
 use citywalk_engine::frame::{
     CullingOptions, CullingRenderer, FrameOutput, OccluderMeshes, Visibility,
@@ -18,12 +20,16 @@ use citywalk_engine::render::targets::OffscreenTarget;
 use citywalk_engine::scene_gpu::SceneGpu;
 use citywalk_preprocess::pipeline::{NoProgress, PreprocessParams, preprocess};
 use citywalk_scenes::City;
+use citywalk_scenes::camera_path::street_walk;
 use citywalk_scenes::generate::{GenerateParams, generate_city};
 use citywalk_scenes::{BuildingId, LoadOptions, load_cities};
 use citywalk_tests::gpu::gpu_or_skip;
 use glam::Vec3;
 
-const CHELSEA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/data/chelsea.osm.pbf");
+const CHELSEA: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../scenes/data/chelsea.osm.pbf"
+);
 
 /// SplitMix64: a small fixed-seed generator for cameras.
 struct Rng(u64);
@@ -133,6 +139,9 @@ struct Harness {
     gpu: GpuContext,
     renderer: CullingRenderer,
     oracle: Oracle,
+    brute: BruteRenderer,
+    /// The colour of the last frame (RGBA8 sRGB).
+    last_rgba: Vec<u8>,
 }
 
 impl Harness {
@@ -140,6 +149,8 @@ impl Harness {
         Harness {
             renderer: CullingRenderer::new(&gpu, BruteRenderer::PNG_FORMAT),
             oracle: Oracle::new(&gpu),
+            brute: BruteRenderer::new(&gpu, BruteRenderer::PNG_FORMAT),
+            last_rgba: Vec::new(),
             gpu,
         }
     }
@@ -154,7 +165,8 @@ impl Harness {
     ) -> FrameOutput {
         let target =
             OffscreenTarget::new(&self.gpu, w, h, BruteRenderer::PNG_FORMAT).expect("target");
-        self.renderer
+        let out = self
+            .renderer
             .render(
                 &self.gpu,
                 &scene.scene,
@@ -165,7 +177,18 @@ impl Harness {
                 &target.colour_view,
                 (w, h),
             )
-            .expect("frame")
+            .expect("frame");
+        self.last_rgba = target.read_colour(&self.gpu).expect("colour");
+        out
+    }
+
+    /// Share of pixels of the last frame that differ from the brute-force frame.
+    fn error_vs_brute(&self, scene: &TestScene, camera: &Camera, (w, h): (u32, u32)) -> f64 {
+        let brute = self
+            .brute
+            .render_rgba(&self.gpu, &scene.scene, camera, w, h)
+            .expect("brute frame");
+        pixel_error(&brute, &self.last_rgba).colour_fraction
     }
 
     /// Renders `camera` and asserts every oracle-visible building was drawn; returns the frame
@@ -224,6 +247,7 @@ impl Harness {
 fn sweep(h: &mut Harness, scene: &TestScene, seed: u64, cameras: usize) -> Vec<f64> {
     let mut rng = Rng(seed);
     let mut street_culled = Vec::new();
+    let (mut occluders_drawn, mut occlusion_culled) = (0u64, 0u64);
     for i in 0..cameras {
         let street = i % 2 == 0;
         let camera = if street {
@@ -239,8 +263,11 @@ fn sweep(h: &mut Harness, scene: &TestScene, seed: u64, cameras: usize) -> Vec<f
             let size = (320, 200);
             h.check(scene, (config, &options), &mut visibility, &before, size);
             let (out, _) = h.check(scene, (config, &options), &mut visibility, &camera, size);
+            occluders_drawn += u64::from(out.stats.occluders_drawn);
+            occlusion_culled += u64::from(out.stats.occlusion_culled);
             if street && config == "hzb" {
-                street_culled.push(1.0 - f64::from(out.stats.drawn) / scene.scene.building_count() as f64);
+                street_culled
+                    .push(1.0 - f64::from(out.stats.drawn) / scene.scene.building_count() as f64);
             }
         }
     }
@@ -251,8 +278,31 @@ fn sweep(h: &mut Harness, scene: &TestScene, seed: u64, cameras: usize) -> Vec<f
             let mut visibility = Visibility::default();
             h.check(scene, (config, &options), &mut visibility, &camera, size);
             h.check(scene, (config, &options), &mut visibility, &aerial, size);
+            // The image is brute force's: occluders never reach the final depth. Tolerance:
+            // coplanar faces of different buildings may z-fight in another order (llvmpipe).
+            let error = h.error_vs_brute(scene, &aerial, size);
+            assert!(
+                error < 0.002,
+                "{}, {config}, {size:?}: {:.3} % of pixels differ from brute force",
+                scene.name,
+                100.0 * error
+            );
         }
     }
+    eprintln!(
+        "{}: occluders drawn {occluders_drawn}, buildings occlusion-culled {occlusion_culled}",
+        scene.name
+    );
+    assert!(
+        occluders_drawn > 0,
+        "{}: no occluder was ever drawn",
+        scene.name
+    );
+    assert!(
+        occlusion_culled > 0,
+        "{}: nothing was occlusion-culled",
+        scene.name
+    );
     street_culled
 }
 
@@ -265,7 +315,10 @@ fn generated_city_is_conservative_and_culls_most_at_street_level() {
     let mut h = Harness::new(gpu);
     let culled = sweep(&mut h, &scene, 0x5eed_0001, 24);
     let mean = culled.iter().sum::<f64>() / culled.len() as f64;
-    eprintln!("generated city, street level: mean culled fraction {mean:.3} over {} cameras", culled.len());
+    eprintln!(
+        "generated city, street level: mean culled fraction {mean:.3} over {} cameras",
+        culled.len()
+    );
     assert!(
         mean > 0.5,
         "street level culls only {:.1} % of the buildings",
@@ -300,16 +353,41 @@ fn fast_turn_draws_the_disoccluded_buildings_and_near_boxes_are_kept() {
         south.yaw_rad += std::f32::consts::PI;
         for (config, options) in configurations() {
             let mut visibility = Visibility::default();
-            h.check(&scene, (config, &options), &mut visibility, &north, (480, 270));
-            let (out, visible) =
-                h.check(&scene, (config, &options), &mut visibility, &south, (480, 270));
+            h.check(
+                &scene,
+                (config, &options),
+                &mut visibility,
+                &north,
+                (480, 270),
+            );
+            let (out, visible) = h.check(
+                &scene,
+                (config, &options),
+                &mut visibility,
+                &south,
+                (480, 270),
+            );
+            let error = h.error_vs_brute(&scene, &south, (480, 270));
+            assert!(
+                error < 0.002,
+                "{config}: {:.3} % of pixels differ after the turn",
+                100.0 * error
+            );
             // After the turn, what is seen comes from the late pass.
             if visible > 0 {
-                assert!(out.stats.late_drawn > 0, "{config}: nothing drawn late after a turn");
+                assert!(
+                    out.stats.late_drawn > 0,
+                    "{config}: nothing drawn late after a turn"
+                );
             }
             late_total += out.stats.late_drawn;
         }
     }
+    eprintln!(
+        "{} buildings, {} occluders; drawn late after the turns: {late_total}",
+        scene.scene.building_count(),
+        scene.occluders.occluders.len()
+    );
     assert!(late_total > 0);
 
     // A camera inside a building: its box crosses the near plane and must be kept.
@@ -330,17 +408,83 @@ fn fast_turn_draws_the_disoccluded_buildings_and_near_boxes_are_kept() {
     for (config, options) in configurations() {
         let mut visibility = Visibility::default();
         let out = h.frame(&scene, &options, &mut visibility, &inside, (320, 200));
-        assert_eq!(out.status[id], CULL_VISIBLE, "{config}: near-crossing box culled");
+        assert_eq!(
+            out.status[id], CULL_VISIBLE,
+            "{config}: near-crossing box culled"
+        );
         assert!(out.drawn.contains(&(id as u32)));
         // The box test must also keep it when other buildings were drawn early.
         let out = h.frame(&scene, &options, &mut visibility, &inside, (320, 200));
         assert_eq!(out.status[id], CULL_VISIBLE, "{config}: second frame");
-        assert!(h
-            .oracle
-            .visible_set(&h.gpu, &scene.scene, &inside, 320, 200)
-            .expect("oracle")
-            .visible
-            .iter()
-            .all(|b: &BuildingId| out.drawn.binary_search(&b.0).is_ok()));
+        assert!(
+            h.oracle
+                .visible_set(&h.gpu, &scene.scene, &inside, 320, 200)
+                .expect("oracle")
+                .visible
+                .iter()
+                .all(|b: &BuildingId| out.drawn.binary_search(&b.0).is_ok())
+        );
     }
+}
+
+#[test]
+fn bench_modes_run_a_street_walk_with_no_false_cull() {
+    let Some(gpu) = gpu_or_skip("two_phase bench") else {
+        return;
+    };
+    let city = generate_city(&GenerateParams::new(1500, 11)).expect("generate");
+    let package = preprocess(city, &PreprocessParams::default(), &NoProgress).expect("preprocess");
+    let city = package.city();
+    let scene = BenchScene {
+        name: "generated".into(),
+        gpu_scene: SceneGpu::upload_city(&gpu, &city),
+        blocks: package.blocks.clone(),
+        quadtree: package.quadtree.clone(),
+        lod: None,
+        occluders: package
+            .occluders
+            .as_ref()
+            .map(|set| OccluderMeshes::upload(&gpu, set)),
+    };
+    let path = street_walk(&city, 10);
+    let config = BenchConfig {
+        modes: vec![Mode::Brute, Mode::Hzb, Mode::Occluders],
+        width: 320,
+        height: 200,
+        frames_dir: None,
+        png_every: 0,
+    };
+    let mut renderers = BenchRenderers::new(&gpu);
+    let records = run_path(&gpu, &mut renderers, &scene, &path, &config).expect("run");
+    assert_eq!(records.len(), 30);
+    for r in &records {
+        assert_eq!(
+            r.false_culls, 0,
+            "{} frame {}: false culls",
+            r.mode, r.frame
+        );
+        assert!(r.drawn >= r.visible);
+        if r.mode != "brute" {
+            assert!(
+                r.culled_fraction > 0.0,
+                "{} frame {} culls nothing",
+                r.mode,
+                r.frame
+            );
+            assert!(r.pixel_error_colour < 0.002, "{} frame {}", r.mode, r.frame);
+        }
+    }
+    // Without occluders a scene refuses the occluders mode rather than silently skipping it.
+    let bare = BenchScene {
+        occluders: None,
+        ..scene
+    };
+    let config = BenchConfig {
+        modes: vec![Mode::Occluders],
+        ..config
+    };
+    assert!(matches!(
+        run_path(&gpu, &mut renderers, &bare, &path, &config),
+        Err(BenchError::NoOccluders(_))
+    ));
 }

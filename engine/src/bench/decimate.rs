@@ -124,7 +124,7 @@ pub fn decimate_city(geometry: &SceneGeometry, target_triangles: usize) -> Decim
 }
 
 /// The sloppy simplifier's grid is discrete, so asking for `target` can return well below it;
-/// bisects the requested count for the result closest to `target` (at most 16 runs).
+/// bisects the requested count for the result closest to `target` (at most 17 runs).
 fn sloppy_closest(indices: &[u32], positions: &[[f32; 3]], target: usize) -> Vec<u32> {
     let run = |requested: usize| {
         meshopt::simplify_sloppy_decoder(indices, positions, requested * 3, 1.0, None)

@@ -4,8 +4,10 @@
 //! against the view frustum; `quadtree` culls whole urban blocks top-down through the
 //! B-Quadtree (Pina et al. 2013, §3-4: hierarchical frustum culling of blocks). The GPU
 //! occlusion modes `hzb` and `occluders` select on the GPU inside the two-phase frame
-//! ([`crate::frame::CullingRenderer`]), not here; modes the runtime does not implement yet are
-//! named so the command line can refuse them clearly.
+//! ([`crate::frame::CullingRenderer`]), not here; `lod` cuts the cluster tree on the CPU after
+//! B-Quadtree culling ([`crate::lod::scene::LodScene::select`], called by the bench runner);
+//! modes the runtime does not implement yet are named so the command line can refuse them
+//! clearly.
 
 use std::fmt;
 
@@ -129,8 +131,8 @@ pub struct CullingData<'a> {
 
 /// The buildings `mode` draws for a camera with `view_proj`, in id order, or `None` for a mode
 /// the runtime does not implement yet, or one not selected here (`lod` needs the scene's
-/// cluster tree: `crate::lod::scene::LodScene::select`). `visible_first` is the first building of the oracle's
-/// visible set, used only by the test-only mode.
+/// cluster tree: [`crate::lod::scene::LodScene::select`]). `visible_first` is the first
+/// building of the oracle's visible set, used only by the test-only mode.
 pub fn select(
     mode: Mode,
     data: &CullingData<'_>,

@@ -203,6 +203,17 @@ pub fn summary_markdown(report: &BenchReport) -> String {
             100.0 * e.pixel_error_colour_mean,
         );
     }
+    if report
+        .entries
+        .iter()
+        .any(|e| e.mode == crate::bench::baseline::DECIMATED_MODE)
+    {
+        out.push_str(
+            "\n`decimated`: the whole city decimated with meshoptimizer to a triangle budget and \
+             drawn unculled (the baseline a user would pick instead); its false culls are \
+             visible buildings with no triangles left and do not fail the benchmark.\n",
+        );
+    }
     out
 }
 

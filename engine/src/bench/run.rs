@@ -55,7 +55,7 @@ pub struct FrameRecord {
     pub frame: usize,
     /// Buildings with at least one visible pixel in the full-detail, unculled scene.
     pub visible: usize,
-    /// Buildings drawn (themselves; clusters do not exist in these modes yet).
+    /// Buildings drawn, themselves or (`lod`) through a drawn cluster containing them.
     pub drawn: usize,
     /// Visible buildings that were not drawn. Must be zero.
     pub false_culls: usize,

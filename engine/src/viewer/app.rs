@@ -249,8 +249,10 @@ impl App {
         }
     }
 
-    /// What the overlay shows for the frame drawn with `camera`.
-    fn overlay_stats(&self, camera: &Camera, scene: &SceneGpu) -> OverlayStats {
+    /// What the overlay shows for the frame drawn with `camera`; `scene_counts` are the
+    /// scene's buildings and triangles.
+    fn overlay_stats(&self, camera: &Camera, scene_counts: (usize, usize)) -> OverlayStats {
+        let (buildings, triangles) = scene_counts;
         let pose = pose_from_camera(camera);
         OverlayStats {
             fps: self.last_fps,
@@ -264,9 +266,9 @@ impl App {
             yaw_deg: pose.yaw_deg,
             pitch_deg: pose.pitch_deg,
             // The brute-force renderer submits every building.
-            buildings_drawn: scene.building_count(),
-            buildings_total: scene.building_count(),
-            triangles_drawn: scene.triangle_count,
+            buildings_drawn: buildings,
+            buildings_total: buildings,
+            triangles_drawn: triangles,
             renderer: "brute force (no culling)".to_string(),
             recording_poses: self.recorder.as_ref().map(PathRecorder::len),
             playback: self.player.as_ref().map(PathPlayer::progress),
@@ -279,12 +281,16 @@ impl App {
         let frame_s = (now - self.last_frame).as_secs_f32();
         self.frame_ms = frame_s * 1e3;
         self.last_frame = now;
-        let camera = self.next_camera(frame_s.min(MAX_DT_S));
-
-        let Some(gfx) = &self.gfx else {
+        // No frame to draw (minimised, surface lost): skip it, and consume no pose of a path.
+        let Some(gfx) = &mut self.gfx else {
             return Ok(());
         };
-        let stats = self.overlay_stats(&camera, &gfx.scene);
+        let Acquired::Frame(frame) = gfx.surface.acquire()? else {
+            return Ok(());
+        };
+        let scene_counts = (gfx.scene.building_count(), gfx.scene.triangle_count);
+        let camera = self.next_camera(frame_s.min(MAX_DT_S));
+        let stats = self.overlay_stats(&camera, scene_counts);
         let Some(gfx) = &mut self.gfx else {
             return Ok(());
         };
@@ -294,9 +300,6 @@ impl App {
             &stats,
             self.fov_y_deg,
         );
-        let Acquired::Frame(frame) = gfx.surface.acquire()? else {
-            return Ok(());
-        };
         gfx.draw(&frame.texture, &camera);
         self.frames_drawn += 1;
         if let Some(recorder) = &mut self.recorder {
@@ -457,10 +460,18 @@ impl ApplicationHandler for App {
     fn window_event(&mut self, event_loop: &ActiveEventLoop, _id: WindowId, event: WindowEvent) {
         if let Some(gfx) = &mut self.gfx {
             let consumed = gfx.overlay.window_event(&gfx.surface.window, &event);
-            let keyboard = matches!(event, WindowEvent::KeyboardInput { .. });
+            // Releases always reach the viewer, so no key or button released while egui has
+            // focus or the pointer is over the panel is left held.
+            let keyboard = matches!(
+                &event,
+                WindowEvent::KeyboardInput { event, .. } if event.state == ElementState::Pressed
+            );
             let pointer = matches!(
                 event,
-                WindowEvent::MouseInput { .. } | WindowEvent::MouseWheel { .. }
+                WindowEvent::MouseInput {
+                    state: ElementState::Pressed,
+                    ..
+                } | WindowEvent::MouseWheel { .. }
             );
             // egui claims Tab for focus moves: keys go to egui only while it has focus.
             if (keyboard && gfx.overlay.wants_keyboard()) || (pointer && consumed) {

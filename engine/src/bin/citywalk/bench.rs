@@ -45,8 +45,8 @@ pub struct Args {
     /// LOD criterion of the `lod` mode: auto (Chang ε = τ = 1 px at street level, 2 px above
     /// the roofs), chang-walkthrough, chang-flyover, chang-paper (ε = 100, τ = 2 px),
     /// yang-paper (δh = 20 px, δa = 200 px).
-    #[arg(long, default_value = "auto", value_parser = LodCriterion::parse)]
-    pub lod_criterion: Option<LodCriterion>,
+    #[arg(long, default_value = "auto")]
+    pub lod_criterion: String,
     /// Frames per generated path.
     #[arg(long, default_value_t = 60)]
     pub frames: usize,
@@ -72,7 +72,8 @@ pub struct Args {
 static LOD_CRITERION: std::sync::OnceLock<Option<LodCriterion>> = std::sync::OnceLock::new();
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let _ = LOD_CRITERION.set(args.lod_criterion);
+    let lod_criterion = LodCriterion::parse(&args.lod_criterion).map_err(anyhow::Error::msg)?;
+    let _ = LOD_CRITERION.set(lod_criterion);
     if args.list_modes {
         let available: Vec<&str> = Mode::NAMED
             .into_iter()
@@ -178,13 +179,10 @@ pub fn run_benchmark_with(
             gpu_scene: SceneGpu::upload_city(&gpu, &city),
             blocks: package.blocks.clone(),
             quadtree: package.quadtree.clone(),
-            lod: package
-                .cluster_tree
-                .clone()
-                .map(|tree| LodScene {
-                    criterion: LOD_CRITERION.get().copied().flatten(),
-                    ..LodScene::upload(&gpu, &city, tree)
-                }),
+            lod: package.cluster_tree.clone().map(|tree| LodScene {
+                criterion: LOD_CRITERION.get().copied().flatten(),
+                ..LodScene::upload(&gpu, &city, tree)
+            }),
             occluders: package
                 .occluders
                 .as_ref()
