@@ -3,7 +3,7 @@
 //!
 //! ```text
 //! early_pass    → colour + depth: the ground and last frame's visible buildings (in the frustum)
-//! occluder_pass → (occluders on) depth copy + nearby virtual occluders, depth only
+//! occluder_pass → (occluders on) copy of that depth + nearby virtual occluders, depth only
 //! build_pyramid → HiZ pyramid from that depth
 //! cull          → every building's box against the pyramid (status, indirect commands, count)
 //! late_pass     → colour + depth: the buildings the cull kept that the early pass did not draw
@@ -38,7 +38,9 @@ use std::time::Instant;
 
 use citywalk_scenes::frustum::{Containment, Frustum};
 use citywalk_scenes::occluder::OccluderSet;
-use citywalk_shaders::{BuildingRecord, DrawIndexedIndirectArgs, SCENE_WGSL, SceneVertex};
+use citywalk_shaders::{
+    BuildingRecord, DEPTH_COPY_WGSL, DrawIndexedIndirectArgs, SCENE_WGSL, SceneVertex,
+};
 use glam::{Mat4, Vec3};
 use wgpu::util::DeviceExt;
 
@@ -233,16 +235,27 @@ impl OccluderMeshes {
                     .copied()
                     .unwrap_or(false)
             })
-            .filter(|(_, o)| {
-                let centre = (o.bounds_min_m + o.bounds_max_m) * 0.5;
-                let radius_m = (o.bounds_max_m - o.bounds_min_m).length() * 0.5;
-                let distance_m = centre.distance(camera.position);
-                (distance_m <= radius_m || radius_m / distance_m * px_per_rad > min_px)
-                    && frustum.classify_aabb(o.bounds_min_m, o.bounds_max_m) != Containment::Outside
-            })
+            .filter(|(_, o)| occluder_wanted(o, camera.position, frustum, px_per_rad, min_px))
             .map(|(i, _)| i)
             .collect()
     }
+}
+
+/// Whether an occluder is near enough to draw: its bounding sphere contains the eye or projects
+/// to more than `min_px` pixels (`px_per_rad`: viewport height over `tan(fov_y / 2)`), and its
+/// box is not outside the frustum.
+fn occluder_wanted(
+    o: &OccluderDraw,
+    eye: Vec3,
+    frustum: &Frustum,
+    px_per_rad: f32,
+    min_px: f32,
+) -> bool {
+    let centre = (o.bounds_min_m + o.bounds_max_m) * 0.5;
+    let radius_m = (o.bounds_max_m - o.bounds_min_m).length() * 0.5;
+    let distance_m = centre.distance(eye);
+    (distance_m <= radius_m || radius_m / distance_m * px_per_rad > min_px)
+        && frustum.classify_aabb(o.bounds_min_m, o.bounds_max_m) != Containment::Outside
 }
 
 /// Counts and timing of one frame.
@@ -288,8 +301,9 @@ pub struct FrameOutput {
 #[derive(Debug)]
 struct Targets {
     depth: DepthTarget,
-    cull_depth: wgpu::Texture,
     cull_depth_view: wgpu::TextureView,
+    /// Binds `depth` as the depth copy's source.
+    copy_group: wgpu::BindGroup,
     pyramid: HzbPyramid,
 }
 
@@ -298,6 +312,8 @@ struct Targets {
 pub struct CullingRenderer {
     scene_pipeline: wgpu::RenderPipeline,
     depth_pipeline: wgpu::RenderPipeline,
+    copy_pipeline: wgpu::RenderPipeline,
+    copy_layout: wgpu::BindGroupLayout,
     view_buffer: wgpu::Buffer,
     view_group: wgpu::BindGroup,
     cull: HzbCull,
@@ -371,10 +387,13 @@ impl CullingRenderer {
             colour_format,
         );
         let depth_pipeline = depth_only_pipeline(device, &layout);
+        let (copy_pipeline, copy_layout) = depth_copy_pipeline(device);
         let indirect = wgpu::BufferUsages::INDIRECT | wgpu::BufferUsages::COPY_DST;
         CullingRenderer {
             scene_pipeline,
             depth_pipeline,
+            copy_pipeline,
+            copy_layout,
             view_buffer,
             view_group,
             cull: HzbCull::new(gpu, 1024),
@@ -543,18 +562,13 @@ impl CullingRenderer {
         gpu.queue
             .write_buffer(&self.occluder_draws.buffer, 0, bytes);
         let targets = self.targets.as_ref().expect("fit_targets ran");
-        encoder.copy_texture_to_texture(
-            targets.depth.texture.as_image_copy(),
-            targets.cull_depth.as_image_copy(),
-            targets.depth.texture.size(),
-        );
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("occluder_pass"),
             color_attachments: &[],
             depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
                 view: &targets.cull_depth_view,
                 depth_ops: Some(wgpu::Operations {
-                    load: wgpu::LoadOp::Load,
+                    load: wgpu::LoadOp::Clear(Camera::DEPTH_CLEAR),
                     store: wgpu::StoreOp::Store,
                 }),
                 stencil_ops: None,
@@ -563,6 +577,10 @@ impl CullingRenderer {
             occlusion_query_set: None,
             multiview_mask: None,
         });
+        // The early depth, texel for texel (a shader copy: see `wgsl/depth_copy.wgsl`).
+        pass.set_pipeline(&self.copy_pipeline);
+        pass.set_bind_group(0, &targets.copy_group, &[]);
+        pass.draw(0..3, 0..1);
         pass.set_pipeline(&self.depth_pipeline);
         pass.set_bind_group(0, &self.view_group, &[]);
         pass.set_vertex_buffer(0, meshes.vertex_buffer.slice(..));
@@ -789,9 +807,7 @@ impl CullingRenderer {
             sample_count: 1,
             dimension: wgpu::TextureDimension::D2,
             format: DepthTarget::FORMAT,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT
-                | wgpu::TextureUsages::TEXTURE_BINDING
-                | wgpu::TextureUsages::COPY_SRC,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
             view_formats: &[],
         });
         let cull_depth = gpu.device.create_texture(&wgpu::TextureDescriptor {
@@ -801,13 +817,19 @@ impl CullingRenderer {
             sample_count: 1,
             dimension: wgpu::TextureDimension::D2,
             format: DepthTarget::FORMAT,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT
-                | wgpu::TextureUsages::TEXTURE_BINDING
-                | wgpu::TextureUsages::COPY_DST,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
             view_formats: &[],
         });
         let view = depth_texture.create_view(&wgpu::TextureViewDescriptor::default());
         let cull_depth_view = cull_depth.create_view(&wgpu::TextureViewDescriptor::default());
+        let copy_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("depth copy"),
+            layout: &self.copy_layout,
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: wgpu::BindingResource::TextureView(&view),
+            }],
+        });
         self.targets = Some(Targets {
             depth: DepthTarget {
                 texture: depth_texture,
@@ -815,8 +837,8 @@ impl CullingRenderer {
                 width,
                 height,
             },
-            cull_depth,
             cull_depth_view,
+            copy_group,
             pyramid: HzbPyramid::new(gpu, width, height)?,
         });
         Ok(())
@@ -836,6 +858,61 @@ struct EarlySet {
     drawn: Vec<bool>,
     /// Draws issued, ground included.
     draw_count: u32,
+}
+
+/// The fullscreen depth copy (`wgsl/depth_copy.wgsl`): depth compare Always, no colour.
+fn depth_copy_pipeline(device: &wgpu::Device) -> (wgpu::RenderPipeline, wgpu::BindGroupLayout) {
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("depth copy"),
+        source: wgpu::ShaderSource::Wgsl(DEPTH_COPY_WGSL.into()),
+    });
+    let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("depth copy"),
+        entries: &[wgpu::BindGroupLayoutEntry {
+            binding: 0,
+            visibility: wgpu::ShaderStages::FRAGMENT,
+            // Depth bound as unfilterable float and read through `.r` (GL trap 2).
+            ty: wgpu::BindingType::Texture {
+                sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                view_dimension: wgpu::TextureViewDimension::D2,
+                multisampled: false,
+            },
+            count: None,
+        }],
+    });
+    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some("depth copy"),
+        bind_group_layouts: &[Some(&layout)],
+        immediate_size: 0,
+    });
+    let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some("depth copy"),
+        layout: Some(&pipeline_layout),
+        vertex: wgpu::VertexState {
+            module: &module,
+            entry_point: Some("vs_main"),
+            compilation_options: Default::default(),
+            buffers: &[],
+        },
+        primitive: wgpu::PrimitiveState::default(),
+        depth_stencil: Some(wgpu::DepthStencilState {
+            format: DepthTarget::FORMAT,
+            depth_write_enabled: Some(true),
+            depth_compare: Some(wgpu::CompareFunction::Always),
+            stencil: wgpu::StencilState::default(),
+            bias: wgpu::DepthBiasState::default(),
+        }),
+        multisample: wgpu::MultisampleState::default(),
+        fragment: Some(wgpu::FragmentState {
+            module: &module,
+            entry_point: Some("fs_main"),
+            compilation_options: Default::default(),
+            targets: &[],
+        }),
+        multiview_mask: None,
+        cache: None,
+    });
+    (pipeline, layout)
 }
 
 /// Scene vertices into depth only (the occluders), reversed-Z `Greater`.
@@ -878,4 +955,66 @@ fn depth_only_pipeline(
         multiview_mask: None,
         cache: None,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn visibility_follows_the_status_and_resets_for_another_scene() {
+        let mut v = Visibility::default();
+        assert!(!v.is_visible(0));
+        v.fit(3);
+        v.update(&[CULL_VISIBLE, CULL_OCCLUDED, CULL_VISIBLE]);
+        assert_eq!(v.visible_ids(), vec![0, 2]);
+        assert!(v.is_visible(2) && !v.is_visible(1) && !v.is_visible(7));
+        v.fit(3);
+        assert_eq!(v.visible_ids(), vec![0, 2]);
+        // Another building count: another scene, nothing carried over.
+        v.fit(4);
+        assert!(v.visible_ids().is_empty());
+        v.update(&[CULL_FRUSTUM_OUTSIDE, CULL_VISIBLE, 0, 0]);
+        v.reset();
+        assert!(!v.is_visible(1));
+    }
+
+    #[test]
+    fn occluders_are_wanted_by_projected_size_and_frustum() {
+        let camera = Camera::new(Vec3::ZERO, 0.0, 0.0);
+        let height_px = 720;
+        let px_per_rad = height_px as f32 / (camera.fov_y_rad * 0.5).tan();
+        let frustum = Frustum::from_view_proj(camera.view_proj(16.0 / 9.0));
+        // A 10 m cube (radius ≈ 8.66 m) straight ahead at distance d projects to
+        // 8.66 / d · 1247 px: more than 48 px up to d ≈ 225 m.
+        let cube = |centre: Vec3| OccluderDraw {
+            building: 0,
+            draw: DrawIndexedIndirectArgs {
+                index_count: 3,
+                instance_count: 1,
+                first_index: 0,
+                base_vertex: 0,
+                first_instance: 0,
+            },
+            bounds_min_m: centre - Vec3::splat(5.0),
+            bounds_max_m: centre + Vec3::splat(5.0),
+            triangles: 1,
+        };
+        let wanted = |centre: Vec3| {
+            occluder_wanted(
+                &cube(centre),
+                camera.position,
+                &frustum,
+                px_per_rad,
+                DEFAULT_OCCLUDER_MIN_PX,
+            )
+        };
+        assert!(wanted(Vec3::new(50.0, 0.0, 0.0)));
+        assert!(wanted(Vec3::new(200.0, 0.0, 0.0)));
+        assert!(!wanted(Vec3::new(260.0, 0.0, 0.0)));
+        // Behind the eye: outside the frustum however large.
+        assert!(!wanted(Vec3::new(-20.0, 0.0, 0.0)));
+        // Around the eye: always.
+        assert!(wanted(Vec3::new(1.0, 0.0, 0.0)));
+    }
 }

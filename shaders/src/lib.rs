@@ -36,10 +36,16 @@ pub const HZB_BUILD_WGSL: &str = include_str!(concat!(env!("OUT_DIR"), "/hzb_bui
 /// [`DrawIndexedIndirectArgs`], 5 their count (atomic `u32`).
 pub const HZB_CULL_WGSL: &str = include_str!(concat!(env!("OUT_DIR"), "/hzb_cull.wgsl"));
 
+/// Depth copy (`wgsl/depth_copy.wgsl`): entry points `vs_main` (fullscreen triangle, 3 vertices,
+/// no buffers) and `fs_main` (writes `frag_depth`); group 0 binding 0 the source depth as an
+/// unfilterable `texture_2d<f32>`.
+pub const DEPTH_COPY_WGSL: &str = include_str!(concat!(env!("OUT_DIR"), "/depth_copy.wgsl"));
+
 /// Every composed shader by file name, for tests that validate or inspect them all.
 pub const ALL_WGSL: &[(&str, &str)] = &[
     ("scene.wgsl", SCENE_WGSL),
     ("ids.wgsl", IDS_WGSL),
     ("hzb_build.wgsl", HZB_BUILD_WGSL),
     ("hzb_cull.wgsl", HZB_CULL_WGSL),
+    ("depth_copy.wgsl", DEPTH_COPY_WGSL),
 ];
