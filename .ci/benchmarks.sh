@@ -33,6 +33,7 @@ echo "== machine" >&2
   echo "os: $(. /etc/os-release && echo "$PRETTY_NAME")"
   echo "rustc: $(rustc --version)"
   echo "citywalk: $(git rev-parse --short HEAD 2>/dev/null || echo unknown)"
+  echo "load average at start: $(cut -d' ' -f1-3 /proc/loadavg) (other work on the machine inflates times)"
   if command -v nvidia-smi >/dev/null 2>&1; then
     echo "gpu: $(nvidia-smi --query-gpu=name,driver_version --format=csv,noheader)"
   fi
