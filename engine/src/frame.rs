@@ -50,7 +50,7 @@ use crate::hzb::cull::{CULL_FRUSTUM_OUTSIDE, CULL_OCCLUDED, CULL_VISIBLE, CullEr
 use crate::hzb::{HzbCull, HzbPyramid};
 use crate::render::targets::{DepthTarget, ReadbackError, check_size};
 use crate::render::view::{SceneStyle, view_uniforms};
-use crate::scene_gpu::{SCENE_VERTEX_LAYOUT, SceneGpu};
+use crate::scene_gpu::SceneGpu;
 
 /// Default projected-size threshold of the occluder selection: an occluder is drawn when its
 /// bounding sphere's projected diameter exceeds this many pixels (a "near" occluder: Germs &
@@ -384,9 +384,10 @@ impl CullingRenderer {
             "frame scene",
             SCENE_WGSL,
             &layout,
-            colour_format,
+            Some(colour_format),
         );
-        let depth_pipeline = depth_only_pipeline(device, &layout);
+        let depth_pipeline =
+            crate::render::scene_pipeline(device, "occluder depth", SCENE_WGSL, &layout, None);
         let (copy_pipeline, copy_layout) = depth_copy_pipeline(device);
         let indirect = wgpu::BufferUsages::INDIRECT | wgpu::BufferUsages::COPY_DST;
         CullingRenderer {
@@ -913,48 +914,6 @@ fn depth_copy_pipeline(device: &wgpu::Device) -> (wgpu::RenderPipeline, wgpu::Bi
         cache: None,
     });
     (pipeline, layout)
-}
-
-/// Scene vertices into depth only (the occluders), reversed-Z `Greater`.
-fn depth_only_pipeline(
-    device: &wgpu::Device,
-    layout: &wgpu::BindGroupLayout,
-) -> wgpu::RenderPipeline {
-    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some("occluder depth"),
-        source: wgpu::ShaderSource::Wgsl(SCENE_WGSL.into()),
-    });
-    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-        label: Some("occluder depth"),
-        bind_group_layouts: &[Some(layout)],
-        immediate_size: 0,
-    });
-    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-        label: Some("occluder depth"),
-        layout: Some(&pipeline_layout),
-        vertex: wgpu::VertexState {
-            module: &module,
-            entry_point: Some("vs_main"),
-            compilation_options: Default::default(),
-            buffers: &[Some(SCENE_VERTEX_LAYOUT)],
-        },
-        primitive: wgpu::PrimitiveState {
-            topology: wgpu::PrimitiveTopology::TriangleList,
-            cull_mode: None,
-            ..Default::default()
-        },
-        depth_stencil: Some(wgpu::DepthStencilState {
-            format: DepthTarget::FORMAT,
-            depth_write_enabled: Some(true),
-            depth_compare: Some(Camera::DEPTH_COMPARE),
-            stencil: wgpu::StencilState::default(),
-            bias: wgpu::DepthBiasState::default(),
-        }),
-        multisample: wgpu::MultisampleState::default(),
-        fragment: None,
-        multiview_mask: None,
-        cache: None,
-    })
 }
 
 #[cfg(test)]

@@ -114,8 +114,13 @@ impl Oracle {
         let layout = crate::render::view_bind_group_layout(device, "oracle view");
         let (view_buffer, view_group) =
             crate::render::view_buffer_and_group(device, &layout, "oracle view");
-        let pipeline =
-            crate::render::scene_pipeline(device, "oracle ids", IDS_WGSL, &layout, Self::FORMAT);
+        let pipeline = crate::render::scene_pipeline(
+            device,
+            "oracle ids",
+            IDS_WGSL,
+            &layout,
+            Some(Self::FORMAT),
+        );
         Oracle {
             pipeline,
             view_buffer,

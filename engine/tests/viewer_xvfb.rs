@@ -2,7 +2,10 @@
 //! in walk and fly mode, on a small GeoJSON city written here. The screenshot must exist, have
 //! the requested size and not be (nearly) one flat colour. Then a five-pose path is played
 //! (`--play`) twice, with and without the overlay panel: the two screenshots of its last pose
-//! must differ (the panel is drawn) and the one without the panel must show the scene.
+//! must differ (the panel is drawn) and the one without the panel must show the scene. The
+//! panel-less playback runs with occlusion culling (the default) and again with
+//! `--no-culling` (brute force): the same camera must give the same image (under 1 % of the
+//! pixels may differ).
 //!
 //! Without Xvfb or a GPU adapter (software ones count: lavapipe, llvmpipe) the test is skipped
 //! with a message, except under CI (env `CI` set), where it fails.
@@ -160,11 +163,16 @@ fn viewer_writes_a_screenshot_through_a_real_window() {
     write_path(&path_file);
     let path_arg = path_file.to_str().expect("a UTF-8 temporary path");
     let mut played = Vec::new();
+    let mut brute = None;
     for (name, extra) in [
         ("walk", &[][..]),
         ("fly", &["--fly"][..]),
         ("play", &["--play", path_arg, "--no-overlay"][..]),
         ("play-overlay", &["--play", path_arg][..]),
+        (
+            "play-brute",
+            &["--play", path_arg, "--no-overlay", "--no-culling"][..],
+        ),
     ] {
         let out = dir.join(format!("{name}.png"));
         match run_viewer(&scene, &out, extra) {
@@ -185,7 +193,9 @@ fn viewer_writes_a_screenshot_through_a_real_window() {
                     "{name} screenshot is {:.1} % one colour",
                     share * 100.0
                 );
-                if name.starts_with("play") {
+                if name == "play-brute" {
+                    brute = Some(image);
+                } else if name.starts_with("play") {
                     played.push(image);
                 }
             }
@@ -202,6 +212,17 @@ fn viewer_writes_a_screenshot_through_a_real_window() {
     assert!(
         differing > (WIDTH * HEIGHT / 50) as usize,
         "the overlay panel changed only {differing} pixels of the same pose"
+    );
+    let brute = brute.expect("the brute-force playback ran");
+    let changed = plain
+        .pixels()
+        .zip(brute.pixels())
+        .filter(|(a, b)| a != b)
+        .count();
+    assert!(
+        changed * 100 < (WIDTH * HEIGHT) as usize,
+        "culling changed {changed} of {} pixels of the same pose",
+        WIDTH * HEIGHT
     );
     // Best effort: a leftover temporary directory is harmless.
     let _ = std::fs::remove_dir_all(&dir);

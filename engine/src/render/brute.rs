@@ -33,8 +33,13 @@ impl BruteRenderer {
         let device = &gpu.device;
         let layout = super::view_bind_group_layout(device, "brute view");
         let (view_buffer, view_group) = super::view_buffer_and_group(device, &layout, "brute view");
-        let pipeline =
-            super::scene_pipeline(device, "brute scene", SCENE_WGSL, &layout, colour_format);
+        let pipeline = super::scene_pipeline(
+            device,
+            "brute scene",
+            SCENE_WGSL,
+            &layout,
+            Some(colour_format),
+        );
         BruteRenderer {
             pipeline,
             view_buffer,

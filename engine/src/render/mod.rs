@@ -55,14 +55,22 @@ pub(crate) fn view_buffer_and_group(
 }
 
 /// A pipeline drawing [`crate::scene_gpu::SceneVertex`] triangles with no face culling into one
-/// colour target, reversed-Z depth test and write.
+/// colour target, reversed-Z depth test and write. Without a colour format the pipeline writes
+/// depth only (no fragment stage), as the occluder pre-pass does.
 pub(crate) fn scene_pipeline(
     device: &wgpu::Device,
     label: &str,
     source: &str,
     layout: &wgpu::BindGroupLayout,
-    colour_format: wgpu::TextureFormat,
+    colour_format: Option<wgpu::TextureFormat>,
 ) -> wgpu::RenderPipeline {
+    let colour_targets = colour_format.map(|format| {
+        [Some(wgpu::ColorTargetState {
+            format,
+            blend: None,
+            write_mask: wgpu::ColorWrites::ALL,
+        })]
+    });
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some(label),
         source: wgpu::ShaderSource::Wgsl(source.into()),
@@ -94,15 +102,11 @@ pub(crate) fn scene_pipeline(
             bias: wgpu::DepthBiasState::default(),
         }),
         multisample: wgpu::MultisampleState::default(),
-        fragment: Some(wgpu::FragmentState {
+        fragment: colour_targets.as_ref().map(|targets| wgpu::FragmentState {
             module: &module,
             entry_point: Some("fs_main"),
             compilation_options: Default::default(),
-            targets: &[Some(wgpu::ColorTargetState {
-                format: colour_format,
-                blend: None,
-                write_mask: wgpu::ColorWrites::ALL,
-            })],
+            targets,
         }),
         multiview_mask: None,
         cache: None,

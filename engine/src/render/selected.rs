@@ -26,8 +26,13 @@ impl SelectedRenderer {
         let layout = super::view_bind_group_layout(device, "selected view");
         let (view_buffer, view_group) =
             super::view_buffer_and_group(device, &layout, "selected view");
-        let pipeline =
-            super::scene_pipeline(device, "selected scene", SCENE_WGSL, &layout, colour_format);
+        let pipeline = super::scene_pipeline(
+            device,
+            "selected scene",
+            SCENE_WGSL,
+            &layout,
+            Some(colour_format),
+        );
         let draws_capacity = 1024;
         SelectedRenderer {
             pipeline,

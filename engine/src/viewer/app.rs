@@ -4,6 +4,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use citywalk_scenes::City;
+use citywalk_scenes::occluder::OccluderSet;
 use image::RgbaImage;
 use winit::application::ApplicationHandler;
 use winit::dpi::PhysicalSize;
@@ -13,13 +14,16 @@ use winit::keyboard::PhysicalKey;
 use winit::window::{CursorGrabMode, Window, WindowId};
 
 use super::input::{Command, InputTracker, KEY_HELP};
-use super::overlay::{Overlay, OverlayStats};
+use super::overlay::{CullingCounts, Overlay, OverlayStats};
 use super::screenshot::{ScreenshotError, to_rgba_image};
 use super::surface::{Acquired, WindowSurface};
 use super::{ViewerError, ViewerOptions};
 use crate::camera::Camera;
 use crate::camera_path_io::{PathPlayer, PathRecorder, pose_from_camera};
 use crate::controller::{CameraRig, CollisionWorld, Mode};
+use crate::frame::{
+    CullingOptions, CullingRenderer, FrameError, FrameStats, OccluderMeshes, Visibility,
+};
 use crate::render::targets::read_texture;
 use crate::render::{BruteRenderer, OffscreenTarget};
 use crate::scene_gpu::SceneGpu;
@@ -51,12 +55,29 @@ pub(super) struct App {
     /// The last measured frame rate and frame time, for the overlay.
     last_fps: Option<f32>,
     frame_ms: f32,
+    /// The scene package's virtual occluders (uploaded with the graphics), if any.
+    occluders: Option<OccluderSet>,
+    /// What the next frame is drawn with (C and V toggle).
+    draw_mode: DrawMode,
+}
+
+/// How the scene is drawn.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct DrawMode {
+    /// The two-phase occlusion-culling renderer, else brute force.
+    culling: bool,
+    /// The occluder pre-pass (used only with culling and when the scene has occluders).
+    occluders: bool,
 }
 
 /// Everything that exists only while there is a window.
 struct Graphics {
     surface: WindowSurface,
     renderer: BruteRenderer,
+    culling: CullingRenderer,
+    occluder_meshes: Option<OccluderMeshes>,
+    /// Last frame's visible buildings, carried along the camera stream.
+    visibility: Visibility,
     scene: SceneGpu,
     overlay: Overlay,
 }
@@ -75,7 +96,7 @@ impl MouseLook {
 }
 
 impl App {
-    pub(super) fn new(city: City, options: ViewerOptions) -> App {
+    pub(super) fn new(city: City, occluders: Option<OccluderSet>, options: ViewerOptions) -> App {
         let world = CollisionWorld::from_city(&city);
         let rig = CameraRig::for_city(&city, &world, options.mode);
         tracing::info!(
@@ -88,8 +109,14 @@ impl App {
         if let Some(p) = &options.play {
             tracing::info!(poses = p.path.poses.len(), name = %p.path.name, "playing a camera path");
         }
+        let draw_mode = DrawMode {
+            culling: options.culling,
+            occluders: occluders.is_some(),
+        };
         App {
             city,
+            occluders,
+            draw_mode,
             world,
             rig,
             options,
@@ -140,6 +167,10 @@ impl App {
         let window = Arc::new(event_loop.create_window(attributes)?);
         let surface = WindowSurface::new(window, self.options.screenshot.is_some())?;
         let renderer = BruteRenderer::new(&surface.gpu, surface.config.format);
+        let culling = CullingRenderer::new(&surface.gpu, surface.config.format);
+        let occluder_meshes = (self.occluders.as_ref())
+            .filter(|set| !set.occluders.is_empty())
+            .map(|set| OccluderMeshes::upload(&surface.gpu, set));
         let scene = SceneGpu::upload_city(&surface.gpu, &self.city);
         let overlay = Overlay::new(
             &surface.gpu,
@@ -150,6 +181,9 @@ impl App {
         Ok(Graphics {
             surface,
             renderer,
+            culling,
+            occluder_meshes,
+            visibility: Visibility::default(),
             scene,
             overlay,
         })
@@ -196,6 +230,18 @@ impl App {
             Command::ToggleOverlay => {
                 if let Some(gfx) = &mut self.gfx {
                     gfx.overlay.visible = !gfx.overlay.visible;
+                }
+            }
+            Command::ToggleCulling => {
+                self.draw_mode.culling = !self.draw_mode.culling;
+                tracing::info!(on = self.draw_mode.culling, "occlusion culling");
+            }
+            Command::ToggleOccluders => {
+                if self.occluders.is_some() {
+                    self.draw_mode.occluders = !self.draw_mode.occluders;
+                    tracing::info!(on = self.draw_mode.occluders, "occluder pre-pass");
+                } else {
+                    tracing::info!("this scene has no occluders (they come with scene packages)");
                 }
             }
         }
@@ -250,10 +296,30 @@ impl App {
     }
 
     /// What the overlay shows for the frame drawn with `camera`; `scene_counts` are the
-    /// scene's buildings and triangles.
-    fn overlay_stats(&self, camera: &Camera, scene_counts: (usize, usize)) -> OverlayStats {
+    /// scene's buildings and triangles, `culled` the culling renderer's statistics when it drew
+    /// the frame.
+    fn overlay_stats(
+        &self,
+        camera: &Camera,
+        scene_counts: (usize, usize),
+        culled: Option<&FrameStats>,
+    ) -> OverlayStats {
         let (buildings, triangles) = scene_counts;
         let pose = pose_from_camera(camera);
+        let with_occluders = self.draw_mode.occluders && self.occluders.is_some();
+        let (buildings_drawn, triangles_drawn, renderer) = match culled {
+            Some(c) => (
+                c.drawn as usize,
+                c.triangles as usize,
+                if with_occluders {
+                    "two-phase HiZ culling + occluders"
+                } else {
+                    "two-phase HiZ culling"
+                },
+            ),
+            // The brute-force renderer submits every building.
+            None => (buildings, triangles, "brute force (no culling)"),
+        };
         OverlayStats {
             fps: self.last_fps,
             frame_ms: self.frame_ms,
@@ -265,11 +331,21 @@ impl App {
             position_m: pose.position,
             yaw_deg: pose.yaw_deg,
             pitch_deg: pose.pitch_deg,
-            // The brute-force renderer submits every building.
-            buildings_drawn: buildings,
+            buildings_drawn,
             buildings_total: buildings,
-            triangles_drawn: triangles,
-            renderer: "brute force (no culling)".to_string(),
+            triangles_drawn,
+            renderer: renderer.to_string(),
+            culling: culled.map(|c| CullingCounts {
+                frustum_culled: c.frustum_culled,
+                occlusion_culled: c.occlusion_culled,
+                drawn: c.drawn,
+                triangles: c.triangles,
+                draw_calls: c.draw_calls,
+                occluders_drawn: c.occluders_drawn,
+                cpu_ms: c.cpu_ms,
+            }),
+            culling_on: self.draw_mode.culling,
+            occluders_on: self.occluders.as_ref().map(|_| self.draw_mode.occluders),
             recording_poses: self.recorder.as_ref().map(PathRecorder::len),
             playback: self.player.as_ref().map(PathPlayer::progress),
         }
@@ -290,7 +366,17 @@ impl App {
         };
         let scene_counts = (gfx.scene.building_count(), gfx.scene.triangle_count);
         let camera = self.next_camera(frame_s.min(MAX_DT_S));
-        let stats = self.overlay_stats(&camera, scene_counts);
+        let draw_mode = self.draw_mode;
+        let Some(gfx) = &mut self.gfx else {
+            return Ok(());
+        };
+        // The scene first, so the overlay shows this frame's own counts.
+        let view = frame
+            .texture
+            .create_view(&wgpu::TextureViewDescriptor::default());
+        let size = (frame.texture.width(), frame.texture.height());
+        let culled = gfx.draw_scene(&view, size, &camera, draw_mode)?;
+        let stats = self.overlay_stats(&camera, scene_counts, culled.as_ref());
         let Some(gfx) = &mut self.gfx else {
             return Ok(());
         };
@@ -300,7 +386,7 @@ impl App {
             &stats,
             self.fov_y_deg,
         );
-        gfx.draw(&frame.texture, &camera);
+        gfx.paint_overlay(&view, size);
         self.frames_drawn += 1;
         if let Some(recorder) = &mut self.recorder {
             recorder.push(&camera);
@@ -308,7 +394,7 @@ impl App {
         let shot = (self.options.screenshot.as_ref())
             .filter(|shot| !self.screenshot_taken && self.frames_drawn >= shot.frames);
         if let Some(shot) = shot {
-            let image = gfx.capture(&frame.texture, &camera)?;
+            let image = gfx.capture(&frame.texture, &camera, draw_mode)?;
             image.save(&shot.path).map_err(|source| ViewerError::Png {
                 path: shot.path.clone(),
                 source,
@@ -333,15 +419,46 @@ impl App {
         if controls.toggle_recording {
             self.command(event_loop, Command::ToggleRecording);
         }
+        if controls.toggle_culling {
+            self.command(event_loop, Command::ToggleCulling);
+        }
+        if controls.toggle_occluders {
+            self.command(event_loop, Command::ToggleOccluders);
+        }
         Ok(())
     }
 }
 
 impl Graphics {
-    /// Draws the scene from `camera` and the overlay into the surface texture.
-    fn draw(&mut self, target: &wgpu::Texture, camera: &Camera) {
+    /// Draws the scene from `camera` into `view` (`width × height`, the surface's format):
+    /// through the culling renderer (returning its statistics) or brute force.
+    fn draw_scene(
+        &mut self,
+        view: &wgpu::TextureView,
+        (width, height): (u32, u32),
+        camera: &Camera,
+        mode: DrawMode,
+    ) -> Result<Option<FrameStats>, FrameError> {
         let gpu = &self.surface.gpu;
-        let view = target.create_view(&wgpu::TextureViewDescriptor::default());
+        if mode.culling {
+            let options = CullingOptions {
+                occluders: mode.occluders,
+                ..CullingOptions::default()
+            };
+            let output = self.culling.render(
+                gpu,
+                &self.scene,
+                self.occluder_meshes.as_ref(),
+                &options,
+                &mut self.visibility,
+                camera,
+                view,
+                (width, height),
+            )?;
+            return Ok(Some(output.stats));
+        }
+        // Brute force draws everything: the next culled frame starts from an empty set.
+        self.visibility.reset();
         let mut encoder = gpu
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
@@ -352,46 +469,80 @@ impl Graphics {
             &mut encoder,
             &self.scene,
             camera,
-            &view,
+            view,
             self.surface.depth(),
         );
-        self.overlay
-            .paint(gpu, &mut encoder, &view, target.width(), target.height());
+        gpu.queue.submit([encoder.finish()]);
+        Ok(None)
+    }
+
+    /// Paints the prepared overlay over `view` (`width × height`).
+    fn paint_overlay(&mut self, view: &wgpu::TextureView, (width, height): (u32, u32)) {
+        let gpu = &self.surface.gpu;
+        let mut encoder = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("viewer overlay"),
+            });
+        self.overlay.paint(gpu, &mut encoder, view, width, height);
         gpu.queue.submit([encoder.finish()]);
     }
 
     /// The frame just drawn into `target`, read back before it is presented; where the surface
-    /// cannot be copied from, the same view drawn again offscreen.
+    /// cannot be copied from, the same view drawn again offscreen (with the same renderer).
     fn capture(
         &mut self,
         target: &wgpu::Texture,
         camera: &Camera,
-    ) -> Result<RgbaImage, ScreenshotError> {
-        let gpu = &self.surface.gpu;
+        mode: DrawMode,
+    ) -> Result<RgbaImage, ViewerError> {
         let (width, height, format) = (target.width(), target.height(), target.format());
         let texels = if self.surface.copyable {
-            read_texture(gpu, target, width, height)?
+            read_texture(&self.surface.gpu, target, width, height).map_err(ScreenshotError::from)?
         } else {
-            let offscreen = OffscreenTarget::new(gpu, width, height, format)?;
-            let mut encoder = gpu
-                .device
-                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                    label: Some("viewer screenshot"),
-                });
-            self.renderer.encode(
-                gpu,
-                &mut encoder,
-                &self.scene,
-                camera,
-                &offscreen.colour_view,
-                &offscreen.depth,
-            );
-            self.overlay
-                .paint(gpu, &mut encoder, &offscreen.colour_view, width, height);
-            gpu.queue.submit([encoder.finish()]);
-            offscreen.read_colour(gpu)?
+            let offscreen = OffscreenTarget::new(&self.surface.gpu, width, height, format)
+                .map_err(ScreenshotError::from)?;
+            self.draw_offscreen(&offscreen, camera, mode)?;
+            self.paint_overlay(&offscreen.colour_view, (width, height));
+            offscreen
+                .read_colour(&self.surface.gpu)
+                .map_err(ScreenshotError::from)?
         };
-        to_rgba_image(texels, width, height, format)
+        Ok(to_rgba_image(texels, width, height, format)?)
+    }
+
+    /// The scene drawn into an offscreen target (brute force with the target's own depth).
+    fn draw_offscreen(
+        &mut self,
+        offscreen: &OffscreenTarget,
+        camera: &Camera,
+        mode: DrawMode,
+    ) -> Result<(), FrameError> {
+        if mode.culling {
+            self.draw_scene(
+                &offscreen.colour_view,
+                (offscreen.width, offscreen.height),
+                camera,
+                mode,
+            )?;
+            return Ok(());
+        }
+        let gpu = &self.surface.gpu;
+        let mut encoder = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("viewer screenshot"),
+            });
+        self.renderer.encode(
+            gpu,
+            &mut encoder,
+            &self.scene,
+            camera,
+            &offscreen.colour_view,
+            &offscreen.depth,
+        );
+        gpu.queue.submit([encoder.finish()]);
+        Ok(())
     }
 }
 

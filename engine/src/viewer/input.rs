@@ -27,6 +27,10 @@ pub enum Command {
     ToggleRecording,
     /// H: show or hide the overlay panel.
     ToggleOverlay,
+    /// C: occlusion culling on / off (off draws every building, brute force).
+    ToggleCulling,
+    /// V: the virtual-occluder pre-pass on / off (scene packages with occluders).
+    ToggleOccluders,
 }
 
 impl Command {
@@ -38,6 +42,8 @@ impl Command {
             KeyCode::Escape => Some(Command::Escape),
             KeyCode::KeyR => Some(Command::ToggleRecording),
             KeyCode::KeyH => Some(Command::ToggleOverlay),
+            KeyCode::KeyC => Some(Command::ToggleCulling),
+            KeyCode::KeyV => Some(Command::ToggleOccluders),
             _ => None,
         }
     }
@@ -123,7 +129,8 @@ impl InputTracker {
 pub const KEY_HELP: &str = "WASD / arrows move, Shift runs, mouse looks while the right button \
 is held (M toggles mouse look, Esc releases it or quits), F / Tab switch walk <-> fly, \
 fly: E / Space up, Q / Ctrl down, wheel changes speed, O goes to the overview, R starts / stops \
-recording the camera path, H shows / hides the overlay";
+recording the camera path, H shows / hides the overlay, C switches occlusion culling on / off, V \
+switches the virtual-occluder pre-pass on / off";
 
 #[cfg(test)]
 mod tests {
@@ -170,6 +177,14 @@ mod tests {
         assert_eq!(
             t.key(KeyCode::KeyH, ElementState::Pressed, false),
             Some(Command::ToggleOverlay)
+        );
+        assert_eq!(
+            t.key(KeyCode::KeyC, ElementState::Pressed, false),
+            Some(Command::ToggleCulling)
+        );
+        assert_eq!(
+            t.key(KeyCode::KeyV, ElementState::Pressed, false),
+            Some(Command::ToggleOccluders)
         );
         t.release_all();
         assert_eq!(t.take(), InputState::default());

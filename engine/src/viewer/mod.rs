@@ -16,6 +16,7 @@ use std::path::PathBuf;
 
 use citywalk_scenes::City;
 use citywalk_scenes::camera_path::CameraPath;
+use citywalk_scenes::occluder::OccluderSet;
 
 use crate::camera_path_io::{PlayEnd, RecordError};
 use crate::controller::Mode;
@@ -38,6 +39,9 @@ pub struct ViewerOptions {
     pub play: Option<PlayRequest>,
     /// Show the overlay panel at start (H toggles it).
     pub overlay: bool,
+    /// Draw with the two-phase occlusion-culling renderer ([`crate::frame::CullingRenderer`])
+    /// at start; off draws every building (brute force). C toggles it.
+    pub culling: bool,
 }
 
 /// `--play PATH [--loop]`.
@@ -77,15 +81,22 @@ pub enum ViewerError {
     },
     #[error(transparent)]
     Record(#[from] RecordError),
+    #[error("culled frame: {0}")]
+    Frame(#[from] crate::frame::FrameError),
     #[error("the window closed after {drawn} of {wanted} frames; no screenshot was taken")]
     ScreenshotNotTaken { drawn: u32, wanted: u32 },
 }
 
-/// Opens the window and runs until it is closed (or the screenshot is written).
-pub fn run(city: City, options: ViewerOptions) -> Result<(), ViewerError> {
+/// Opens the window and runs until it is closed (or the screenshot is written). `occluders`
+/// (a scene package's virtual occluders) feed the culling renderer's pre-pass (V toggles it).
+pub fn run(
+    city: City,
+    occluders: Option<OccluderSet>,
+    options: ViewerOptions,
+) -> Result<(), ViewerError> {
     let event_loop = winit::event_loop::EventLoop::new()?;
     event_loop.set_control_flow(winit::event_loop::ControlFlow::Poll);
-    let mut app = app::App::new(city, options);
+    let mut app = app::App::new(city, occluders, options);
     event_loop.run_app(&mut app)?;
     app.finish()
 }

@@ -34,10 +34,35 @@ pub struct OverlayStats {
     pub triangles_drawn: usize,
     /// Which renderer drew the frame (e.g. "brute force, no culling").
     pub renderer: String,
+    /// The culling frame's measured counts, when the culling renderer drew the frame.
+    pub culling: Option<CullingCounts>,
+    /// Whether the culling renderer is on (the checkbox's state).
+    pub culling_on: bool,
+    /// Whether the occluder pre-pass is on; `None` when the scene has no occluders.
+    pub occluders_on: Option<bool>,
     /// Poses recorded so far, while recording.
     pub recording_poses: Option<usize>,
     /// (pose shown, pose count) while playing a path.
     pub playback: Option<(usize, usize)>,
+}
+
+/// Counts measured by the culling renderer for one frame ([`crate::frame::FrameStats`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct CullingCounts {
+    /// Buildings outside the view frustum.
+    pub frustum_culled: u32,
+    /// Buildings in the frustum hidden behind the depth pyramid.
+    pub occlusion_culled: u32,
+    /// Buildings drawn (early and late pass).
+    pub drawn: u32,
+    /// Triangles of the buildings drawn.
+    pub triangles: u64,
+    /// Non-empty draws issued.
+    pub draw_calls: u32,
+    /// Virtual occluders drawn into the pyramid's depth.
+    pub occluders_drawn: u32,
+    /// CPU time of the frame (encoding, waiting for the GPU, reading the status back).
+    pub cpu_ms: f64,
 }
 
 /// What the user changed in the panel this frame.
@@ -49,6 +74,10 @@ pub struct OverlayControls {
     pub toggle_mode: bool,
     /// "record" / "stop recording" was clicked.
     pub toggle_recording: bool,
+    /// The "occlusion culling" checkbox was clicked.
+    pub toggle_culling: bool,
+    /// The "occluder pre-pass" checkbox was clicked.
+    pub toggle_occluders: bool,
 }
 
 /// Narrowest and widest field of view the slider offers (degrees).
@@ -85,6 +114,13 @@ pub fn panel(ui: &mut egui::Ui, stats: &OverlayStats, controls: &mut OverlayCont
             );
             row("triangles", stats.triangles_drawn.to_string());
             row("renderer", stats.renderer.clone());
+            if let Some(c) = &stats.culling {
+                row("frustum-culled", c.frustum_culled.to_string());
+                row("occlusion-culled", c.occlusion_culled.to_string());
+                row("draw calls", c.draw_calls.to_string());
+                row("occluders drawn", c.occluders_drawn.to_string());
+                row("culling cpu", format!("{:.2} ms", c.cpu_ms));
+            }
             if let Some((shown, count)) = stats.playback {
                 row("path", format!("pose {} / {count}", shown + 1));
             }
@@ -101,6 +137,17 @@ pub fn panel(ui: &mut egui::Ui, stats: &OverlayStats, controls: &mut OverlayCont
         };
         controls.toggle_recording = ui.button(record).clicked();
     });
+    let mut culling = stats.culling_on;
+    controls.toggle_culling = ui.checkbox(&mut culling, "occlusion culling (C)").clicked();
+    if let Some(on) = stats.occluders_on {
+        let mut occluders = on;
+        controls.toggle_occluders = ui
+            .add_enabled(
+                stats.culling_on,
+                egui::Checkbox::new(&mut occluders, "occluder pre-pass (V)"),
+            )
+            .clicked();
+    }
     ui.add(egui::Slider::new(&mut controls.fov_y_deg, FOV_RANGE_DEG).text("fov y (°)"));
     ui.label("H hides this panel");
 }
@@ -283,6 +330,7 @@ mod tests {
             }
         }
         assert!(!controls.toggle_mode && !controls.toggle_recording);
+        assert!(!controls.toggle_culling && !controls.toggle_occluders);
         assert_eq!(controls.fov_y_deg, 60.0);
         shown
     }
@@ -311,6 +359,9 @@ mod tests {
             buildings_total: 9,
             triangles_drawn: 1234,
             renderer: "brute force".into(),
+            culling: None,
+            culling_on: false,
+            occluders_on: None,
             recording_poses: Some(42),
             playback: None,
         };
@@ -332,9 +383,49 @@ mod tests {
             mode: "path".into(),
             recording_poses: None,
             playback: Some((4, 60)),
-            ..stats
+            ..stats.clone()
         });
         assert!(playing.contains("pose 5 / 60"), "{playing}");
+        assert!(
+            !playing.contains("frustum-culled") && !playing.contains("occluder pre-pass"),
+            "no culling counts without the culling renderer:\n{playing}"
+        );
+        let culled = texts(&OverlayStats {
+            renderer: "two-phase HiZ culling".into(),
+            buildings_drawn: 17,
+            buildings_total: 540,
+            triangles_drawn: 98_765,
+            culling: Some(CullingCounts {
+                frustum_culled: 301,
+                occlusion_culled: 222,
+                drawn: 17,
+                triangles: 98_765,
+                draw_calls: 19,
+                occluders_drawn: 5,
+                cpu_ms: 1.25,
+            }),
+            culling_on: true,
+            occluders_on: Some(true),
+            ..stats
+        });
+        for want in [
+            "frustum-culled",
+            "301",
+            "occlusion-culled",
+            "222",
+            "17 / 540",
+            "98765",
+            "19",
+            "occluders drawn",
+            "1.25 ms",
+            "occlusion culling (C)",
+            "occluder pre-pass (V)",
+        ] {
+            assert!(
+                culled.contains(want),
+                "{want:?} not in the panel:\n{culled}"
+            );
+        }
         assert!(playing.contains("record (R)"), "{playing}");
         assert!(
             !playing.contains("(F)"),

@@ -7,6 +7,9 @@ use anyhow::Context;
 use citywalk_engine::camera_path_io::PlayEnd;
 use citywalk_engine::controller::Mode;
 use citywalk_engine::viewer::{self, PlayRequest, ScreenshotRequest, ViewerOptions};
+use citywalk_scenes::City;
+use citywalk_scenes::occluder::OccluderSet;
+use citywalk_scenes::package::ScenePackage;
 
 use crate::path_arg::PathSource;
 
@@ -43,10 +46,13 @@ pub struct Args {
     /// Start with the overlay panel hidden (H shows it).
     #[arg(long)]
     pub no_overlay: bool,
+    /// Start drawing brute force, without occlusion culling (C toggles it).
+    #[arg(long)]
+    pub no_culling: bool,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let city = load_scene(&args.scene)?;
+    let (city, occluders) = load_scene(&args.scene)?;
     let play = match &args.play {
         Some(arg) => Some(PlayRequest {
             path: PathSource::of(arg).load(&city, GENERATED_PLAY_POSES)?,
@@ -73,19 +79,31 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         record_to: args.record,
         play,
         overlay: !args.no_overlay,
+        culling: !args.no_culling,
     };
-    viewer::run(city, options).context("citywalk view")
+    viewer::run(city, occluders, options).context("citywalk view")
 }
 
-/// The one place the viewer loads its scene.
-fn load_scene(path: &Path) -> anyhow::Result<citywalk_scenes::City> {
-    let city = crate::scene_input::load_city(path)?;
+/// The one place the viewer loads its scene: a package's city and virtual occluders, or any
+/// other input's city as it is (no occluders: they come from preprocessing).
+fn load_scene(path: &Path) -> anyhow::Result<(City, Option<OccluderSet>)> {
+    let named_package = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("cwk"));
+    let (city, occluders) = if crate::scene_input::is_package(path)? || named_package {
+        let package = ScenePackage::read(path)
+            .with_context(|| format!("cannot read the scene package {}", path.display()))?;
+        (package.city(), package.occluders)
+    } else {
+        (crate::scene_input::load_city(path)?, None)
+    };
     tracing::info!(
         buildings = city.buildings.len(),
         streets = city.streets.len(),
         rejected = city.report.rejected.len(),
+        occluders = occluders.as_ref().map_or(0, |o| o.occluders.len()),
         "loaded {}",
         path.display()
     );
-    Ok(city)
+    Ok((city, occluders))
 }
