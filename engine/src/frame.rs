@@ -797,47 +797,19 @@ impl CullingRenderer {
             return Ok(());
         }
         check_size(gpu, width, height)?;
-        let depth_texture = gpu.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("frame depth (reversed Z)"),
-            size: wgpu::Extent3d {
-                width,
-                height,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: DepthTarget::FORMAT,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
-            view_formats: &[],
-        });
-        let cull_depth = gpu.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("frame depth with occluders"),
-            size: depth_texture.size(),
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: DepthTarget::FORMAT,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
-            view_formats: &[],
-        });
-        let view = depth_texture.create_view(&wgpu::TextureViewDescriptor::default());
-        let cull_depth_view = cull_depth.create_view(&wgpu::TextureViewDescriptor::default());
+        let depth = DepthTarget::new(gpu, width, height);
+        // The culling depth (early pass + occluders) is a second target of the same kind.
+        let cull_depth_view = DepthTarget::new(gpu, width, height).view;
         let copy_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("depth copy"),
             layout: &self.copy_layout,
             entries: &[wgpu::BindGroupEntry {
                 binding: 0,
-                resource: wgpu::BindingResource::TextureView(&view),
+                resource: wgpu::BindingResource::TextureView(&depth.view),
             }],
         });
         self.targets = Some(Targets {
-            depth: DepthTarget {
-                texture: depth_texture,
-                view,
-                width,
-                height,
-            },
+            depth,
             cull_depth_view,
             copy_group,
             pyramid: HzbPyramid::new(gpu, width, height)?,

@@ -63,20 +63,42 @@ impl BruteRenderer {
         colour: &wgpu::TextureView,
         depth: &DepthTarget,
     ) {
+        self.encode_with(
+            gpu,
+            encoder,
+            scene,
+            camera,
+            colour,
+            depth,
+            "brute scene",
+            |pass| scene.draw_all(pass),
+        );
+    }
+
+    /// Records the scene pass — view uniforms, clears, pipeline, scene buffers bound — and lets
+    /// `draw` issue the draws: every building here, a culled list in
+    /// [`crate::render::selected::SelectedRenderer`].
+    #[expect(clippy::too_many_arguments, reason = "one pass, all inputs explicit")]
+    pub(crate) fn encode_with(
+        &self,
+        gpu: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        scene: &SceneGpu,
+        camera: &Camera,
+        colour: &wgpu::TextureView,
+        depth: &DepthTarget,
+        label: &str,
+        draw: impl FnOnce(&mut wgpu::RenderPass<'_>),
+    ) {
         let uniforms = view_uniforms(camera, depth.width, depth.height, &self.style);
         gpu.queue
             .write_buffer(&self.view_buffer, 0, bytemuck::bytes_of(&uniforms));
-        let mut pass = super::begin_scene_pass(
-            encoder,
-            "brute scene",
-            colour,
-            depth,
-            self.style.clear_colour(),
-        );
+        let mut pass =
+            super::begin_scene_pass(encoder, label, colour, depth, self.style.clear_colour());
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &self.view_group, &[]);
         scene.bind(&mut pass);
-        scene.draw_all(&mut pass);
+        draw(&mut pass);
     }
 
     /// Renders one frame offscreen and reads it back as tightly packed RGBA8 (sRGB) rows.

@@ -1,46 +1,30 @@
 //! Draws the ground and a chosen set of buildings — the output of a CPU culling stage — with the
-//! same flat-shaded pipeline as the brute-force renderer, one indirect draw per building.
+//! brute-force renderer's pipeline and pass, one indirect draw per building.
 
-use citywalk_shaders::{DrawIndexedIndirectArgs, SCENE_WGSL};
+use citywalk_shaders::DrawIndexedIndirectArgs;
 
 use crate::camera::Camera;
 use crate::gpu::GpuContext;
+use crate::render::brute::BruteRenderer;
 use crate::render::targets::DepthTarget;
-use crate::render::view::{SceneStyle, view_uniforms};
 use crate::scene_gpu::SceneGpu;
 
 /// The scene pass restricted to a list of buildings.
 #[derive(Debug)]
 pub struct SelectedRenderer {
-    pipeline: wgpu::RenderPipeline,
-    view_buffer: wgpu::Buffer,
-    view_group: wgpu::BindGroup,
+    /// Pipeline, view uniforms and style, shared with the brute-force pass.
+    pub scene_pass: BruteRenderer,
     draws: wgpu::Buffer,
     draws_capacity: usize,
-    pub style: SceneStyle,
 }
 
 impl SelectedRenderer {
     pub fn new(gpu: &GpuContext, colour_format: wgpu::TextureFormat) -> SelectedRenderer {
-        let device = &gpu.device;
-        let layout = super::view_bind_group_layout(device, "selected view");
-        let (view_buffer, view_group) =
-            super::view_buffer_and_group(device, &layout, "selected view");
-        let pipeline = super::scene_pipeline(
-            device,
-            "selected scene",
-            SCENE_WGSL,
-            &layout,
-            Some(colour_format),
-        );
         let draws_capacity = 1024;
         SelectedRenderer {
-            pipeline,
-            view_buffer,
-            view_group,
-            draws: Self::draw_buffer(device, draws_capacity),
+            scene_pass: BruteRenderer::new(gpu, colour_format),
+            draws: Self::draw_buffer(&gpu.device, draws_capacity),
             draws_capacity,
-            style: SceneStyle::default(),
         }
     }
 
@@ -81,20 +65,18 @@ impl SelectedRenderer {
         }
         gpu.queue
             .write_buffer(&self.draws, 0, bytemuck::cast_slice(&draws));
-        let uniforms = view_uniforms(camera, depth.width, depth.height, &self.style);
-        gpu.queue
-            .write_buffer(&self.view_buffer, 0, bytemuck::bytes_of(&uniforms));
-        let mut pass = super::begin_scene_pass(
+        let count = draws.len() as u32;
+        let buffer = &self.draws;
+        self.scene_pass.encode_with(
+            gpu,
             encoder,
-            "selected scene",
+            scene,
+            camera,
             colour,
             depth,
-            self.style.clear_colour(),
+            "selected scene",
+            |pass| pass.multi_draw_indexed_indirect(buffer, 0, count),
         );
-        pass.set_pipeline(&self.pipeline);
-        pass.set_bind_group(0, &self.view_group, &[]);
-        scene.bind(&mut pass);
-        pass.multi_draw_indexed_indirect(&self.draws, 0, draws.len() as u32);
-        draws.len() as u32
+        count
     }
 }
