@@ -5,9 +5,12 @@ use std::path::Path;
 
 use citywalk_scenes::load::cityjson;
 use citywalk_scenes::{City, Crs, HeightSource, LoadError, LoadOptions, RejectReason, load_city};
+use fuzz::fixed_runner;
 use geo::{Area, Contains, Point, Validation};
 use proptest::prelude::*;
-use proptest::test_runner::{Config, RngAlgorithm, TestRng, TestRunner};
+
+#[path = "support/fuzz.rs"]
+mod fuzz;
 
 const DEN_HAAG: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
@@ -407,13 +410,7 @@ fn non_finite_vertex_is_a_rejection() {
 #[test]
 fn mutated_files_never_panic() {
     let base = cube_1_1().into_bytes();
-    let config = Config {
-        cases: 300,
-        failure_persistence: None,
-        ..Config::default()
-    };
-    let mut runner =
-        TestRunner::new_with_rng(config, TestRng::from_seed(RngAlgorithm::ChaCha, &[7; 32]));
+    let mut runner = fixed_runner(300, 7);
     let len = base.len();
     let strategy = (
         0..len,

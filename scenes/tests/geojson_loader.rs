@@ -2,14 +2,20 @@
 //! small hand-made files (parts linked by `part_of` or by containment, CRS, streets, bad
 //! buildings) and on corrupt files (errors, never panics).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Instant;
 
 use citywalk_scenes::load::{geojson, osm};
 use citywalk_scenes::{Crs, HeightSource, LoadError, LoadOptions, RejectReason, StreetClass};
+use files::{temp_file, thread_cpu_ns};
+use fuzz::fixed_runner;
 use proptest::prelude::*;
-use proptest::test_runner::{Config, RngAlgorithm, TestRng, TestRunner};
 use serde_json::json;
+
+#[path = "support/files.rs"]
+mod files;
+#[path = "support/fuzz.rs"]
+mod fuzz;
 
 const CHELSEA_DIR: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
@@ -19,14 +25,6 @@ const PORTO_DIR: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
     "/../../shared/data/osm_porto_center"
 );
-
-fn temp_file(name: &str, bytes: &[u8]) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("citywalk-geojson-test-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join(name);
-    std::fs::write(&path, bytes).unwrap();
-    path
-}
 
 fn load_json(name: &str, value: &serde_json::Value) -> Result<citywalk_scenes::City, LoadError> {
     let path = temp_file(name, value.to_string().as_bytes());
@@ -45,15 +43,6 @@ fn polygon(x: f64, y: f64, s: f64, properties: serde_json::Value) -> serde_json:
 
 fn collection(features: Vec<serde_json::Value>) -> serde_json::Value {
     json!({"type": "FeatureCollection", "features": features})
-}
-
-/// CPU time of this thread (ns), from `/proc/thread-self/schedstat` (0 where unavailable): the
-/// timings printed are shared-machine wall times, the CPU time is the fairer figure.
-fn thread_cpu_ns() -> u64 {
-    std::fs::read_to_string("/proc/thread-self/schedstat")
-        .ok()
-        .and_then(|s| s.split_whitespace().next()?.parse().ok())
-        .unwrap_or(0)
 }
 
 #[test]
@@ -419,13 +408,7 @@ fn corrupt_geojson_never_panics() {
     ])
     .to_string()
     .into_bytes();
-    let config = Config {
-        cases: fuzz_cases(96),
-        failure_persistence: None,
-        ..Config::default()
-    };
-    let mut runner =
-        TestRunner::new_with_rng(config, TestRng::from_seed(RngAlgorithm::ChaCha, &[11; 32]));
+    let mut runner = fixed_runner(96, 11);
     let strategy = (
         prop::collection::vec(
             (
@@ -491,12 +474,4 @@ fn generated_city_loads_fast_and_whole() {
     assert!(parts >= 20_000, "{parts}");
     assert!(r.warnings.is_empty(), "{:?}", r.warnings.first());
     std::fs::remove_file(&path).ok();
-}
-
-/// Proptest cases: `default`, or `CITYWALK_FUZZ_CASES` for a longer local run.
-fn fuzz_cases(default: u32) -> u32 {
-    std::env::var("CITYWALK_FUZZ_CASES")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(default)
 }

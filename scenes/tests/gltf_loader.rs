@@ -6,9 +6,12 @@ use std::path::{Path, PathBuf};
 
 use citywalk_scenes::load::gltf as gltf_loader;
 use citywalk_scenes::{City, Crs, LoadError, LoadOptions, load_cities, load_city};
+use fuzz::fixed_runner;
 use geo::{BoundingRect, Validation};
 use proptest::prelude::*;
-use proptest::test_runner::{Config, RngAlgorithm, TestRng, TestRunner};
+
+#[path = "support/fuzz.rs"]
+mod fuzz;
 
 const AMSTERDAM: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
@@ -416,13 +419,7 @@ fn mutated_glbs_never_panic() {
         r#","translation":[1,2,3]"#,
     );
     let tile = make_b3dm(r#"{"blockid":["A","B"]}"#, &base);
-    let config = Config {
-        cases: 300,
-        failure_persistence: None,
-        ..Config::default()
-    };
-    let mut runner =
-        TestRunner::new_with_rng(config, TestRng::from_seed(RngAlgorithm::ChaCha, &[11; 32]));
+    let mut runner = fixed_runner(300, 11);
     let strategy = (
         any::<bool>(),
         0..tile.len(),
@@ -555,13 +552,7 @@ fn glb_json_number_mutations_never_panic() {
                 && (i == 0 || !json.as_bytes()[i - 1].is_ascii_digit())
         })
         .collect();
-    let config = Config {
-        cases: 300,
-        failure_persistence: None,
-        ..Config::default()
-    };
-    let mut runner =
-        TestRunner::new_with_rng(config, TestRng::from_seed(RngAlgorithm::ChaCha, &[5; 32]));
+    let mut runner = fixed_runner(300, 5);
     let value = prop_oneof![
         0u64..8,
         0u64..2000,

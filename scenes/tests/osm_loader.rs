@@ -2,13 +2,19 @@
 //! hand-made files (Simple 3D Buildings parts, multipolygons, bad buildings) and on corrupt
 //! files (errors, never panics).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Instant;
 
 use citywalk_scenes::load::osm;
 use citywalk_scenes::{HeightSource, LoadError, LoadOptions, RejectReason};
+use files::{temp_file, thread_cpu_ns};
+use fuzz::fixed_runner;
 use proptest::prelude::*;
-use proptest::test_runner::{Config, RngAlgorithm, TestRng, TestRunner};
+
+#[path = "support/files.rs"]
+mod files;
+#[path = "support/fuzz.rs"]
+mod fuzz;
 
 const CHELSEA: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
@@ -165,15 +171,6 @@ mod pbf {
     }
 }
 
-/// Writes `bytes` to a fresh file in the temp dir.
-fn temp_file(name: &str, bytes: &[u8]) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("citywalk-osm-test-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join(name);
-    std::fs::write(&path, bytes).unwrap();
-    path
-}
-
 /// A square of `size_deg` at `(lon, lat)` as nodes `first..first+4`, and the closed way's refs.
 fn square(osm: &mut pbf::Osm, first: i64, lon: f64, lat: f64, size_deg: f64) -> Vec<i64> {
     let corners = [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)];
@@ -187,15 +184,6 @@ fn square(osm: &mut pbf::Osm, first: i64, lon: f64, lat: f64, size_deg: f64) -> 
 fn load_bytes(name: &str, bytes: &[u8]) -> Result<citywalk_scenes::City, LoadError> {
     let path = temp_file(name, bytes);
     osm::load(&path, &LoadOptions::default())
-}
-
-/// CPU time of this thread (ns), from `/proc/thread-self/schedstat` (0 where unavailable): the
-/// timings printed are shared-machine wall times, the CPU time is the fairer figure.
-fn thread_cpu_ns() -> u64 {
-    std::fs::read_to_string("/proc/thread-self/schedstat")
-        .ok()
-        .and_then(|s| s.split_whitespace().next()?.parse().ok())
-        .unwrap_or(0)
 }
 
 #[test]
@@ -569,13 +557,7 @@ fn corrupt_pbf_never_panics() {
     ));
     let small = osm.encode();
     let chelsea = std::fs::read(CHELSEA).unwrap();
-    let config = Config {
-        cases: fuzz_cases(96),
-        failure_persistence: None,
-        ..Config::default()
-    };
-    let mut runner =
-        TestRunner::new_with_rng(config, TestRng::from_seed(RngAlgorithm::ChaCha, &[7; 32]));
+    let mut runner = fixed_runner(96, 7);
     let strategy = (
         any::<bool>(),
         prop::collection::vec((any::<prop::sample::Index>(), any::<u8>()), 1..6),
@@ -599,12 +581,4 @@ fn corrupt_pbf_never_panics() {
         })
         .unwrap();
     std::fs::remove_file(temp_file("fuzz.osm.pbf", b"")).ok();
-}
-
-/// Proptest cases: `default`, or `CITYWALK_FUZZ_CASES` for a longer local run.
-fn fuzz_cases(default: u32) -> u32 {
-    std::env::var("CITYWALK_FUZZ_CASES")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(default)
 }
