@@ -5,7 +5,7 @@
 //! buildings still load, and `loaded + rejected = found` always holds.
 
 use std::fmt;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
@@ -127,6 +127,22 @@ impl fmt::Display for LoadReport {
             self.streets_loaded,
             self.warnings.len()
         )
+    }
+}
+
+impl LoadError {
+    /// The error of a file whose every building was rejected: names the first rejection.
+    pub fn nothing_loaded(path: &Path, report: &LoadReport) -> LoadError {
+        let first = report
+            .rejected
+            .first()
+            .map(|r| format!("{}: {}", r.source_id, r.reason))
+            .unwrap_or_else(|| "none".into());
+        LoadError::NothingLoaded {
+            path: path.to_path_buf(),
+            found: report.buildings_found,
+            first,
+        }
     }
 }
 

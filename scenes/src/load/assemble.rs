@@ -292,16 +292,7 @@ pub(crate) fn assemble(
     report.streets_loaded = city_streets.len();
 
     if out.is_empty() {
-        let first = report
-            .rejected
-            .first()
-            .map(|r| format!("{}: {}", r.source_id, r.reason))
-            .unwrap_or_else(|| "none".into());
-        return Err(LoadError::NothingLoaded {
-            path: path.to_path_buf(),
-            found: report.buildings_found,
-            first,
-        });
+        return Err(LoadError::nothing_loaded(path, &report));
     }
     let mut city = City {
         frame,
