@@ -65,9 +65,16 @@ echo "== occluders and cluster tree levels" >&2
 
 echo "== occlusion benchmark" >&2
 modes="${MODES:-$("$cw" bench --list-modes)}"
+# The baseline a user would pick instead: the whole city decimated by meshoptimizer to the
+# triangle count of the most complete LOD mode measured (issue 7, after Chang et al. §9).
+baseline=""
+for m in all lod; do
+  if [[ ",$modes," == *",$m,"* ]]; then baseline="--baseline decimate:$m"; break; fi
+done
+# shellcheck disable=SC2086 # $baseline is empty or two words
 "$cw" bench "$out/generated-10k.cwk" "$out/generated-100k.cwk" "$out/chelsea.cwk" \
   "$out/porto.cwk" "$out/denhaag.cwk" --out "$out/bench" --frames "$frames" --size "$size" \
-  --modes "$modes" --png-every 0
+  --modes "$modes" --png-every 0 $baseline
 
 echo "== BENCHMARKS.md" >&2
 python3 .ci/benchmarks_md.py "$out" > BENCHMARKS.md
