@@ -35,7 +35,8 @@ fn den_haag_counts_balance_and_spot_checks() {
     assert!(r.buildings_loaded >= 800, "{r}");
     city.check_invariants().unwrap();
     assert_eq!(city.frame.crs, Crs::Projected("EPSG:7415".into()));
-    // Origin at the centre of the extent (x 78248.7..79036.0, y 457604.6..458276.4), z 0.
+    // Origin at the centre of the extent (x 78248.7..79036.0, y 457604.6..458276.4), at the
+    // height of the lowest building base (NAP): the city stands on the ground plane z = 0.
     assert!(
         (city.frame.origin[0] - 78642.0).abs() < 2.0,
         "{:?}",
@@ -46,7 +47,17 @@ fn den_haag_counts_balance_and_spot_checks() {
         "{:?}",
         city.frame.origin
     );
-    assert_eq!(city.frame.origin[2], 0.0);
+    let lowest_base = city
+        .buildings
+        .iter()
+        .map(|b| b.base_m)
+        .fold(f32::INFINITY, f32::min);
+    assert_eq!(lowest_base, 0.0);
+    assert!(
+        (2.5..5.0).contains(&city.frame.origin[2]),
+        "{:?}",
+        city.frame.origin
+    );
 
     let triangles: usize = city
         .buildings
@@ -65,7 +76,10 @@ fn den_haag_counts_balance_and_spot_checks() {
     let (lo, hi) = city.bounds().unwrap();
     // The data spans about 790 m × 670 m, heights 2.5..37.5 m NAP (README).
     assert!(hi.x - lo.x < 820.0 && hi.y - lo.y < 700.0, "{lo} {hi}");
-    assert!(lo.z > 0.0 && hi.z < 40.0, "{lo} {hi}");
+    assert!(
+        lo.z == 0.0 && f64::from(hi.z) + city.frame.origin[2] < 40.0,
+        "{lo} {hi}"
+    );
     for b in &city.buildings {
         assert_eq!(b.height_source, HeightSource::Geometry);
         assert!(b.footprint.is_valid());
@@ -106,7 +120,8 @@ fn den_haag_counts_balance_and_spot_checks() {
         .iter()
         .filter_map(|b| {
             let ridge: f32 = b.tags.get("AbsoluteRidgeHeight")?.parse().ok()?;
-            Some((b.top_m, ridge))
+            // Tops are above the ground plane, the ridge heights absolute (NAP).
+            Some((b.top_m + city.frame.origin[2] as f32, ridge))
         })
         .collect();
     assert!(
@@ -202,21 +217,24 @@ fn cube_solid_with_transform() {
         "{}",
         b.footprint_area_m2()
     );
-    // Translate z 5 m: base at 5, top at 15 (absolute heights kept).
-    assert_eq!((b.base_m, b.top_m), (5.0, 15.0));
+    // Translate z 5 m: the base (5 m in the source) rests on the ground, the origin keeps 5 m.
+    assert_eq!((b.base_m, b.top_m), (0.0, 10.0));
     assert_eq!(b.tags["name"], "Cube");
     assert_eq!(b.tags["storeys"], "3");
     assert_eq!(b.mesh.as_ref().unwrap().triangle_count(), 12);
     assert_eq!(city.frame.crs, Crs::Projected("EPSG:7415".into()));
     // Origin at the centre of the extent: the cube spans 1000..1010, 2000..2010.
-    assert_eq!(city.frame.origin, [1005.0, 2005.0, 0.0]);
+    assert_eq!(city.frame.origin, [1005.0, 2005.0, 5.0]);
+    // Source coordinates are unchanged: the top corner maps back to the file's (1010, 2010, 15).
+    let top = city.frame.to_source(glam::DVec3::new(5.0, 5.0, 10.0));
+    assert_eq!(top, glam::DVec3::new(1010.0, 2010.0, 15.0));
     let f = &b.footprint;
     assert!(f.contains(&Point::new(0.0, 0.0)) && !f.contains(&Point::new(6.0, 0.0)));
     // Every triangle faces out of the cube.
     let mesh = b.mesh.as_ref().unwrap();
     for [a, b2, c] in mesh.triangles() {
         let n = (b2 - a).cross(c - a);
-        let centre = (a + b2 + c) / 3.0 - glam::Vec3::new(0.0, 0.0, 10.0);
+        let centre = (a + b2 + c) / 3.0 - glam::Vec3::new(0.0, 0.0, 5.0);
         assert!(n.dot(centre) > 0.0, "inward triangle {a} {b2} {c}");
     }
 }
@@ -288,7 +306,8 @@ fn cityjson_1_0_without_transform_and_numeric_lod() {
     assert_eq!(city.frame.crs, Crs::Projected("EPSG:28992".into()));
     let b = &city.buildings[0];
     assert!((b.footprint_area_m2() - 12.0).abs() < 1e-6);
-    assert_eq!((b.base_m, b.top_m), (1.0, 8.0));
+    assert_eq!((b.base_m, b.top_m), (0.0, 7.0));
+    assert_eq!(city.frame.origin[2], 1.0);
 }
 
 fn expect_error(text: &str, needle: &str) {

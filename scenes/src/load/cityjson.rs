@@ -13,9 +13,10 @@
 //!   a string such as `"2.2"` in 1.1+); of surface types, `MultiSurface`, `CompositeSurface`,
 //!   `Solid` (its outer shell), `MultiSolid` and `CompositeSolid` are read.
 //! * Frame: the CRS from `metadata.referenceSystem` (for example `EPSG:7415`), origin at the
-//!   centre of the vertices' xy extent and at z = 0: heights stay absolute in the source's
-//!   vertical datum (NAP for the Dutch data), so a building's `base_m` is its ground height in
-//!   that datum and `height_m()` its height above ground.
+//!   centre of the vertices' xy extent and at the height of the lowest building base in the
+//!   source's vertical datum (NAP for the Dutch data): the city stands on the ground plane
+//!   z = 0, a building's `base_m` is its base above that lowest base, `height_m()` its height
+//!   above its own base, and `frame.to_source` gives back the file's coordinates.
 //!
 //! Malformed files (bad JSON, wrong type or version, missing transform, a vertex or boundary
 //! index out of range, wrongly nested boundaries) are a [`LoadError`]; malformed buildings are

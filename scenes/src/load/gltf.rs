@@ -22,6 +22,8 @@
 //!   A tileset whose centre is not on the earth (no root transform to ECEF) keeps its own
 //!   metres ([`Frame::local`]).
 //!   Without a tileset the glTF's own metres are the local frame ([`Frame::local`]).
+//!   In every case the origin is then raised to the lowest building base, so the city stands
+//!   on the ground plane z = 0 (the origin's height keeps the shift).
 //!
 //! Malformed files (bad GLB/b3dm header, invalid glTF JSON, truncated buffers, an accessor or
 //! index out of range) are a [`LoadError`]; malformed buildings are rejections (see

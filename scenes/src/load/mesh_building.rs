@@ -5,7 +5,8 @@
 //! are the mesh's lowest and highest z. A part that fails (no area, absurd height, a vertex out
 //! of range) is dropped with a [`LoadWarning`]; a building with no part left is a
 //! [`Rejection`] carrying the first part's reason. The building's mesh is the concatenation of
-//! its parts' meshes and its footprint the union of theirs.
+//! its parts' meshes and its footprint the union of theirs. Finally the frame's origin is
+//! raised to the lowest building base, so the city stands on the ground plane z = 0.
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -90,8 +91,37 @@ pub(crate) fn assemble(
         streets: Vec::new(),
         report,
     };
+    rest_on_ground(&mut city);
     city.renumber();
     Ok(city)
+}
+
+/// Moves the local frame's origin up to the lowest building base, so that z = 0 is the ground
+/// the engine draws and walks on. Mesh sources give absolute heights (a vertical datum such as
+/// NAP, or ellipsoid heights for ECEF tiles), which leave the buildings floating metres above
+/// the local ground plane. The origin's height records the shift, so source coordinates are
+/// unchanged: `frame.to_source` of a moved point is the point the file holds.
+pub(crate) fn rest_on_ground(city: &mut City) {
+    let lowest_m = city
+        .buildings
+        .iter()
+        .map(|b| b.base_m)
+        .fold(f32::INFINITY, f32::min);
+    if !lowest_m.is_finite() || lowest_m == 0.0 {
+        return;
+    }
+    city.frame.origin[2] += f64::from(lowest_m);
+    for b in &mut city.buildings {
+        b.base_m -= lowest_m;
+        b.top_m -= lowest_m;
+        for part in &mut b.parts {
+            part.base_m -= lowest_m;
+            part.top_m -= lowest_m;
+        }
+        if let Some(mesh) = &mut b.mesh {
+            mesh.positions.iter_mut().for_each(|p| p.z -= lowest_m);
+        }
+    }
 }
 
 /// Validates each part; returns the surviving parts and the building's mesh.

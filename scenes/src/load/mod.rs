@@ -137,6 +137,10 @@ pub fn load_cities(paths: &[PathBuf], options: &LoadOptions) -> Result<City, Loa
         let other = load_city(path, options)?;
         merge_into(&mut city, other, path)?;
     }
+    if city.buildings.iter().any(|b| b.mesh.is_some()) {
+        // Each mesh file rested on its own lowest base; the merged city rests on the lowest.
+        mesh_building::rest_on_ground(&mut city);
+    }
     city.renumber();
     Ok(city)
 }
@@ -171,7 +175,19 @@ fn merge_into(city: &mut City, other: City, path: &Path) -> Result<(), LoadError
                 .map_coords_in_place(|c| move_xy(c.x, c.y).into());
         }
         if let Some(mesh) = &mut b.mesh {
+            // Mesh heights are absolute in the source: base and top follow the mesh into the
+            // other frame (footprint heights are above the ground and stay).
+            let anchor = mesh.positions.first().copied();
             mesh.positions.iter_mut().for_each(|p| *p = move_z(*p));
+            if let (Some(before), Some(after)) = (anchor, mesh.positions.first()) {
+                let dz = after.z - before.z;
+                b.base_m += dz;
+                b.top_m += dz;
+                for part in &mut b.parts {
+                    part.base_m += dz;
+                    part.top_m += dz;
+                }
+            }
         }
         city.buildings.push(b);
     }
