@@ -286,6 +286,9 @@ impl CoreExtent {
 }
 
 /// Footprint bounding boxes of the city's buildings, for free-space tests.
+/// How far around a walk position the buildings' bases tell the ground height.
+const GROUND_RADIUS_M: f64 = 30.0;
+
 struct Obstacles {
     tree: RTree<FootprintBox>,
 }
@@ -323,6 +326,27 @@ impl Obstacles {
         }
     }
 
+    /// The ground height at `p`: the median base of the buildings within
+    /// [`GROUND_RADIUS_M`] (mesh cities on sloping terrain stand at their own heights; cities
+    /// of footprints stand on z = 0), or 0 where no building is near.
+    fn ground_m(&self, city: &City, p: Coord<f64>) -> f32 {
+        let r = GROUND_RADIUS_M;
+        let mut bases: Vec<f32> = self
+            .tree
+            .locate_in_envelope_intersecting(AABB::from_corners(
+                [p.x - r, p.y - r],
+                [p.x + r, p.y + r],
+            ))
+            .map(|b| city.buildings[b.building].base_m)
+            .filter(|z| z.is_finite())
+            .collect();
+        if bases.is_empty() {
+            return 0.0;
+        }
+        bases.sort_by(f32::total_cmp);
+        bases[bases.len() / 2]
+    }
+
     /// Whether `p` lies inside a building footprint.
     fn blocked(&self, city: &City, p: Coord<f64>) -> bool {
         self.tree
@@ -337,7 +361,9 @@ impl Obstacles {
 
 /// A street-level walk along the city's streets (the longest chain of connected street
 /// segments through the centre), or, for cities without streets, along the longest straight
-/// line through free space near the centre. Eye at [`EYE_HEIGHT_M`], looking along the walk.
+/// line through free space near the centre. Eye at [`EYE_HEIGHT_M`] above the local ground
+/// (the median base of the buildings around, for mesh cities on sloping terrain), looking along
+/// the walk.
 pub fn street_walk(city: &City, frames: usize) -> CameraPath {
     let obstacles = Obstacles::new(city);
     let line = street_route(city).unwrap_or_else(|| free_line(city, &obstacles));
@@ -352,7 +378,11 @@ pub fn street_walk(city: &City, frames: usize) -> CameraPath {
         let d = dir + ahead;
         let yaw = d.y.atan2(d.x).to_degrees() as f32;
         poses.push(CameraPose {
-            position: Vec3::new(p.x as f32, p.y as f32, EYE_HEIGHT_M),
+            position: Vec3::new(
+                p.x as f32,
+                p.y as f32,
+                obstacles.ground_m(city, p) + EYE_HEIGHT_M,
+            ),
             yaw_deg: yaw,
             pitch_deg: 0.0,
         });
@@ -720,6 +750,21 @@ mod tests {
         let first = p.poses[0].position;
         let last = p.poses[19].position;
         assert!((first - last).length() > 100.0, "{first} {last}");
+    }
+
+    #[test]
+    fn street_walk_stands_on_the_buildings_ground() {
+        let flat = city(true);
+        let mut raised = flat.clone();
+        for b in &mut raised.buildings {
+            b.base_m += 10.0;
+            b.top_m += 10.0;
+        }
+        let (low, high) = (street_walk(&flat, 12), street_walk(&raised, 12));
+        for (a, b) in low.poses.iter().zip(&high.poses) {
+            assert_eq!(a.position.z, EYE_HEIGHT_M, "{a:?}");
+            assert!((b.position.z - (10.0 + EYE_HEIGHT_M)).abs() < 1e-4, "{b:?}");
+        }
     }
 
     #[test]
