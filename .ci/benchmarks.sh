@@ -60,6 +60,18 @@ preprocess denhaag "$data/cityjson_denhaag/DenHaag_01.json"
 echo "== occluders and cluster tree levels" >&2
 "$cw" inspect occluders "$out/denhaag.cwk" --json > "$out/occluders-denhaag.json"
 "$cw" inspect occluders "$out/chelsea.cwk" --json > "$out/occluders-chelsea.json"
+# The quality / polygon trade-off on Den Haag (issue 3): level selection swept from the
+# paper's benefit rule to the outline alone.
+tradeoff() { "$cw" inspect occluders "$out/denhaag.cwk" --json "${@:2}" > "$out/occluders-denhaag-tradeoff-$1.json"; }
+tradeoff paper --min-gain 0 --sloped-roof-step 0
+tradeoff benefit-roof-samples --min-gain 0
+tradeoff gain-0.004 --min-gain 0.004
+tradeoff gain-0.032 --min-gain 0.032
+tradeoff gain-0.1 --min-gain 0.1
+tradeoff outline-only --min-gain 0 --sloped-roof-step 0 --benefit-threshold 1e9
+tradeoff walls-0.015 --select-walls --sloped-roof-step 1 --min-gain 0.015
+tradeoff walls-0.02 --select-walls --sloped-roof-step 1 --min-gain 0.02
+tradeoff walls-0.05 --select-walls --sloped-roof-step 1 --min-gain 0.05
 "$cw" inspect tree "$out/chelsea.cwk" --level 4 -o "$out/tree-chelsea.png" > "$out/tree-chelsea.txt"
 "$cw" inspect tree "$out/porto.cwk" --level 4 -o "$out/tree-porto.png" > "$out/tree-porto.txt"
 

@@ -66,26 +66,66 @@ print()
 print("## Virtual occluders (`citywalk inspect occluders SCENE --json`)\n")
 print("Occlusion-preserving quality after Germs & Jansen §4.1: silhouette pixels of the occluder ÷ of")
 print("the building, from 16 viewpoints on a circle at half the building's height (CPU raster, 128 px).")
-print("Polygons are triangles. Wall-oriented facades (the default).\n")
-print("| scene | buildings | with occluders | source triangles | occluder triangles | reduction | "
+print("Polygons are planar faces as in the paper's Table 1 (a wall quad is one polygon, a roof polygon")
+print("one), counted the same way on the source mesh and on the occluders; triangles beside them.")
+print("Wall-oriented facades, levels chosen by silhouette gain per polygon (the defaults).\n")
+print("| scene | buildings | with occluders | source polygons | occluder polygons | reduction | "
+      "source triangles | occluder triangles | reduction | "
       "quality mean | min | p5 | p25 | p50 | buildings/s |")
-print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+
+
+def occluder_row(label, j):
+    s = j["summary"]
+    return (f"| {label} | {s['buildings']} | {s['buildings_with_occluders']} | {s['source_polygons']:,} | "
+            f"{s['occluder_polygons']:,} | {s['polygon_reduction']:.2f}× | {s['source_triangles']:,} | "
+            f"{s['occluder_triangles']:,} | {s['triangle_reduction']:.2f}× | {100 * s['quality_mean']:.1f} % | "
+            f"{100 * s['quality_min']:.1f} % | {100 * s['quality_p5']:.1f} % | {100 * s['quality_p25']:.1f} % | "
+            f"{100 * s['quality_p50']:.1f} % | {j['buildings_per_second']:,.0f} |")
+
+
 for label, key in [("Den Haag (LoD2 meshes)", "denhaag"), ("Chelsea (2.5D)", "chelsea")]:
     p = out / f"occluders-{key}.json"
-    if not p.exists():
-        continue
-    j = json.loads(p.read_text())
-    s = j["summary"]
-    print(f"| {label} | {s['buildings']} | {s['buildings_with_occluders']} | {s['source_polygons']:,} | "
-          f"{s['occluder_polygons']:,} | {s['polygon_reduction']:.2f}× | {100 * s['quality_mean']:.1f} % | "
-          f"{100 * s['quality_min']:.1f} % | {100 * s['quality_p5']:.1f} % | {100 * s['quality_p25']:.1f} % | "
-          f"{100 * s['quality_p50']:.1f} % | {j['buildings_per_second']:,.0f} |")
+    if p.exists():
+        print(occluder_row(label, json.loads(p.read_text())))
 for label, key in [("Den Haag", "denhaag")]:
     p = out / f"occluders-{key}.json"
     if p.exists():
-        h = json.loads(p.read_text())["summary"]["quality_histogram"]
+        j = json.loads(p.read_text())
+        h = j["summary"]["quality_histogram"]
         bins = ", ".join(f"{10 * i}–{10 * (i + 1)} %: {n}" for i, n in enumerate(h[:10]) if n)
         print(f"\n{label} quality distribution (buildings per 10 % bin): {bins}.")
+        w = j.get("outline_walls")
+        if w:
+            target = j["summary"]["source_polygons"] / 5
+            print(f"\n{label} outlines alone (one level, one wall per simplified footprint edge): "
+                  f"{w['per_building']:,} walls building by building, {w['merged_blocks']:,} with adjacent "
+                  f"buildings merged into {w['blocks']:,} blocks; 5× fewer polygons than the source means "
+                  f"at most {target:,.0f}.")
+tradeoff = [
+    ("benefit rule, no roof samples (the paper's method)", "paper"),
+    ("benefit rule, sloped roofs sampled every 2 m", "benefit-roof-samples"),
+    ("silhouette gain ≥ 0.4 % per polygon", "gain-0.004"),
+    ("silhouette gain ≥ 1.6 % per polygon (default)", None),
+    ("silhouette gain ≥ 3.2 % per polygon", "gain-0.032"),
+    ("silhouette gain ≥ 10 % per polygon", "gain-0.1"),
+    ("lowest level only (outline)", "outline-only"),
+    ("beyond the paper: single walls (roofs sampled every 1 m), gain ≥ 1.5 % per wall", "walls-0.015"),
+    ("beyond the paper: single walls (roofs sampled every 1 m), gain ≥ 2 % per wall", "walls-0.02"),
+    ("beyond the paper: single walls (roofs sampled every 1 m), gain ≥ 5 % per wall", "walls-0.05"),
+]
+rows = []
+for label, key in tradeoff:
+    p = out / (f"occluders-denhaag-tradeoff-{key}.json" if key else "occluders-denhaag.json")
+    if p.exists():
+        rows.append(occluder_row(label, json.loads(p.read_text())))
+if rows:
+    print("\n**Den Haag trade-off** (`--min-gain`, `--sloped-roof-step`, `--benefit-threshold`):\n")
+    print("| level selection | buildings | with occluders | source polygons | occluder polygons | reduction | "
+          "source triangles | occluder triangles | reduction | "
+          "quality mean | min | p5 | p25 | p50 | buildings/s |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    print("\n".join(rows))
 print()
 
 print("## Cluster tree: triangles per level (`citywalk inspect tree SCENE`)\n")

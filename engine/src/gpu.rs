@@ -40,7 +40,8 @@ pub struct GpuContext {
     pub queue: wgpu::Queue,
     /// Name, backend, device type and driver of the adapter in use.
     pub adapter_info: wgpu::AdapterInfo,
-    /// The optional features actually enabled: `adapter.features() & WANTED_FEATURES`.
+    /// The optional features actually enabled: `adapter.features() & WANTED_FEATURES` (narrowed
+    /// further by [`GpuContext::headless_with_features`]).
     pub features: wgpu::Features,
 }
 
@@ -61,6 +62,20 @@ impl GpuContext {
     /// (Vulkan, Metal, DX12) are tried first and GL only when they offer no adapter, which also
     /// keeps EGL's start-up noise out of the common case.
     pub async fn headless_async() -> Result<GpuContext, GpuError> {
+        Self::headless_with_features_async(WANTED_FEATURES).await
+    }
+
+    /// As [`GpuContext::headless`], enabling only `adapter.features() & wanted` (a subset of
+    /// [`WANTED_FEATURES`]): exercises the paths taken when an adapter lacks a feature, e.g.
+    /// `WANTED_FEATURES - Features::TIMESTAMP_QUERY`.
+    pub fn headless_with_features(wanted: wgpu::Features) -> Result<GpuContext, GpuError> {
+        pollster::block_on(Self::headless_with_features_async(wanted))
+    }
+
+    /// Async form of [`GpuContext::headless_with_features`].
+    pub async fn headless_with_features_async(
+        wanted: wgpu::Features,
+    ) -> Result<GpuContext, GpuError> {
         let attempts = match wgpu::Backends::from_env() {
             Some(backends) => vec![backends],
             None => vec![wgpu::Backends::PRIMARY, wgpu::Backends::SECONDARY],
@@ -74,7 +89,7 @@ impl GpuContext {
                 .into_iter()
                 .max_by_key(|a| adapter_rank(&a.get_info()))
             {
-                return Self::from_adapter(instance, adapter).await;
+                return Self::from_adapter(instance, adapter, wanted).await;
             }
         }
         Err(GpuError::NoAdapter {
@@ -105,16 +120,17 @@ impl GpuContext {
                 .filter(|a| a.is_surface_supported(surface))
                 .max_by_key(|a| adapter_rank(&a.get_info()))
                 .ok_or(GpuError::NoSurfaceAdapter { seen })?;
-            Self::from_adapter(instance, adapter).await
+            Self::from_adapter(instance, adapter, WANTED_FEATURES).await
         })
     }
 
     async fn from_adapter(
         instance: wgpu::Instance,
         adapter: wgpu::Adapter,
+        wanted: wgpu::Features,
     ) -> Result<GpuContext, GpuError> {
         let adapter_info = adapter.get_info();
-        let features = adapter.features() & WANTED_FEATURES;
+        let features = adapter.features() & WANTED_FEATURES & wanted;
         let (device, queue) = adapter
             .request_device(&wgpu::DeviceDescriptor {
                 label: Some("citywalk device"),

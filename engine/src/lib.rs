@@ -7,6 +7,7 @@ pub mod camera_path_io;
 pub mod controller;
 pub mod frame;
 pub mod gpu;
+pub mod gpu_timer;
 pub mod hzb;
 pub mod lod;
 pub mod oracle;

@@ -7,6 +7,13 @@
 //! `--no-culling` (brute force): the same camera must give the same image (under 1 % of the
 //! pixels may differ).
 //!
+//! A second test preprocesses the same city into a scene package (occluders, cluster tree,
+//! B-Quadtree) and plays an aerial path through every culling stage and debug view: all stages,
+//! brute force and the LOD cut at the walkthrough tolerance give the same image; a coarse LOD
+//! tolerance changes it, the same with and without HZB culling; the cluster view repaints the
+//! frame and changes with the cut; the pyramid view is grey and, at level 3, uniform in 8 × 8
+//! blocks; the occluder view tints part of the frame blue and leaves the rest.
+//!
 //! Without Xvfb or a GPU adapter (software ones count: lavapipe, llvmpipe) the test is skipped
 //! with a message, except under CI (env `CI` set), where it fails.
 
@@ -136,6 +143,22 @@ fn run_viewer(scene: &Path, out: &Path, extra: &[&str]) -> Outcome {
     Outcome::Screenshot(image)
 }
 
+/// Five poses of an aerial view from the west, 80 m up, looking east and down at the grid
+/// (outside the cluster tree's bounds, so the LOD cut can choose clusters).
+fn write_aerial_path(path: &Path) {
+    let mut text = String::from("citywalk-path 1\nname test aerial\nfov_y_deg 60\n");
+    for i in 0..5 {
+        text.push_str(&format!("pose {} 65 80 0 -25\n", -150 + 5 * i));
+    }
+    std::fs::write(path, text).expect("write the test path");
+}
+
+/// Pixels that differ between two images of equal size.
+fn differing(a: &image::RgbaImage, b: &image::RgbaImage) -> usize {
+    assert_eq!(a.dimensions(), b.dimensions());
+    a.pixels().zip(b.pixels()).filter(|(p, q)| p != q).count()
+}
+
 /// The share of pixels (0..=1) that have the image's most common colour.
 fn commonest_colour_share(image: &image::RgbaImage) -> f64 {
     let mut colours: Vec<[u8; 4]> = image.pixels().map(|p| p.0).collect();
@@ -223,6 +246,138 @@ fn viewer_writes_a_screenshot_through_a_real_window() {
         changed * 100 < (WIDTH * HEIGHT) as usize,
         "culling changed {changed} of {} pixels of the same pose",
         WIDTH * HEIGHT
+    );
+    // Best effort: a leftover temporary directory is harmless.
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn viewer_switches_stages_lod_and_debug_views() {
+    if !has_program("xvfb-run") {
+        unavailable("xvfb-run is not installed (apt-get install xvfb)");
+        return;
+    }
+    let dir: PathBuf =
+        std::env::temp_dir().join(format!("citywalk-viewer-stages-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("create a temporary directory");
+    let geojson = dir.join("grid.geojson");
+    write_scene(&geojson);
+    let package = dir.join("grid.cwk");
+    let status = Command::new(env!("CARGO_BIN_EXE_citywalk"))
+        .arg("preprocess")
+        .arg(&geojson)
+        .arg("-o")
+        .arg(&package)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .expect("run citywalk preprocess");
+    assert!(status.success(), "citywalk preprocess failed: {status}");
+    let path_file = dir.join("aerial.path");
+    write_aerial_path(&path_file);
+    let path_arg = path_file.to_str().expect("a UTF-8 temporary path");
+    let coarse = ["--lod", "--epsilon-px", "100000", "--tau-px", "100"];
+    let runs: [(&str, Vec<&str>); 10] = [
+        ("all", vec![]),
+        ("brute", vec!["--no-culling"]),
+        ("lod-fine", vec!["--lod"]),
+        ("lod-coarse", coarse.to_vec()),
+        (
+            "lod-coarse-alone",
+            [&coarse[..], &["--no-culling"]].concat(),
+        ),
+        ("clusters", vec!["--debug-view", "clusters"]),
+        (
+            "clusters-coarse",
+            [&coarse[..], &["--debug-view", "clusters"]].concat(),
+        ),
+        ("pyramid", vec!["--debug-view", "pyramid"]),
+        ("pyramid-3", vec!["--debug-view", "pyramid", "--mip", "3"]),
+        ("occluders", vec!["--debug-view", "occluders"]),
+    ];
+    let mut shots = std::collections::HashMap::new();
+    for (name, flags) in runs {
+        let out = dir.join(format!("{name}.png"));
+        let mut extra = vec!["--play", path_arg, "--no-overlay"];
+        extra.extend(flags);
+        match run_viewer(&package, &out, &extra) {
+            Outcome::NoAdapter(log) => {
+                unavailable(&format!("no GPU adapter can present to a window:\n{log}"));
+                return;
+            }
+            Outcome::Screenshot(image) => {
+                assert_eq!(
+                    image.dimensions(),
+                    (WIDTH, HEIGHT),
+                    "{name} screenshot size"
+                );
+                shots.insert(name, image);
+            }
+        }
+    }
+    let pixels = (WIDTH * HEIGHT) as usize;
+    let shot = |name: &str| &shots[name];
+    let same = |a: &str, b: &str| {
+        let n = differing(shot(a), shot(b));
+        assert!(
+            n * 100 < pixels,
+            "{a} and {b} differ in {n} of {pixels} pixels"
+        );
+    };
+    let changed = |a: &str, b: &str, min_percent: usize| {
+        let n = differing(shot(a), shot(b));
+        assert!(
+            n * 100 >= pixels * min_percent,
+            "{a} and {b} differ in only {n} of {pixels} pixels"
+        );
+    };
+    // Culling and the fine LOD cut do not change the image; a coarse cut does, with or without
+    // HZB culling alike.
+    same("all", "brute");
+    same("all", "lod-fine");
+    changed("all", "lod-coarse", 2);
+    same("lod-coarse", "lod-coarse-alone");
+    // The cluster view repaints everything and follows the cut.
+    changed("all", "clusters", 90);
+    changed("clusters", "clusters-coarse", 2);
+    // The pyramid view is greyscale, not flat; level 3 is uniform over 8 × 8 blocks.
+    for name in ["pyramid", "pyramid-3"] {
+        let image = shot(name);
+        assert!(
+            image.pixels().all(|p| p[0] == p[1] && p[1] == p[2]),
+            "{name} is not greyscale"
+        );
+        assert!(commonest_colour_share(image) < 0.95, "{name} is flat");
+    }
+    let level3 = shot("pyramid-3");
+    for (x, y, p) in level3.enumerate_pixels() {
+        assert_eq!(
+            p,
+            level3.get_pixel(x & !7, y & !7),
+            "pyramid-3 at ({x}, {y})"
+        );
+    }
+    changed("pyramid", "pyramid-3", 2);
+    // The occluder view tints the occluders blue and leaves the rest of the frame.
+    let (all, occluders) = (shot("all"), shot("occluders"));
+    let tinted: Vec<_> = all
+        .pixels()
+        .zip(occluders.pixels())
+        .filter(|(a, b)| a != b)
+        .collect();
+    assert!(
+        tinted.len() * 100 >= pixels && tinted.len() * 100 <= pixels * 90,
+        "the occluder view changed {} of {pixels} pixels",
+        tinted.len()
+    );
+    let bluer = tinted
+        .iter()
+        .filter(|(a, b)| i32::from(b[2]) - i32::from(b[0]) > i32::from(a[2]) - i32::from(a[0]))
+        .count();
+    assert!(
+        bluer * 10 >= tinted.len() * 9,
+        "only {bluer} of {} changed pixels turned bluer",
+        tinted.len()
     );
     // Best effort: a leftover temporary directory is harmless.
     let _ = std::fs::remove_dir_all(&dir);

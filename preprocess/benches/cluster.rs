@@ -2,14 +2,23 @@
 //! data and meshes) on synthetic cities of 1k / 10k / 100k buildings.
 //!
 //! `cargo bench -p citywalk-preprocess --bench cluster` (ten samples each; filter with
-//! `-- cluster/10000` for one size).
+//! `-- cluster/10000` for one size, `-- cluster-stage` for the stages of a 10k city, e.g.
+//! `-- cluster-stage/yang/hull-merging`).
 
 use std::collections::BTreeMap;
 use std::hint::black_box;
 
-use citywalk_preprocess::cluster::{ClusterParams, build_cluster_tree};
+use std::time::Duration;
+
+use citywalk_preprocess::cluster::leaves::{VertexStore, build_leaves};
+use citywalk_preprocess::cluster::linkage::single_link;
+use citywalk_preprocess::cluster::merge::merge_rings;
+use citywalk_preprocess::cluster::{
+    ClusterParams, assemble_nodes, build_cluster_tree, build_meshes, merge_hulls, simplify_hull,
+};
+use citywalk_scenes::cluster_tree::{ClusterDistance, ClusterStats, HullMerge, HullSimplify};
 use citywalk_scenes::{Building, BuildingId, BuildingPart, City, Frame, HeightSource, LoadReport};
-use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
+use criterion::{BatchSize, BenchmarkId, Criterion, criterion_group, criterion_main};
 use geo::{LineString, MultiPolygon, Polygon};
 
 /// A synthetic city: rows of houses with jittered sizes (a fixed LCG, no randomness crate),
@@ -81,5 +90,119 @@ fn bench(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench);
+/// One stage at a time on a 10k synthetic city, each fed with the previous stages' output
+/// (computed once outside the timing): clustering, hull merging (the recorded merges'
+/// `merge_rings` calls on their simplified children), simplification (of the recorded merged
+/// rings), node data with depth reduction and balancing, and cluster meshes. Yang's and
+/// Chang's parameter sets.
+fn stages(c: &mut Criterion) {
+    let mut group = c.benchmark_group("cluster-stage");
+    group.sample_size(10);
+    group.measurement_time(Duration::from_secs(3));
+    group.warm_up_time(Duration::from_millis(500));
+    let n = 10_000;
+    let (city, blocks) = synthetic_city(n);
+    let chang = ClusterParams {
+        distance: ClusterDistance::ChangSizeWeighted,
+        merge: HullMerge::ChangCases,
+        simplify: HullSimplify::ChangSmallestArea,
+        ..ClusterParams::default()
+    };
+    for (label, params) in [("yang", ClusterParams::default()), ("chang", chang)] {
+        let mut store = VertexStore::default();
+        let leaves = build_leaves(&mut store, &city.buildings);
+        let single = |store: &VertexStore| {
+            single_link(
+                &leaves,
+                &store.verts,
+                &blocks,
+                params.distance,
+                params.adjacency_lambda,
+            )
+            .expect("clustering")
+        };
+        group.bench_function(format!("{label}/clustering"), |b| {
+            b.iter(|| black_box(single(&store).len()))
+        });
+        let merges = single(&store);
+        let mut stats = ClusterStats::default();
+        let hulls = merge_hulls(&mut store, &leaves, &merges, &params, &mut stats, true);
+        // Hull merging: every merge of the tree on its recorded (simplified) children, in a
+        // fresh copy of the vertex array (intersection points found again get their index).
+        let store_after = store.verts.clone();
+        group.bench_function(format!("{label}/hull-merging"), |b| {
+            b.iter_batched(
+                || {
+                    let mut s = VertexStore::default();
+                    for &p in &store_after {
+                        s.intern(p);
+                    }
+                    s
+                },
+                |mut s| {
+                    let mut total = 0usize;
+                    for m in &merges {
+                        let (x, y) = (&hulls.rings[m.a as usize], &hulls.rings[m.b as usize]);
+                        total += merge_rings(&mut s, x, y, params.merge, params.adjacency_lambda)
+                            .ring
+                            .len();
+                    }
+                    black_box(total)
+                },
+                BatchSize::LargeInput,
+            )
+        });
+        let input_edges: usize = leaves.iter().map(|l| l.ring.len()).sum();
+        group.bench_function(format!("{label}/simplification"), |b| {
+            b.iter(|| {
+                let mut total = 0usize;
+                for (ring, child_edges, a_ave) in &hulls.merged {
+                    total += simplify_hull(
+                        &store.verts,
+                        ring,
+                        *child_edges,
+                        input_edges,
+                        *a_ave,
+                        &params,
+                    )
+                    .len();
+                }
+                black_box(total)
+            })
+        });
+        group.bench_function(format!("{label}/node-data-balancing"), |b| {
+            b.iter_batched(
+                || hulls.clone(),
+                |h| {
+                    let (nodes, _) =
+                        assemble_nodes(&city, &blocks, &store.verts, &leaves, &merges, h, &params);
+                    black_box(nodes.len())
+                },
+                BatchSize::LargeInput,
+            )
+        });
+        let (nodes, order) = assemble_nodes(
+            &city,
+            &blocks,
+            &store.verts,
+            &leaves,
+            &merges,
+            hulls.clone(),
+            &params,
+        );
+        group.bench_function(format!("{label}/meshes"), |b| {
+            b.iter_batched(
+                || nodes.clone(),
+                |mut ns| {
+                    build_meshes(&city, &store.verts, &order, &mut ns);
+                    black_box(ns.len())
+                },
+                BatchSize::LargeInput,
+            )
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench, stages);
 criterion_main!(benches);

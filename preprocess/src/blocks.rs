@@ -36,7 +36,7 @@
 use std::collections::{BTreeMap, BTreeSet};
 
 use citywalk_scenes::blocks::{UrbanBlock, UrbanBlocks};
-use citywalk_scenes::{BuildingId, City, Street};
+use citywalk_scenes::{BuildingId, City, Street, StreetClass};
 use geo::{Area, Coord, InteriorPoint, Intersects, LineString, Point, Polygon};
 use rstar::primitives::{GeomWithData, Rectangle};
 use rstar::{AABB, RTree};
@@ -49,6 +49,10 @@ pub struct BlockParams {
     pub snap_tolerance_m: f64,
     /// Side of the grid cells that group buildings outside every street face (metres).
     pub leftover_cell_m: f64,
+    /// Whether pedestrian ways (OSM `highway=pedestrian|footway|path|steps|cycleway`) bound
+    /// blocks too, besides the classes of
+    /// [`StreetClass::bounds_blocks`](citywalk_scenes::StreetClass::bounds_blocks).
+    pub pedestrian_bounds_blocks: bool,
 }
 
 impl Default for BlockParams {
@@ -56,6 +60,7 @@ impl Default for BlockParams {
         BlockParams {
             snap_tolerance_m: 0.01,
             leftover_cell_m: 100.0,
+            pedestrian_bounds_blocks: false,
         }
     }
 }
@@ -203,7 +208,7 @@ pub fn street_faces(
     params: &BlockParams,
     report: &mut BlockReport,
 ) -> Vec<StreetFace> {
-    let segments = block_segments(streets);
+    let segments = block_segments(streets, params.pedestrian_bounds_blocks);
     report.street_segments = segments.len();
     if segments.is_empty() {
         return Vec::new();
@@ -225,10 +230,10 @@ pub fn street_faces(
 type Seg = ([f64; 2], [f64; 2]);
 
 /// Segments of block-bounding streets, finite and of non-zero length.
-fn block_segments(streets: &[Street]) -> Vec<Seg> {
+fn block_segments(streets: &[Street], pedestrian: bool) -> Vec<Seg> {
     streets
         .iter()
-        .filter(|s| s.class.bounds_blocks())
+        .filter(|s| s.class.bounds_blocks() || (pedestrian && s.class == StreetClass::Pedestrian))
         .flat_map(|s| s.line.lines())
         .map(|l| ([l.start.x, l.start.y], [l.end.x, l.end.y]))
         .filter(|(a, b)| a.iter().chain(b).all(|v| v.is_finite() && v.abs() < 1e9) && a != b)
@@ -549,6 +554,29 @@ mod tests {
             blocks.blocks[outside as usize].buildings,
             vec![BuildingId(19)]
         );
+    }
+
+    #[test]
+    fn pedestrian_ways_bound_blocks_only_when_asked() {
+        // The footway at y = 50 runs through the bottom row: with the option, each of its
+        // three blocks splits in two, and the buildings below and above it part.
+        let city = grid_city();
+        let params = BlockParams {
+            pedestrian_bounds_blocks: true,
+            ..BlockParams::default()
+        };
+        let (blocks, report) = build_blocks_with(&city, &params);
+        assert_eq!(blocks.check_invariants(city.buildings.len()), Ok(()));
+        assert_eq!(report.faces, 12, "{report:?}");
+        for k in [0, 3, 6] {
+            assert_ne!(
+                blocks.block_of_building[2 * k],
+                blocks.block_of_building[2 * k + 1],
+                "cell {k}"
+            );
+        }
+        let (default, _) = build_blocks_with(&city, &BlockParams::default());
+        assert_eq!(default.block_of_building[0], default.block_of_building[1]);
     }
 
     #[test]

@@ -9,12 +9,12 @@ use citywalk_preprocess::occluders::quality::{QualityParams, measure_city, summa
 use citywalk_preprocess::occluders::{OccluderParams, build_occluders};
 use citywalk_scenes::{LoadOptions, load_city};
 
-fn check_city(path: &str) {
+fn check_city(path: &str, params: &OccluderParams) {
     let city = load_city(Path::new(path), &LoadOptions::default())
         .unwrap_or_else(|e| panic!("{path}: {e}"));
     assert!(!city.buildings.is_empty(), "{path}: no buildings");
     let start = Instant::now();
-    let set = build_occluders(&city, &OccluderParams::default());
+    let set = build_occluders(&city, params);
     let seconds = start.elapsed().as_secs_f64();
     assert_eq!(set.check_invariants(), Ok(()));
     assert_eq!(set.per_building.len(), city.buildings.len());
@@ -68,18 +68,42 @@ fn check_city(path: &str) {
     eprintln!("reasons: {reasons:?}");
 }
 
+const DEN_HAAG: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../../shared/data/cityjson_denhaag/DenHaag_01.json"
+);
+
 #[test]
 fn den_haag_cityjson_buildings_all_get_occluders_or_reasons() {
-    check_city(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../shared/data/cityjson_denhaag/DenHaag_01.json"
-    ));
+    check_city(DEN_HAAG, &OccluderParams::default());
+}
+
+#[test]
+fn den_haag_with_the_benefit_rule_and_with_wall_selection() {
+    check_city(
+        DEN_HAAG,
+        &OccluderParams {
+            min_silhouette_gain_per_polygon: 0.0,
+            ..OccluderParams::default()
+        },
+    );
+    check_city(
+        DEN_HAAG,
+        &OccluderParams {
+            select_walls: true,
+            min_silhouette_gain_per_polygon: 0.05,
+            ..OccluderParams::default()
+        },
+    );
 }
 
 #[test]
 fn chelsea_osm_buildings_all_get_occluders_or_reasons() {
-    check_city(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../scenes/data/chelsea.osm.pbf"
-    ));
+    check_city(
+        concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../scenes/data/chelsea.osm.pbf"
+        ),
+        &OccluderParams::default(),
+    );
 }

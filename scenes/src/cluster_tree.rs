@@ -98,12 +98,47 @@ impl Default for ClusterParams {
     }
 }
 
+/// Why a hull merge could not use the construction its method and case call for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum MergeFailure {
+    /// Disjoint hulls: no connection-edge pair gave a simple ring containing both.
+    NoValidBridge,
+    /// Touching or overlapping hulls: the trace of the union's outer outline did not close.
+    UnionTraceFailed,
+    /// The union's outer outline is not a simple ring (the hulls touch at isolated points,
+    /// so the outline passes a vertex twice).
+    UnionNotSimple,
+    /// The union's outline does not contain both hulls (rounding of an intersection point).
+    UnionMissesChild,
+    /// Chang's candidate-list heuristic found no valid pair of connection edges (or the lists
+    /// were larger than n×m ≤ 12).
+    HeuristicFailed,
+    /// Chang's full hull search (convex hull, then inverse simplification) could not carve a
+    /// valid ring: the result is the plain convex hull.
+    CarvingFailed,
+}
+
+/// One merge whose first construction failed, and what it fell back to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct MergeFallback {
+    /// Index of the merge in the binary merge order (the merge created binary node n + k).
+    pub merge: u32,
+    /// Why the first construction failed.
+    pub reason: MergeFailure,
+    /// Whether the final ring is the plain convex hull of both hulls (counted in
+    /// [`ClusterStats::merge_fallbacks`]); otherwise Chang's full hull search carved it.
+    pub convex_hull: bool,
+}
+
 /// Counters of the build (how often a fallback was needed, what was reported).
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct ClusterStats {
-    /// Merges whose chosen method did not give a simple polygon containing the children and
-    /// that fell back to the convex hull of the union.
+    /// Merges whose result is the plain convex hull of the union (every construction,
+    /// including Chang's full hull search, failed); each is listed in `merge_fallback_log`.
     pub merge_fallbacks: u32,
+    /// Every merge whose first construction failed, with its reason (Chang's full hull search
+    /// is then used, and the convex hull only if that fails too).
+    pub merge_fallback_log: Vec<MergeFallback>,
     /// Simplifications abandoned (the merged ring kept) because the result was not a simple
     /// ring; growth-only simplification should never need this.
     pub simplify_fallbacks: u32,
@@ -123,6 +158,13 @@ pub struct ClusterNode {
     /// Footprint rings as indices into [`ClusterTree::vertices`]; the outer ring first,
     /// counter-clockwise, not closed (the last index is not a repeat of the first). Cluster
     /// hulls have one ring.
+    ///
+    /// **Holes are filled**: a hull is only the outer ring of its region. Courtyards and the
+    /// enclosed gaps between buildings that a merge closes off (and the holes of a building's
+    /// own footprint, in its leaf ring) are part of the hull. That is conservative for a hull —
+    /// it contains everything below it, and the filled area counts in the negative-space
+    /// errors `delta_a_m2` / `neg_space_box_m`, so the LOD cut refines it when it shows — and
+    /// the cluster mesh is a closed extrusion without inner walls.
     pub footprint: Vec<Vec<u32>>,
     /// Footprint (hull) area in m².
     pub area_m2: f64,

@@ -42,6 +42,28 @@ pub const HZB_BEHIND_W: f32 = 1e-6;
 /// it in the visible direction.
 pub const HZB_ROUNDING_REL: f32 = 2e-6;
 
+/// Texels per side of the fine occlusion test: a box's screen rectangle is tested against the
+/// finest pyramid level at which it spans at most this many texels each way (at most 16 × 16
+/// reads, after a 2 × 2 test at the coarse level has not culled it).
+pub const HZB_FINE_SPAN: u32 = 16;
+
+// ---- Debug views (engine `render::debug`, `wgsl/debug_*.wgsl`). ----
+
+/// Brightness of walls (against roofs at 1) in the cluster and occluder debug views.
+pub const DEBUG_WALL_SHADE: f32 = 0.7;
+
+/// Linear grey of the ground in the cluster debug view.
+pub const DEBUG_GROUND_GREY: f32 = 0.12;
+
+/// Linear RGB of an occluder in the occluder debug view (blue).
+pub const DEBUG_OCCLUDER_RGB: [f32; 3] = [0.15, 0.45, 1.0];
+
+/// Linear RGB of an occluder the frame's pre-pass selected (orange).
+pub const DEBUG_OCCLUDER_SELECTED_RGB: [f32; 3] = [1.0, 0.45, 0.05];
+
+/// Opacity of the occluders blended over the frame.
+pub const DEBUG_OCCLUDER_ALPHA: f32 = 0.6;
+
 /// Every `u32` constant emitted into WGSL, by name.
 pub const WGSL_U32: &[(&str, u32)] = &[
     ("GROUND_ID", GROUND_ID),
@@ -52,6 +74,7 @@ pub const WGSL_U32: &[(&str, u32)] = &[
     ("CULL_VISIBLE", CULL_VISIBLE),
     ("CULL_FRUSTUM_OUTSIDE", CULL_FRUSTUM_OUTSIDE),
     ("CULL_OCCLUDED", CULL_OCCLUDED),
+    ("HZB_FINE_SPAN", HZB_FINE_SPAN),
 ];
 
 /// Every `f32` constant emitted into WGSL, by name.
@@ -59,4 +82,13 @@ pub const WGSL_F32: &[(&str, f32)] = &[
     ("AMBIENT", AMBIENT),
     ("HZB_BEHIND_W", HZB_BEHIND_W),
     ("HZB_ROUNDING_REL", HZB_ROUNDING_REL),
+    ("DEBUG_WALL_SHADE", DEBUG_WALL_SHADE),
+    ("DEBUG_GROUND_GREY", DEBUG_GROUND_GREY),
+    ("DEBUG_OCCLUDER_R", DEBUG_OCCLUDER_RGB[0]),
+    ("DEBUG_OCCLUDER_G", DEBUG_OCCLUDER_RGB[1]),
+    ("DEBUG_OCCLUDER_B", DEBUG_OCCLUDER_RGB[2]),
+    ("DEBUG_OCCLUDER_SELECTED_R", DEBUG_OCCLUDER_SELECTED_RGB[0]),
+    ("DEBUG_OCCLUDER_SELECTED_G", DEBUG_OCCLUDER_SELECTED_RGB[1]),
+    ("DEBUG_OCCLUDER_SELECTED_B", DEBUG_OCCLUDER_SELECTED_RGB[2]),
+    ("DEBUG_OCCLUDER_ALPHA", DEBUG_OCCLUDER_ALPHA),
 ];

@@ -9,10 +9,12 @@ pub mod constants {
     include!("constants.rs");
 }
 
+mod debug;
 mod hzb;
 mod types;
 
 pub use constants::{GROUND_ID, ID_BACKGROUND, ID_OFFSET};
+pub use debug::PyramidViewParams;
 pub use hzb::HzbCullParams;
 pub use types::{BuildingRecord, DrawIndexedIndirectArgs, SceneVertex, ViewUniforms};
 
@@ -41,6 +43,21 @@ pub const HZB_CULL_WGSL: &str = include_str!(concat!(env!("OUT_DIR"), "/hzb_cull
 /// unfilterable `texture_2d<f32>`.
 pub const DEPTH_COPY_WGSL: &str = include_str!(concat!(env!("OUT_DIR"), "/depth_copy.wgsl"));
 
+/// Pyramid debug view (`wgsl/debug_pyramid.wgsl`): entry points `vs_main` (fullscreen
+/// triangle, no buffers) and `fs_main`; group 0: binding 0 the [`PyramidViewParams`] uniform,
+/// binding 1 one mip of the pyramid (unfilterable `texture_2d<f32>`).
+pub const DEBUG_PYRAMID_WGSL: &str = include_str!(concat!(env!("OUT_DIR"), "/debug_pyramid.wgsl"));
+
+/// Cluster-colour debug view (`wgsl/debug_clusters.wgsl`): like [`SCENE_WGSL`] (group 0
+/// binding 0 the [`ViewUniforms`], vertex buffer of [`SceneVertex`]) with a colour per draw id.
+pub const DEBUG_CLUSTERS_WGSL: &str =
+    include_str!(concat!(env!("OUT_DIR"), "/debug_clusters.wgsl"));
+
+/// Occluder debug view (`wgsl/debug_occluders.wgsl`): like [`SCENE_WGSL`]; the instance index
+/// picks the colour (0 an occluder, 1 a selected one); alpha-blended.
+pub const DEBUG_OCCLUDERS_WGSL: &str =
+    include_str!(concat!(env!("OUT_DIR"), "/debug_occluders.wgsl"));
+
 /// Every composed shader by file name, for tests that validate or inspect them all.
 pub const ALL_WGSL: &[(&str, &str)] = &[
     ("scene.wgsl", SCENE_WGSL),
@@ -48,4 +65,7 @@ pub const ALL_WGSL: &[(&str, &str)] = &[
     ("hzb_build.wgsl", HZB_BUILD_WGSL),
     ("hzb_cull.wgsl", HZB_CULL_WGSL),
     ("depth_copy.wgsl", DEPTH_COPY_WGSL),
+    ("debug_pyramid.wgsl", DEBUG_PYRAMID_WGSL),
+    ("debug_clusters.wgsl", DEBUG_CLUSTERS_WGSL),
+    ("debug_occluders.wgsl", DEBUG_OCCLUDERS_WGSL),
 ];

@@ -1,5 +1,7 @@
 // Hierarchical-Z occlusion cull (engine `hzb::cull`), the GPU twin of `hzb::reference`'s
-// `project_box`, `select_level` and `DepthPyramid::is_occluded`, one invocation per box.
+// `project_box` (frustum planes by corner outcodes, screen rectangle, nearest depth) and
+// `DepthPyramid::is_occluded` (a 2x2 read at the coarse level as a shortcut, then at most
+// HZB_FINE_SPAN x HZB_FINE_SPAN texels at the fine level), one invocation per box.
 //
 // Each box is a `BuildingRecord` (bounds and index range). Its status is written as CULL_VISIBLE,
 // CULL_FRUSTUM_OUTSIDE or CULL_OCCLUDED; every visible box appends its DrawIndexedIndirectArgs
@@ -9,12 +11,12 @@
 // (FMA, reciprocal). Every comparison is widened in the visible direction by a bound on that
 // difference (HZB_ROUNDING_REL times the magnitude of the terms), so the GPU never culls a box
 // the CPU reference keeps: its rectangle contains the reference's, its nearest depth is not
-// smaller, and a larger rectangle reads a superset of the reference's pixels (pyramid texels are
-// nested), so its farthest depth is not larger.
+// smaller, and a larger rectangle reads a superset of the reference's pixels at a level as
+// coarse or coarser (pyramid texels are nested), so its farthest depth is not larger.
 //
 // llvmpipe trap 1 (shared/GPU-NOTES.md): a mip level that varies per invocation returned another
 // level's data. The pyramid is read in a loop over levels with a uniform counter, and only when
-// the counter equals this box's level. Levels are i32 (GL trap 3).
+// the counter equals one of this box's two levels. Levels are i32 (GL trap 3).
 
 // Rust twin: citywalk_shaders::HzbCullParams.
 struct HzbCullParams {
@@ -55,6 +57,9 @@ fn project(lo: vec3<f32>, hi: vec3<f32>) -> Projection {
     var nearest = 0.0;
     var all_behind = true;
     var crosses_near = false;
+    // Frustum planes every corner surely lies beyond (reference `outcode`): right, left, top,
+    // bottom, near; each test is widened by the rounding of both coordinates it compares.
+    var beyond_all = 31u;
     for (var i = 0u; i < 8u; i++) {
         let corner = vec3<f32>(
             select(lo.x, hi.x, (i & 1u) != 0u),
@@ -63,6 +68,12 @@ fn project(lo: vec3<f32>, hi: vec3<f32>) -> Projection {
         );
         let clip = m * vec4<f32>(corner, 1.0);
         let err = (m_abs * vec4<f32>(abs(corner), 1.0)) * HZB_ROUNDING_REL;
+        let beyond = select(0u, 1u, clip.x > clip.w + (err.x + err.w))
+            | select(0u, 2u, clip.x < -clip.w - (err.x + err.w))
+            | select(0u, 4u, clip.y > clip.w + (err.y + err.w))
+            | select(0u, 8u, clip.y < -clip.w - (err.y + err.w))
+            | select(0u, 16u, clip.z > clip.w + (err.z + err.w));
+        beyond_all &= beyond;
         // Surely behind the eye only if behind with any rounding.
         if clip.w > HZB_BEHIND_W - err.w {
             all_behind = false;
@@ -78,7 +89,7 @@ fn project(lo: vec3<f32>, hi: vec3<f32>) -> Projection {
         ndc_max = max(ndc_max, ndc.xy + ndc_err.xy);
         nearest = max(nearest, ndc.z + ndc_err.z);
     }
-    if all_behind {
+    if all_behind || beyond_all != 0u {
         out.status = CULL_FRUSTUM_OUTSIDE;
         return out;
     }
@@ -108,11 +119,11 @@ fn project(lo: vec3<f32>, hi: vec3<f32>) -> Projection {
     return out;
 }
 
-// The finest level at which the rectangle spans at most two texels each way (reference
-// `select_level`: ceil, never floor).
-fn select_level(rect: vec4<u32>) -> u32 {
+// The finest level at which the rectangle touches at most `span` texels each way (reference
+// `level_spanning`): 2 for the coarse level (ceil, never floor), HZB_FINE_SPAN for the fine one.
+fn level_spanning(rect: vec4<u32>, span: u32) -> u32 {
     var level = 0u;
-    while ((rect.z >> level) - (rect.x >> level) > 1u || (rect.w >> level) - (rect.y >> level) > 1u) {
+    while (level < 31u && ((rect.z >> level) - (rect.x >> level) >= span || (rect.w >> level) - (rect.y >> level) >= span)) {
         level += 1u;
     }
     return level;
@@ -124,29 +135,61 @@ fn cull(@builtin(global_invocation_id) id: vec3<u32>) {
     let in_range = index < params.box_count;
     let record = records[min(index, max(params.box_count, 1u) - 1u)];
     var p = project(record.bounds_min_m, record.bounds_max_m);
-    var wanted = -1;
+    var coarse = -1;
+    var fine = -1;
     if in_range && p.has_rect {
-        wanted = i32(min(select_level(p.rect), params.level_count - 1u));
+        coarse = i32(min(level_spanning(p.rect, 2u), params.level_count - 1u));
+        fine = i32(min(level_spanning(p.rect, HZB_FINE_SPAN), params.level_count - 1u));
     }
-    // Uniform loop over levels; each invocation reads only at its own level (trap 1).
-    var farthest = 3.4e38;
-    for (var level = 0; level < i32(params.level_count); level++) {
-        if level == wanted {
-            // The level's logical region (the texture is padded to powers of two).
-            let last = (params.viewport_px - 1u) >> vec2<u32>(u32(level));
-            let lo = min(p.rect.xy >> vec2<u32>(u32(level)), last);
-            let hi = min(p.rect.zw >> vec2<u32>(u32(level)), last);
-            for (var y = lo.y; y <= hi.y; y++) {
-                for (var x = lo.x; x <= hi.x; x++) {
-                    farthest = min(farthest, textureLoad(hzb, vec2<i32>(i32(x), i32(y)), level).r);
+    // Uniform loop over levels, coarse to fine; each invocation reads only at the counter's
+    // level (trap 1). The coarse 2x2 read culls most hidden boxes; a box it keeps is decided by
+    // the fine read, which skips the fine texels under coarse texels that hide the box and stops
+    // at the first texel not in front of it (visible). Texels are nested (a texel is the
+    // minimum of its descendants), so the answer is the fine level's alone: the reference's
+    // `is_occluded`.
+    var occluded = false;
+    var decided = false;
+    // Coarse texels (2x2, bit (y - y0) * 2 + (x - x0)) that do not hide the box: only the fine
+    // texels under them are read (the others are hidden by their coarse ancestor already).
+    var open_mask = 0u;
+    var coarse_origin = vec2<u32>(0u);
+    for (var level = i32(params.level_count) - 1; level >= 0; level--) {
+        if level == coarse && !decided {
+            let texels = covering_texels(p.rect, level);
+            coarse_origin = texels.xy;
+            for (var y = texels.y; y <= texels.w; y++) {
+                for (var x = texels.x; x <= texels.z; x++) {
+                    if textureLoad(hzb, vec2<i32>(i32(x), i32(y)), level).r <= p.nearest_depth {
+                        open_mask |= 1u << ((y - texels.y) * 2u + (x - texels.x));
+                    }
                 }
             }
+            // Hidden by the coarse texels, or the coarse level is the fine one: decided.
+            occluded = open_mask == 0u;
+            decided = occluded || coarse == fine;
+        }
+        if level == fine && !decided {
+            let texels = covering_texels(p.rect, level);
+            let shift = u32(coarse - level);
+            occluded = true;
+            for (var y = texels.y; y <= texels.w && occluded; y++) {
+                let row = ((y >> shift) - coarse_origin.y) * 2u;
+                for (var x = texels.x; x <= texels.z; x++) {
+                    let bit = 1u << (row + (x >> shift) - coarse_origin.x);
+                    if (open_mask & bit) != 0u
+                        && textureLoad(hzb, vec2<i32>(i32(x), i32(y)), level).r <= p.nearest_depth {
+                        occluded = false;
+                        break;
+                    }
+                }
+            }
+            decided = true;
         }
     }
     if !in_range {
         return;
     }
-    if p.has_rect && p.nearest_depth < farthest {
+    if p.has_rect && occluded {
         p.status = CULL_OCCLUDED;
     }
     status[index] = p.status;
@@ -154,4 +197,13 @@ fn cull(@builtin(global_invocation_id) id: vec3<u32>) {
         let slot = atomicAdd(&draw_count, 1u);
         commands[slot] = DrawIndexedIndirectArgs(record.index_count, 1u, record.first_index, record.base_vertex, 0u);
     }
+}
+
+// The texels of `level` covering `rect` (x0, y0, x1, y1, inclusive), inside the level's logical
+// region (the texture is padded to powers of two).
+fn covering_texels(rect: vec4<u32>, level: i32) -> vec4<u32> {
+    let last = (params.viewport_px - 1u) >> vec2<u32>(u32(level));
+    let lo = min(rect.xy >> vec2<u32>(u32(level)), last);
+    let hi = min(rect.zw >> vec2<u32>(u32(level)), last);
+    return vec4<u32>(lo, hi);
 }

@@ -165,14 +165,26 @@ fn oracle_counts_match_the_id_image_and_a_dropped_building_is_caught() {
             "false_culls",
             "visible_mean",
             "drawn_mean",
+            "clusters_mean",
             "culled_fraction_mean",
             "triangles_mean",
             "draw_calls_mean",
             "frame_ms_median",
             "speedup_vs_brute",
             "pixel_error_mean",
+            "gpu_ms_median",
+            "gpu_phase_ms_median",
         ] {
             assert!(e.get(key).is_some(), "missing {key}");
+        }
+        // GPU time of the scene pass where the adapter has timestamp queries, null otherwise.
+        if gpu.has(wgpu::Features::TIMESTAMP_QUERY) {
+            let total = e["gpu_ms_median"].as_f64().expect("gpu_ms_median");
+            let draw = e["gpu_phase_ms_median"]["draw"].as_f64().expect("draw");
+            assert!(total.is_finite() && total >= 0.0 && total == draw, "{e}");
+        } else {
+            assert!(e["gpu_ms_median"].is_null(), "{e}");
+            assert_eq!(e["gpu_phase_ms_median"], serde_json::json!({}));
         }
     }
 }

@@ -8,7 +8,7 @@
 use citywalk_engine::camera::Camera;
 use citywalk_engine::gpu::GpuContext;
 use citywalk_engine::hzb::cull::{CULL_FRUSTUM_OUTSIDE, CULL_OCCLUDED, CULL_VISIBLE};
-use citywalk_engine::hzb::reference::{BoxProjection, DepthPyramid, project_box};
+use citywalk_engine::hzb::reference::{BoxProjection, DepthPyramid, project_box, select_level};
 use citywalk_engine::hzb::{HzbCull, HzbPyramid};
 use citywalk_shaders::{BuildingRecord, DrawIndexedIndirectArgs};
 use citywalk_tests::gpu::gpu_or_skip;
@@ -469,6 +469,9 @@ fn gpu_cull_matches_reference_and_never_culls_more() {
     let mut cull = HzbCull::new(&gpu, 1024);
     let (mut total, mut agree) = (0usize, 0usize);
     let mut cpu_counts = [0usize; 3];
+    // Boxes a 2x2 test at the coarse level alone would keep and the fine test culls, and how
+    // many of them the GPU culls too.
+    let (mut fine_only, mut fine_only_gpu) = (0usize, 0usize);
     for (c, camera) in cameras.iter().enumerate() {
         let (w, h) = if c == 1 { (1001, 777) } else { (1280, 720) };
         let depth = walls_depth(&mut rng, camera, w, h);
@@ -515,6 +518,16 @@ fn gpu_cull_matches_reference_and_never_culls_more() {
             );
             total += 1;
             agree += usize::from(g == cpu);
+            if let BoxProjection::Rect {
+                rect,
+                nearest_depth,
+            } = project_box(vp, *lo, *hi, w, h)
+                && cpu == CULL_OCCLUDED
+                && nearest_depth >= cpu_pyramid.farthest_in(rect, select_level(rect))
+            {
+                fine_only += 1;
+                fine_only_gpu += usize::from(g == CULL_OCCLUDED);
+            }
         }
         // The commands are exactly the GPU-visible boxes' draws.
         let mut expected: Vec<_> = records
@@ -529,8 +542,15 @@ fn gpu_cull_matches_reference_and_never_culls_more() {
         assert_eq!(written, expected, "camera {c}: indirect commands");
     }
     eprintln!(
-        "{agree} of {total} boxes agree; CPU: {} visible, {} outside, {} occluded",
+        "{agree} of {total} boxes agree; CPU: {} visible, {} outside, {} occluded \
+         ({fine_only} only by the fine level, {fine_only_gpu} of them culled by the GPU)",
         cpu_counts[0], cpu_counts[1], cpu_counts[2]
+    );
+    // The fine level is exercised, and the GPU really reads it (not only the coarse texels).
+    assert!(fine_only * 100 > total, "only {fine_only} fine-level culls");
+    assert!(
+        fine_only_gpu as f64 >= 0.99 * fine_only as f64,
+        "the GPU culls only {fine_only_gpu} of the {fine_only} boxes only the fine level hides"
     );
     // Every outcome is exercised.
     for (s, n) in cpu_counts.iter().enumerate() {
@@ -539,6 +559,118 @@ fn gpu_cull_matches_reference_and_never_culls_more() {
     assert!(
         agree as f64 >= 0.999 * total as f64,
         "only {agree} of {total} boxes agree"
+    );
+}
+
+/// Buildings beside and behind a pedestrian: boxes that cross the eye plane. Those wholly
+/// beyond a side of the view are frustum-culled by the CPU reference and the GPU alike (they
+/// used to be kept as "unbounded"); those partly in view are kept by both; the GPU follows the
+/// reference with the usual rule (never culls what it keeps). Viewport 1366 × 768.
+#[test]
+fn gpu_culls_boxes_crossing_the_eye_plane_outside_the_view() {
+    let Some(gpu) = gpu_or_skip("gpu_culls_boxes_crossing_the_eye_plane_outside_the_view") else {
+        return;
+    };
+    let mut rng = Rng(0x00e7_e001);
+    let (w, h) = (1366, 768);
+    let camera = Camera::new(Vec3::new(3.0, -2.0, 1.7), 0.7, 0.1);
+    let forward = camera.forward();
+    let right = camera.right();
+    // A near wall straight ahead on the right half of the screen, sky elsewhere.
+    let depth: Vec<f32> = (0..w * h)
+        .map(|i| {
+            if i % w > w / 2 {
+                camera.near_m / 6.0
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let (pyramid, _) = gpu_pyramid(&gpu, w, h, &depth);
+    let cpu_pyramid = DepthPyramid::build(w, h, &depth);
+    let vp = camera.view_proj(w as f32 / h as f32);
+    // Boxes from 1-30 m behind the eye to 1-30 m ahead, 1-60 m to either side.
+    let boxes: Vec<(Vec3, Vec3)> = (0..3000)
+        .map(|_| {
+            let side = if rng.unit() < 0.5 { -1.0 } else { 1.0 };
+            let a = camera.position - forward * rng.range(1.0, 30.0)
+                + right * side * rng.range(1.0, 60.0);
+            let b = camera.position
+                + forward * rng.range(1.0, 30.0)
+                + right * side * rng.range(1.0, 60.0);
+            let z = Vec3::new(0.0, 0.0, rng.range(3.0, 80.0));
+            let lo = a.min(b) - Vec3::new(0.0, 0.0, a.z);
+            (lo, a.max(b) + z)
+        })
+        .collect();
+    let records = records_for(&boxes);
+    let records_buffer = gpu
+        .device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("test records"),
+            contents: bytemuck::cast_slice(&records),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
+    let mut cull = HzbCull::new(&gpu, 64);
+    let mut encoder = gpu
+        .device
+        .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+    cull.encode(
+        &gpu,
+        &mut encoder,
+        &records_buffer,
+        records.len() as u32,
+        &pyramid,
+        vp,
+    )
+    .expect("cull");
+    gpu.queue.submit([encoder.finish()]);
+    let results = cull
+        .read_back(&gpu, records.len() as u32)
+        .expect("cull readback");
+    let (mut crossing, mut outside, mut outside_gpu, mut kept) = (0, 0, 0, 0);
+    for (i, ((lo, hi), &g)) in boxes.iter().zip(&results.status).enumerate() {
+        let projection = project_box(vp, *lo, *hi, w, h);
+        let cpu = cpu_status(&cpu_pyramid, vp, *lo, *hi, w, h);
+        assert!(
+            g == cpu || g == CULL_VISIBLE,
+            "box {i} [{lo}, {hi}]: GPU {g}, CPU {cpu} ({projection:?})"
+        );
+        // Crossing the eye plane: some corner behind the eye, some in front.
+        let depths: Vec<f32> = (0..8)
+            .map(|k| {
+                let corner = Vec3::new(
+                    if k & 1 == 0 { lo.x } else { hi.x },
+                    if k & 2 == 0 { lo.y } else { hi.y },
+                    if k & 4 == 0 { lo.z } else { hi.z },
+                );
+                (corner - camera.position).dot(forward)
+            })
+            .collect();
+        if depths.iter().any(|&d| d < 0.0) && depths.iter().any(|&d| d > 1.0) {
+            crossing += 1;
+            match projection {
+                BoxProjection::Outside => {
+                    outside += 1;
+                    outside_gpu += usize::from(g == CULL_FRUSTUM_OUTSIDE);
+                }
+                BoxProjection::CrossesNear => kept += 1,
+                BoxProjection::Rect { .. } => {}
+            }
+        }
+    }
+    eprintln!(
+        "{crossing} boxes cross the eye plane: {outside} outside the view ({outside_gpu} culled \
+         by the GPU), {kept} kept"
+    );
+    assert!(crossing > 2000, "only {crossing} crossing boxes");
+    assert!(
+        outside > 200 && kept > 200,
+        "{outside} outside, {kept} kept"
+    );
+    assert!(
+        outside_gpu as f64 >= 0.99 * outside as f64,
+        "the GPU culls {outside_gpu} of {outside}"
     );
 }
 

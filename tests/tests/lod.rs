@@ -442,3 +442,48 @@ fn landmarks_are_drawn_beside_their_clusters_under_tau() {
     assert!(dropped.landmarks.is_empty());
     assert_eq!(dropped.clusters, kept.clusters);
 }
+
+/// The records the combined frame culls clusters by hold every building under the cluster (a
+/// cluster mesh stops at the mean height, below its tallest buildings) and draw its mesh.
+#[test]
+fn cluster_cull_records_contain_their_buildings() {
+    let (city, tree) = city_and_tree();
+    let geometry = citywalk_engine::lod::scene::lod_geometry(city, tree);
+    let n = city.buildings.len() as u32;
+    let records = citywalk_engine::lod::scene::cull_records(&geometry.records, n, tree);
+    assert_eq!(records.len(), geometry.records.len());
+    assert_eq!(records[..n as usize], geometry.records[..n as usize]);
+    let mut grown = 0;
+    for (i, node) in tree.nodes.iter().enumerate() {
+        let r = &records[n as usize + i];
+        let mesh = &geometry.records[n as usize + i];
+        assert_eq!(
+            (r.first_index, r.index_count, r.base_vertex),
+            (mesh.first_index, mesh.index_count, mesh.base_vertex),
+            "node {i}: the draw is the cluster mesh's"
+        );
+        let (lo, hi) = (
+            Vec3::from_array(r.bounds_min_m),
+            Vec3::from_array(r.bounds_max_m),
+        );
+        let contains = |a: [f32; 3], b: [f32; 3]| {
+            lo.cmple(Vec3::from_array(a)).all() && Vec3::from_array(b).cmple(hi).all()
+        };
+        assert!(contains(node.bounds_min, node.bounds_max), "node {i}");
+        assert!(contains(mesh.bounds_min_m, mesh.bounds_max_m), "node {i}");
+        let (s, e) = node.buildings;
+        for b in &tree.building_order[s as usize..e as usize] {
+            let br = &geometry.records[b.index()];
+            assert!(
+                contains(br.bounds_min_m, br.bounds_max_m),
+                "node {i}, building {}",
+                b.0
+            );
+        }
+        if r.bounds_max_m[2] > mesh.bounds_max_m[2] {
+            grown += 1;
+        }
+    }
+    // Cluster meshes at the mean height are lower than their tallest building somewhere.
+    assert!(grown > 0, "no cluster box had to grow above its mesh");
+}

@@ -2,10 +2,15 @@
 //! building with a visible pixel is drawn in the same frame, with and without the virtual
 //! occluder pre-pass, over random street-level and aerial cameras, after a fast turn, at odd
 //! viewport sizes, and with boxes crossing the near plane; and at street level most of the city
-//! is culled.
+//! is culled. The combined frame (B-Quadtree + LOD cut + HiZ + occluders,
+//! `CullingRenderer::render_lod`) is held to the same oracle: every visible building drawn
+//! itself or through a drawn cluster that contains it, also while the cut changes from frame to
+//! frame. Scenes: a generated city, Chelsea (OSM) and Den Haag (CityJSON LoD2 meshes).
 
 use std::path::PathBuf;
+use std::sync::OnceLock;
 
+use citywalk_engine::bench::mode::visible_blocks;
 use citywalk_engine::bench::pixel_error::pixel_error;
 use citywalk_engine::bench::{BenchConfig, BenchError, BenchRenderers, BenchScene, Mode, run_path};
 use citywalk_engine::camera::Camera;
@@ -14,14 +19,17 @@ use citywalk_engine::frame::{
 };
 use citywalk_engine::gpu::GpuContext;
 use citywalk_engine::hzb::cull::CULL_VISIBLE;
+use citywalk_engine::lod::LodCriterion;
+use citywalk_engine::lod::scene::{LodFrame, LodScene};
 use citywalk_engine::oracle::Oracle;
 use citywalk_engine::render::BruteRenderer;
 use citywalk_engine::render::targets::OffscreenTarget;
 use citywalk_engine::scene_gpu::SceneGpu;
 use citywalk_preprocess::pipeline::{NoProgress, PreprocessParams, preprocess};
 use citywalk_scenes::City;
-use citywalk_scenes::camera_path::street_walk;
+use citywalk_scenes::camera_path::{flyover, street_walk};
 use citywalk_scenes::generate::{GenerateParams, generate_city};
+use citywalk_scenes::package::ScenePackage;
 use citywalk_scenes::{BuildingId, LoadOptions, load_cities};
 use citywalk_tests::gpu::gpu_or_skip;
 use glam::Vec3;
@@ -29,6 +37,10 @@ use glam::Vec3;
 const CHELSEA: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
     "/../scenes/data/chelsea.osm.pbf"
+);
+const DEN_HAAG: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../../shared/data/cityjson_denhaag/DenHaag_01.json"
 );
 
 /// SplitMix64: a small fixed-seed generator for cameras.
@@ -50,46 +62,94 @@ impl Rng {
     }
 }
 
-/// A scene with its occluders on the GPU.
+/// A scene with its occluders, LOD scene and culling structures on the GPU.
 struct TestScene {
     name: &'static str,
     city: City,
     scene: SceneGpu,
     occluders: OccluderMeshes,
+    lod: LodScene,
+    package: &'static ScenePackage,
 }
 
-fn prepare(gpu: &GpuContext, name: &'static str, city: City) -> TestScene {
-    let package = preprocess(city, &PreprocessParams::default(), &NoProgress).expect("preprocess");
+fn prepare(gpu: &GpuContext, name: &'static str, package: &'static ScenePackage) -> TestScene {
     let occluders = package.occluders.as_ref().expect("occluders");
     assert!(!occluders.occluders.is_empty(), "{name}: no occluders");
+    let tree = package.cluster_tree.clone().expect("cluster tree");
     let city = package.city();
     TestScene {
         name,
         scene: SceneGpu::upload_city(gpu, &city),
         occluders: OccluderMeshes::upload(gpu, occluders),
+        lod: LodScene::upload(gpu, &city, tree),
         city,
+        package,
     }
 }
 
+/// Loads and preprocesses a scene once per test binary (tests share the CPU work).
+fn preprocessed(
+    cell: &'static OnceLock<ScenePackage>,
+    load: fn() -> City,
+) -> &'static ScenePackage {
+    cell.get_or_init(|| {
+        preprocess(load(), &PreprocessParams::default(), &NoProgress).expect("preprocess")
+    })
+}
+
 fn generated(gpu: &GpuContext) -> TestScene {
-    let city = generate_city(&GenerateParams::new(1500, 11)).expect("generate");
-    prepare(gpu, "generated-1500", city)
+    static CELL: OnceLock<ScenePackage> = OnceLock::new();
+    let package = preprocessed(&CELL, || {
+        generate_city(&GenerateParams::new(1500, 11)).expect("generate")
+    });
+    prepare(gpu, "generated-1500", package)
 }
 
 fn chelsea(gpu: &GpuContext) -> TestScene {
-    let city =
-        load_cities(&[PathBuf::from(CHELSEA)], &LoadOptions::default()).expect("load Chelsea");
-    prepare(gpu, "chelsea", city)
+    static CELL: OnceLock<ScenePackage> = OnceLock::new();
+    let package = preprocessed(&CELL, || {
+        load_cities(&[PathBuf::from(CHELSEA)], &LoadOptions::default()).expect("load Chelsea")
+    });
+    prepare(gpu, "chelsea", package)
 }
 
-/// A point on a random street, 1.7 m above the ground, looking along a random heading.
+fn den_haag(gpu: &GpuContext) -> TestScene {
+    static CELL: OnceLock<ScenePackage> = OnceLock::new();
+    let package = preprocessed(&CELL, || {
+        load_cities(&[PathBuf::from(DEN_HAAG)], &LoadOptions::default()).expect("load Den Haag")
+    });
+    prepare(gpu, "den-haag", package)
+}
+
+/// A point on a random street, 1.7 m above the ground, looking along a random heading. A city
+/// without streets (Den Haag's CityJSON) gets a random pose of its generated street-level walk
+/// (a line through free space) with a random heading.
 fn street_camera(rng: &mut Rng, city: &City) -> Camera {
     let streets: Vec<_> = city
         .streets
         .iter()
         .filter(|s| s.line.0.len() >= 2)
         .collect();
-    assert!(!streets.is_empty(), "the city has no streets");
+    if streets.is_empty() {
+        let walk = street_walk(city, 64);
+        let pose = walk.poses[rng.next_u64() as usize % walk.poses.len()];
+        // CityJSON keeps absolute heights (Den Haag's bases stand 3 m and more above NAP 0): the
+        // eye stands 1.7 m above the lowest building base rather than above z = 0.
+        let ground_m = city
+            .buildings
+            .iter()
+            .map(|b| b.bounds().0.z)
+            .fold(f32::INFINITY, f32::min);
+        let mut position = pose.position;
+        if ground_m.is_finite() {
+            position.z = ground_m + 1.7;
+        }
+        return Camera::new(
+            position,
+            rng.range(0.0, std::f32::consts::TAU),
+            rng.range(-0.1, 0.25),
+        );
+    }
     let street = streets[rng.next_u64() as usize % streets.len()];
     let segment = rng.next_u64() as usize % (street.line.0.len() - 1);
     let (a, b) = (street.line.0[segment], street.line.0[segment + 1]);
@@ -241,6 +301,207 @@ impl Harness {
     }
 }
 
+/// What one combined frame showed about the LOD side.
+#[derive(Debug, Default, Clone, Copy)]
+struct LodCounts {
+    /// Oracle-visible buildings.
+    visible: usize,
+    /// Oracle-visible buildings drawn only through a drawn cluster (not themselves).
+    visible_through_clusters: usize,
+    clusters_drawn: u32,
+    occlusion_culled: u32,
+    early_drawn: u32,
+}
+
+impl Harness {
+    /// The LOD cut of `camera` under `criterion` (`None`: the scene's altitude preset) after
+    /// B-Quadtree culling, as the `all` mode makes it.
+    fn cut(
+        scene: &TestScene,
+        criterion: Option<LodCriterion>,
+        camera: &Camera,
+        (w, h): (u32, u32),
+    ) -> LodFrame {
+        let blocks = visible_blocks(
+            &scene.package.quadtree,
+            scene.package.blocks.blocks.len(),
+            camera,
+            w,
+            h,
+        );
+        let criterion = criterion.unwrap_or_else(|| scene.lod.default_criterion(camera));
+        scene.lod.select(camera, w, h, criterion, Some(&blocks))
+    }
+
+    /// Renders the combined frame (LOD cut + HiZ + occluders) of `camera` and asserts that every
+    /// oracle-visible building is drawn itself or through a drawn cluster containing it, that
+    /// the next frame's visibility holds it, and that the counts add up.
+    fn check_lod(
+        &mut self,
+        scene: &TestScene,
+        criterion: Option<LodCriterion>,
+        visibility: &mut Visibility,
+        camera: &Camera,
+        size: (u32, u32),
+    ) -> (FrameOutput, LodFrame, LodCounts) {
+        let (w, h) = size;
+        let cut = Self::cut(scene, criterion, camera, size);
+        let options = CullingOptions {
+            occluders: true,
+            ..CullingOptions::default()
+        };
+        let target =
+            OffscreenTarget::new(&self.gpu, w, h, BruteRenderer::PNG_FORMAT).expect("target");
+        let out = self
+            .renderer
+            .render_lod(
+                &self.gpu,
+                &scene.lod,
+                &cut,
+                Some(&scene.occluders),
+                &options,
+                visibility,
+                camera,
+                &target.colour_view,
+                size,
+            )
+            .expect("combined frame");
+        let visible = self
+            .oracle
+            .visible_set(&self.gpu, &scene.scene, camera, w, h)
+            .expect("oracle");
+        let missing: Vec<u32> = visible
+            .visible
+            .iter()
+            .map(|b| b.0)
+            .filter(|b| out.drawn.binary_search(b).is_err())
+            .collect();
+        assert!(
+            missing.is_empty(),
+            "{}, combined {criterion:?}, {w}x{h}, camera {}: visible buildings {missing:?} not \
+             drawn, neither themselves nor through a cluster (pixels {:?}, status {:?}, in the \
+             cut {:?})",
+            scene.name,
+            camera.to_arg_string(),
+            missing
+                .iter()
+                .map(|&b| visible.pixel_counts[b as usize])
+                .collect::<Vec<_>>(),
+            missing
+                .iter()
+                .map(|&b| out.status[b as usize])
+                .collect::<Vec<_>>(),
+            missing
+                .iter()
+                .map(|b| cut.covered.binary_search(b).is_ok())
+                .collect::<Vec<_>>(),
+        );
+        // Whatever was seen is early next frame, whichever cut comes next.
+        let forgotten: Vec<u32> = visible
+            .visible
+            .iter()
+            .map(|b| b.0)
+            .filter(|&b| !visibility.is_visible(b))
+            .collect();
+        assert!(
+            forgotten.is_empty(),
+            "{}: visible buildings {forgotten:?} not kept for the next frame",
+            scene.name
+        );
+        // Drawn only from the cut; the counts add up.
+        assert!(
+            out.drawn
+                .iter()
+                .all(|b| cut.covered.binary_search(b).is_ok())
+        );
+        let st = &out.stats;
+        assert_eq!(st.candidates as usize, cut.draw_ids.len());
+        assert_eq!(
+            st.frustum_culled + st.occlusion_culled + st.cull_kept,
+            st.candidates
+        );
+        assert_eq!(st.drawn as usize, out.drawn.len());
+        assert_eq!(st.clusters_drawn as usize, out.clusters.len());
+        assert!(
+            out.clusters
+                .iter()
+                .all(|c| cut.cut.clusters.binary_search(c).is_ok())
+        );
+        assert!(st.buildings_through_clusters <= st.drawn);
+        let visible_through_clusters = visible
+            .visible
+            .iter()
+            .filter(|b| cut.cut.buildings.binary_search(&b.0).is_err())
+            .count();
+        let counts = LodCounts {
+            visible: visible.len(),
+            visible_through_clusters,
+            clusters_drawn: st.clusters_drawn,
+            occlusion_culled: st.occlusion_culled,
+            early_drawn: st.early_drawn,
+        };
+        (out, cut, counts)
+    }
+}
+
+/// The combined frame over random cameras as [`sweep`] does: each camera as the second frame of
+/// a short move, under the altitude preset (Chang ε = τ = 1 px at street level, 2 px above the
+/// roofs) and Yang's paper tolerances (coarser, so more clusters), at a small viewport; then a
+/// street and an aerial camera at each of the four named sizes. Asserts that clusters were
+/// drawn, that some visible buildings were shown only through clusters, and that occlusion
+/// culling removed candidates.
+fn sweep_lod(h: &mut Harness, scene: &TestScene, seed: u64, cameras: usize) {
+    let mut rng = Rng(seed);
+    let mut total = LodCounts::default();
+    let mut add = |c: LodCounts| {
+        total.visible += c.visible;
+        total.visible_through_clusters += c.visible_through_clusters;
+        total.clusters_drawn += c.clusters_drawn;
+        total.occlusion_culled += c.occlusion_culled;
+        total.early_drawn += c.early_drawn;
+    };
+    let criteria = [None, Some(LodCriterion::YANG_PAPER)];
+    for i in 0..cameras {
+        let camera = if i % 2 == 0 {
+            street_camera(&mut rng, &scene.city)
+        } else {
+            aerial_camera(&mut rng, &scene.scene)
+        };
+        let mut before = camera;
+        before.position += Vec3::new(rng.range(-4.0, 4.0), rng.range(-4.0, 4.0), 0.0);
+        before.yaw_rad += rng.range(-0.3, 0.3);
+        for criterion in criteria {
+            let mut visibility = Visibility::default();
+            let size = (320, 200);
+            h.check_lod(scene, criterion, &mut visibility, &before, size);
+            add(h
+                .check_lod(scene, criterion, &mut visibility, &camera, size)
+                .2);
+        }
+    }
+    for size in [(1280, 720), (1366, 768), (1001, 777), (640, 480)] {
+        let street = street_camera(&mut rng, &scene.city);
+        let aerial = aerial_camera(&mut rng, &scene.scene);
+        let mut visibility = Visibility::default();
+        for camera in [street, aerial] {
+            add(h.check_lod(scene, None, &mut visibility, &camera, size).2);
+        }
+    }
+    eprintln!("{}: combined frame {total:?}", scene.name);
+    assert!(total.clusters_drawn > 0, "{}: no cluster drawn", scene.name);
+    assert!(
+        total.visible_through_clusters > 0,
+        "{}: no visible building was shown through a cluster",
+        scene.name
+    );
+    assert!(
+        total.occlusion_culled > 0,
+        "{}: nothing occlusion-culled",
+        scene.name
+    );
+    assert!(total.early_drawn > 0, "{}: nothing drawn early", scene.name);
+}
+
 /// Random cameras, each rendered as the second frame of a short move (the first frame a few
 /// metres and degrees away seeds the early pass), at a small viewport; then a few cameras at
 /// the four named sizes. Returns the street-level culled fractions of the hzb configuration.
@@ -334,6 +595,179 @@ fn chelsea_is_conservative() {
     let scene = chelsea(&gpu);
     let mut h = Harness::new(gpu);
     sweep(&mut h, &scene, 0x5eed_0002, 12);
+}
+
+#[test]
+fn den_haag_is_conservative() {
+    let Some(gpu) = gpu_or_skip("two_phase den haag") else {
+        return;
+    };
+    let scene = den_haag(&gpu);
+    let mut h = Harness::new(gpu);
+    sweep(&mut h, &scene, 0x5eed_0004, 12);
+}
+
+#[test]
+fn generated_city_combined_frame_is_conservative() {
+    let Some(gpu) = gpu_or_skip("two_phase combined generated") else {
+        return;
+    };
+    let scene = generated(&gpu);
+    let mut h = Harness::new(gpu);
+    sweep_lod(&mut h, &scene, 0x5eed_0101, 16);
+}
+
+#[test]
+fn chelsea_combined_frame_is_conservative() {
+    let Some(gpu) = gpu_or_skip("two_phase combined chelsea") else {
+        return;
+    };
+    let scene = chelsea(&gpu);
+    let mut h = Harness::new(gpu);
+    sweep_lod(&mut h, &scene, 0x5eed_0102, 10);
+}
+
+#[test]
+fn den_haag_combined_frame_is_conservative() {
+    let Some(gpu) = gpu_or_skip("two_phase combined den haag") else {
+        return;
+    };
+    let scene = den_haag(&gpu);
+    let mut h = Harness::new(gpu);
+    sweep_lod(&mut h, &scene, 0x5eed_0103, 10);
+}
+
+/// A camera diving from high above the city to street level and climbing back, one visibility
+/// carried through: the LOD cut changes from frame to frame (clusters refined on the way down,
+/// merged on the way up), every frame has zero false culls, and buildings that were visible
+/// through a cluster are drawn early as themselves once the cut refines that cluster.
+#[test]
+fn lod_cut_changes_between_frames_and_nothing_visible_is_dropped() {
+    let Some(gpu) = gpu_or_skip("two_phase lod changes") else {
+        return;
+    };
+    let scene = generated(&gpu);
+    let mut h = Harness::new(gpu);
+    let (lo, hi) = scene.scene.bounds;
+    let centre = (lo + hi) * 0.5;
+    let size = (400, 240);
+    let steps = 9;
+    let mut poses: Vec<Camera> = (0..steps)
+        .map(|i| {
+            let t = i as f32 / (steps - 1) as f32;
+            // From 700 m up and 600 m back to 3 m above the ground near the centre.
+            let height_m = 700.0 * (1.0 - t).powi(2) + 3.0;
+            let back_m = 600.0 * (1.0 - t) + 20.0;
+            Camera::new(
+                Vec3::new(centre.x - back_m, centre.y - 0.3 * back_m, height_m),
+                0.3,
+                -0.9 * (1.0 - t) - 0.05,
+            )
+        })
+        .collect();
+    let down = poses.clone();
+    poses.extend(down.into_iter().rev().skip(1));
+    for criterion in [None, Some(LodCriterion::YANG_PAPER)] {
+        let mut visibility = Visibility::default();
+        let mut previous: Option<LodFrame> = None;
+        let (mut changed, mut inherited, mut early) = (0, 0, 0);
+        for camera in &poses {
+            let before = visibility.clone();
+            let (out, cut, _) = h.check_lod(&scene, criterion, &mut visibility, camera, size);
+            if let Some(prev) = &previous {
+                if prev.draw_ids != cut.draw_ids {
+                    changed += 1;
+                }
+                // Buildings drawn by a cluster last frame, themselves now, and early because
+                // the cluster was visible.
+                inherited += cut
+                    .cut
+                    .buildings
+                    .iter()
+                    .filter(|b| prev.cut.buildings.binary_search(b).is_err())
+                    .filter(|b| prev.covered.binary_search(b).is_ok() && before.is_visible(**b))
+                    .count();
+                early += out.stats.early_drawn;
+            }
+            previous = Some(cut);
+        }
+        eprintln!(
+            "{criterion:?}: {} frames, cut changed {changed} times, {inherited} buildings \
+             inherited visibility from a cluster, {early} drawn early",
+            poses.len()
+        );
+        assert!(
+            changed * 2 >= poses.len(),
+            "{criterion:?}: the cut changed in only {changed} of {} steps",
+            poses.len() - 1
+        );
+        assert!(
+            inherited > 0,
+            "{criterion:?}: no building inherited visibility from a cluster"
+        );
+        assert!(early > 0);
+    }
+}
+
+/// The benchmark's `all` mode on a small generated scene: street walk and flyover, zero false
+/// culls on every frame, fewer buildings drawn than brute force, clusters counted as drawing
+/// the buildings under them.
+#[test]
+fn bench_all_mode_on_a_tiny_scene_has_no_false_cull() {
+    let Some(gpu) = gpu_or_skip("two_phase bench all") else {
+        return;
+    };
+    let city = generate_city(&GenerateParams::new(300, 5)).expect("generate");
+    let package = preprocess(city, &PreprocessParams::default(), &NoProgress).expect("preprocess");
+    let city = package.city();
+    let scene = BenchScene {
+        name: "tiny".into(),
+        gpu_scene: SceneGpu::upload_city(&gpu, &city),
+        blocks: package.blocks.clone(),
+        quadtree: package.quadtree.clone(),
+        lod: package
+            .cluster_tree
+            .clone()
+            .map(|tree| LodScene::upload(&gpu, &city, tree)),
+        occluders: package
+            .occluders
+            .as_ref()
+            .map(|set| OccluderMeshes::upload(&gpu, set)),
+    };
+    let config = BenchConfig {
+        modes: vec![Mode::Brute, Mode::All],
+        width: 320,
+        height: 200,
+        frames_dir: None,
+        png_every: 0,
+    };
+    let mut renderers = BenchRenderers::new(&gpu);
+    let mut all_culled = 0.0;
+    for path in [street_walk(&city, 6), flyover(&city, 6)] {
+        let records = run_path(&gpu, &mut renderers, &scene, &path, &config).expect("run");
+        assert_eq!(records.len(), 2 * path.poses.len());
+        for r in &records {
+            assert_eq!(
+                r.false_culls, 0,
+                "{} {} frame {}",
+                path.name, r.mode, r.frame
+            );
+            assert!(r.drawn >= r.visible);
+            // The ground is always drawn; buildings whenever some are visible.
+            assert!(r.draw_calls > 0, "{r:?}");
+            assert!(r.visible == 0 || r.triangles > 0, "{r:?}");
+            if r.mode == "all" {
+                all_culled += r.culled_fraction;
+            }
+        }
+    }
+    assert!(all_culled > 0.0, "mode all culls nothing");
+    // Without a cluster tree the mode is refused, not silently degraded.
+    let bare = BenchScene { lod: None, ..scene };
+    assert!(matches!(
+        run_path(&gpu, &mut renderers, &bare, &street_walk(&city, 2), &config),
+        Err(BenchError::NoClusterTree(_))
+    ));
 }
 
 #[test]
@@ -432,9 +866,7 @@ fn bench_modes_run_a_street_walk_with_no_false_cull() {
     let Some(gpu) = gpu_or_skip("two_phase bench") else {
         return;
     };
-    let city = generate_city(&GenerateParams::new(1500, 11)).expect("generate");
-    let package = preprocess(city, &PreprocessParams::default(), &NoProgress).expect("preprocess");
-    let city = package.city();
+    let TestScene { city, package, .. } = generated(&gpu);
     let scene = BenchScene {
         name: "generated".into(),
         gpu_scene: SceneGpu::upload_city(&gpu, &city),

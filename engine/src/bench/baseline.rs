@@ -176,6 +176,7 @@ impl DecimatedBaseline {
                 frame: i,
                 visible: visible.len(),
                 drawn,
+                clusters: 0,
                 false_culls,
                 culled_fraction: if total == 0 {
                     0.0
@@ -188,6 +189,7 @@ impl DecimatedBaseline {
                 frame_ms,
                 pixel_error_grey: error.grey_fraction,
                 pixel_error_colour: error.colour_fraction,
+                gpu: crate::gpu_timer::GpuTimes::default(),
             });
         }
         Ok(records)
@@ -258,6 +260,7 @@ mod tests {
             frame: 0,
             visible: 1,
             drawn: 1,
+            clusters: 0,
             false_culls: 0,
             culled_fraction: 0.0,
             triangles,
@@ -266,6 +269,7 @@ mod tests {
             frame_ms: 1.0,
             pixel_error_grey: 0.0,
             pixel_error_colour: 0.0,
+            gpu: crate::gpu_timer::GpuTimes::default(),
         };
         let records = [r("frustum", 100), r("frustum", 300), r("brute", 1000)];
         let mean = BaselineTarget::MeanOfMode(Mode::Frustum);

@@ -295,6 +295,7 @@ mod tests {
                     frame,
                     visible: 5,
                     drawn: 20 - 4 * m,
+                    clusters: 0,
                     false_culls: 0,
                     culled_fraction: 0.2 * m as f64 + 0.01 * f,
                     triangles: 1000 - 200 * m as u64 + frame as u64,
@@ -303,6 +304,7 @@ mod tests {
                     frame_ms: 5.0 + m as f64 + (f * 0.7).sin(),
                     pixel_error_grey: 0.001 * m as f64 * f,
                     pixel_error_colour: 0.0005 * m as f64 * f,
+                    gpu: crate::gpu_timer::GpuTimes::default(),
                 });
             }
         }

@@ -8,12 +8,13 @@ use citywalk_scenes::blocks::UrbanBlocks;
 use citywalk_scenes::camera_path::CameraPath;
 use citywalk_scenes::quadtree::BQuadtree;
 
-use crate::bench::mode::{CullingData, Mode, select};
+use crate::bench::mode::{CullingData, Mode, select, visible_blocks};
 use crate::bench::pixel_error::pixel_error;
 use crate::camera::Camera;
 use crate::frame::{CullingOptions, CullingRenderer, OccluderMeshes, Visibility};
 use crate::gpu::GpuContext;
-use crate::lod::scene::LodScene;
+use crate::gpu_timer::{GpuTimer, GpuTimes};
+use crate::lod::scene::{LodFrame, LodScene};
 use crate::oracle::Oracle;
 use crate::render::BruteRenderer;
 use crate::render::selected::SelectedRenderer;
@@ -55,8 +56,10 @@ pub struct FrameRecord {
     pub frame: usize,
     /// Buildings with at least one visible pixel in the full-detail, unculled scene.
     pub visible: usize,
-    /// Buildings drawn, themselves or (`lod`) through a drawn cluster containing them.
+    /// Buildings drawn, themselves or (`lod`, `all`) through a drawn cluster containing them.
     pub drawn: usize,
+    /// Cluster meshes of the LOD cut drawn (`lod`, `all`; 0 in the other modes).
+    pub clusters: usize,
     /// Visible buildings that were not drawn. Must be zero.
     pub false_culls: usize,
     /// Share of the scene's buildings not drawn.
@@ -71,7 +74,14 @@ pub struct FrameRecord {
     pub pixel_error_grey: f64,
     /// Chang et al. §9: share of pixels differing by more than 40 in a channel.
     pub pixel_error_colour: f64,
+    /// GPU time per phase from timestamp queries: `draw` for the single-pass modes, the
+    /// two-phase frame's phases ([`crate::gpu_timer::FRAME_PHASES`]) for the HiZ modes; every
+    /// phase `None` when the adapter has no timestamps, and no phases for an untimed frame.
+    pub gpu: GpuTimes,
 }
+
+/// The phase of the single-pass modes (`brute`, `frustum`, `quadtree`, `lod`): the scene pass.
+pub const DRAW_PHASES: &[&str] = &["draw"];
 
 /// Why a benchmark run stopped.
 #[derive(Debug, thiserror::Error)]
@@ -80,9 +90,11 @@ pub enum BenchError {
     Readback(#[from] ReadbackError),
     #[error("mode '{0}' is not implemented yet")]
     ModeNotAvailable(Mode),
-    #[error("mode 'lod' needs the scene's cluster tree, and scene '{0}' has none")]
+    #[error("modes 'lod' and 'all' need the scene's cluster tree, and scene '{0}' has none")]
     NoClusterTree(String),
-    #[error("mode 'occluders' needs the scene's virtual occluders, and scene '{0}' has none")]
+    #[error(
+        "modes 'occluders' and 'all' need the scene's virtual occluders, and scene '{0}' has none"
+    )]
     NoOccluders(String),
     #[error("rendering a culled frame failed: {0}")]
     Frame(#[from] crate::frame::FrameError),
@@ -96,10 +108,14 @@ pub struct BenchRenderers {
     brute: BruteRenderer,
     selected: SelectedRenderer,
     oracle: Oracle,
-    /// The two-phase HiZ frame (`hzb`, `occluders`), with each mode's visible set carried from
-    /// frame to frame along a path.
+    /// The two-phase HiZ frame (`hzb`, `occluders`, `all`), with each mode's visible set
+    /// carried from frame to frame along a path.
     culling: CullingRenderer,
     visibility: std::collections::HashMap<Mode, Visibility>,
+    /// Times the scene pass of the single-pass modes ([`DRAW_PHASES`]).
+    timer: GpuTimer,
+    /// The GPU times of the frame [`render_mode`] rendered last.
+    last_gpu: GpuTimes,
 }
 
 impl BenchRenderers {
@@ -110,6 +126,8 @@ impl BenchRenderers {
             oracle: Oracle::new(gpu),
             culling: CullingRenderer::new(gpu, BruteRenderer::PNG_FORMAT),
             visibility: std::collections::HashMap::new(),
+            timer: GpuTimer::new(gpu, "bench draw timer", DRAW_PHASES),
+            last_gpu: GpuTimes::default(),
         }
     }
 
@@ -131,9 +149,23 @@ pub fn pose_camera(path: &CameraPath, i: usize) -> Camera {
     camera
 }
 
-/// Renders one frame of `mode` into `target`; returns (drawn buildings, draw calls, select ms,
-/// frame ms, triangles). For `lod`, a building counts as drawn when it is drawn itself or
-/// through a drawn cluster containing it, and triangles are the buildings' and clusters'.
+/// What one mode did in one frame.
+#[derive(Debug, Clone, PartialEq)]
+struct ModeFrame {
+    /// Buildings drawn, themselves or through a drawn cluster containing them, in id order.
+    drawn: Vec<u32>,
+    draw_calls: u32,
+    /// Cluster meshes of the LOD cut drawn (`lod`, `all`; 0 otherwise).
+    clusters: usize,
+    select_ms: f64,
+    frame_ms: f64,
+    /// Triangles of the drawn buildings and clusters.
+    triangles: u64,
+}
+
+/// Renders one frame of `mode` into `target`. For `lod` and `all`, a building counts as drawn
+/// when it is drawn itself or through a drawn cluster containing it, and triangles are the
+/// buildings' and clusters'. The frame's GPU times are left in `renderers.last_gpu`.
 fn render_mode(
     gpu: &GpuContext,
     renderers: &mut BenchRenderers,
@@ -142,10 +174,15 @@ fn render_mode(
     camera: &Camera,
     visible_first: Option<u32>,
     target: &OffscreenTarget,
-) -> Result<(Vec<u32>, u32, f64, f64, u64), BenchError> {
+) -> Result<ModeFrame, BenchError> {
+    if mode == Mode::All {
+        return render_all(gpu, renderers, scene, camera, target);
+    }
+    renderers.last_gpu = GpuTimes::default();
     if let Some(options) = culling_options(mode) {
         return render_culled(gpu, renderers, scene, mode, &options, camera, target);
     }
+    renderers.timer.begin_frame();
     let aspect = target.width as f32 / target.height as f32;
     let data = CullingData {
         scene: &scene.gpu_scene,
@@ -165,70 +202,65 @@ fn render_mode(
             .map(|r| u64::from(r.index_count / 3))
             .sum()
     };
-    let (drawn, draw_calls, select_ms, triangles) = if mode == Mode::Lod {
+    let (drawn, draw_calls, select_ms, triangles, clusters) = if mode == Mode::Lod {
         // Screen-space LOD (Chang et al. 2008 §8) on top of B-Quadtree frustum culling.
-        let lod = scene
-            .lod
-            .as_ref()
-            .ok_or_else(|| BenchError::NoClusterTree(scene.name.clone()))?;
-        let frustum = citywalk_scenes::frustum::Frustum::from_view_proj(camera.view_proj(aspect));
-        let mut visible_blocks = vec![false; scene.blocks.blocks.len()];
-        for block in scene.quadtree.cull(&frustum) {
-            if let Some(v) = visible_blocks.get_mut(block as usize) {
-                *v = true;
-            }
-        }
-        let frame = lod.select(
-            camera,
-            target.width,
-            target.height,
-            lod.default_criterion(camera),
-            Some(&visible_blocks),
-        );
+        let (lod, frame) = lod_select(scene, camera, target)?;
         let select_ms = start.elapsed().as_secs_f64() * 1e3;
-        let calls = renderers.selected.encode(
+        let calls = renderers.selected.encode_timed(
             gpu,
             &mut encoder,
             &lod.gpu_scene,
             camera,
             &frame.draw_ids,
-            &target.colour_view,
-            &target.depth,
+            (&target.colour_view, &target.depth),
+            renderers.timer.render_pass_writes("draw"),
         );
-        (frame.covered, calls, select_ms, frame.triangles)
+        let buildings = lod.gpu_scene.building_count() as u32;
+        let clusters = frame.draw_ids.iter().filter(|&&id| id >= buildings).count();
+        (frame.covered, calls, select_ms, frame.triangles, clusters)
     } else if mode == Mode::Brute {
-        renderers.brute.encode(
+        renderers.brute.encode_timed(
             gpu,
             &mut encoder,
             &scene.gpu_scene,
             camera,
             &target.colour_view,
             &target.depth,
+            renderers.timer.render_pass_writes("draw"),
         );
         let n = scene.gpu_scene.building_count() as u32;
         let all: Vec<u32> = (0..n).collect();
         let triangles = building_triangles(&all);
-        (all, n + 1, 0.0, triangles)
+        (all, n + 1, 0.0, triangles, 0)
     } else {
         let drawn = select(mode, &data, camera.view_proj(aspect), visible_first)
             .ok_or(BenchError::ModeNotAvailable(mode))?;
         let select_ms = start.elapsed().as_secs_f64() * 1e3;
-        let calls = renderers.selected.encode(
+        let calls = renderers.selected.encode_timed(
             gpu,
             &mut encoder,
             &scene.gpu_scene,
             camera,
             &drawn,
-            &target.colour_view,
-            &target.depth,
+            (&target.colour_view, &target.depth),
+            renderers.timer.render_pass_writes("draw"),
         );
         let triangles = building_triangles(&drawn);
-        (drawn, calls, select_ms, triangles)
+        (drawn, calls, select_ms, triangles, 0)
     };
+    renderers.timer.resolve(&mut encoder);
     gpu.queue.submit([encoder.finish()]);
     gpu.wait_idle();
     let frame_ms = start.elapsed().as_secs_f64() * 1e3;
-    Ok((drawn, draw_calls, select_ms, frame_ms, triangles))
+    renderers.last_gpu = renderers.timer.read(gpu)?;
+    Ok(ModeFrame {
+        drawn,
+        draw_calls,
+        clusters,
+        select_ms,
+        frame_ms,
+        triangles,
+    })
 }
 
 /// Runs one path of one scene through every configured mode. Each mode renders the path's
@@ -278,7 +310,7 @@ pub fn run_path(
         gpu.queue.submit([encoder.finish()]);
         let reference_rgba = reference.read_colour(gpu)?;
         for &mode in &config.modes {
-            let (drawn, draw_calls, select_ms, frame_ms, triangles) = render_mode(
+            let out = render_mode(
                 gpu,
                 renderers,
                 scene,
@@ -291,7 +323,7 @@ pub fn run_path(
             let error = pixel_error(&reference_rgba, &rgba);
             let false_culls = visible_ids
                 .iter()
-                .filter(|b| drawn.binary_search(b).is_err())
+                .filter(|b| out.drawn.binary_search(b).is_err())
                 .count();
             if let Some(dir) = &config.frames_dir
                 && config.png_every > 0
@@ -309,19 +341,21 @@ pub fn run_path(
                 mode: mode.name().to_string(),
                 frame: i,
                 visible: visible_ids.len(),
-                drawn: drawn.len(),
+                drawn: out.drawn.len(),
+                clusters: out.clusters,
                 false_culls,
                 culled_fraction: if total == 0 {
                     0.0
                 } else {
-                    1.0 - drawn.len() as f64 / total as f64
+                    1.0 - out.drawn.len() as f64 / total as f64
                 },
-                triangles,
-                draw_calls,
-                select_ms,
-                frame_ms,
+                triangles: out.triangles,
+                draw_calls: out.draw_calls,
+                select_ms: out.select_ms,
+                frame_ms: out.frame_ms,
                 pixel_error_grey: error.grey_fraction,
                 pixel_error_colour: error.colour_fraction,
+                gpu: renderers.last_gpu.clone(),
             });
         }
     }
@@ -361,7 +395,7 @@ fn render_culled(
     options: &CullingOptions,
     camera: &Camera,
     target: &OffscreenTarget,
-) -> Result<(Vec<u32>, u32, f64, f64, u64), BenchError> {
+) -> Result<ModeFrame, BenchError> {
     let occluders = if options.occluders {
         Some(
             scene
@@ -383,6 +417,90 @@ fn render_culled(
         &target.colour_view,
         (target.width, target.height),
     )?;
+    renderers.last_gpu = out.stats.gpu.clone();
     let s = &out.stats;
-    Ok((out.drawn, s.draw_calls, 0.0, s.cpu_ms, s.triangles))
+    Ok(ModeFrame {
+        draw_calls: s.draw_calls,
+        clusters: 0,
+        select_ms: 0.0,
+        frame_ms: s.cpu_ms,
+        triangles: s.triangles,
+        drawn: out.drawn,
+    })
+}
+
+/// The LOD cut of `scene` for `camera` after B-Quadtree culling of the urban blocks (the `lod`
+/// and `all` modes), under [`LodScene::default_criterion`].
+fn lod_select<'a>(
+    scene: &'a BenchScene,
+    camera: &Camera,
+    target: &OffscreenTarget,
+) -> Result<(&'a LodScene, LodFrame), BenchError> {
+    let lod = scene
+        .lod
+        .as_ref()
+        .ok_or_else(|| BenchError::NoClusterTree(scene.name.clone()))?;
+    let blocks = visible_blocks(
+        &scene.quadtree,
+        scene.blocks.blocks.len(),
+        camera,
+        target.width,
+        target.height,
+    );
+    let frame = lod.select(
+        camera,
+        target.width,
+        target.height,
+        lod.default_criterion(camera),
+        Some(&blocks),
+    );
+    Ok((lod, frame))
+}
+
+/// One frame of `all`: B-Quadtree + LOD cut on the CPU ([`lod_select`]), then the cut's
+/// buildings and clusters through the two-phase HiZ frame with the occluder pre-pass
+/// ([`CullingRenderer::render_lod`]). Drawn buildings are those drawn themselves or through a
+/// drawn cluster; triangles are the drawn buildings' and clusters'; `frame_ms` covers the cut
+/// and the frame.
+fn render_all(
+    gpu: &GpuContext,
+    renderers: &mut BenchRenderers,
+    scene: &BenchScene,
+    camera: &Camera,
+    target: &OffscreenTarget,
+) -> Result<ModeFrame, BenchError> {
+    let start = Instant::now();
+    let occluders = scene
+        .occluders
+        .as_ref()
+        .ok_or_else(|| BenchError::NoOccluders(scene.name.clone()))?;
+    let (lod, cut) = lod_select(scene, camera, target)?;
+    let select_ms = start.elapsed().as_secs_f64() * 1e3;
+    let options = CullingOptions {
+        occluders: true,
+        ..CullingOptions::default()
+    };
+    let visibility = renderers.visibility.entry(Mode::All).or_default();
+    let out = renderers.culling.render_lod(
+        gpu,
+        lod,
+        &cut,
+        Some(occluders),
+        &options,
+        visibility,
+        camera,
+        &target.colour_view,
+        (target.width, target.height),
+    )?;
+    let frame_ms = start.elapsed().as_secs_f64() * 1e3;
+    renderers.last_gpu = out.stats.gpu.clone();
+    let s = &out.stats;
+    Ok(ModeFrame {
+        draw_calls: s.draw_calls,
+        clusters: s.clusters_drawn as usize,
+        select_ms,
+        frame_ms,
+        triangles: s.triangles,
+        drawn: out.drawn,
+    })
 }

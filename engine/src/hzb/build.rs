@@ -197,6 +197,17 @@ impl HzbPyramid {
     /// exactly this pyramid's size with `TEXTURE_BINDING` usage (e.g.
     /// [`crate::render::DepthTarget::view`]), after the pass that wrote it.
     pub fn build(&self, encoder: &mut wgpu::CommandEncoder, depth_view: &wgpu::TextureView) {
+        self.build_timed(encoder, depth_view, None);
+    }
+
+    /// As [`HzbPyramid::build`], with the compute pass timed by `timestamp_writes`
+    /// ([`crate::gpu_timer::GpuTimer::compute_pass_writes`]).
+    pub fn build_timed(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        depth_view: &wgpu::TextureView,
+        timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
+    ) {
         let copy_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("hzb copy depth"),
             layout: &self.copy_layout,
@@ -213,7 +224,7 @@ impl HzbPyramid {
         });
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("hzb build"),
-            timestamp_writes: None,
+            timestamp_writes,
         });
         pass.set_pipeline(&self.copy_pipeline);
         pass.set_bind_group(0, &copy_group, &[]);

@@ -1,6 +1,8 @@
 //! The GPU hierarchical-Z occlusion cull: one invocation per box (a [`BuildingRecord`]) projects
-//! its 8 corners, picks the pyramid level and reads at most 2×2 texels, as
-//! [`super::reference::project_box`], [`super::reference::select_level`] and
+//! its 8 corners (frustum planes by corner outcodes, so a box crossing the near plane outside the
+//! view is culled too), reads 2×2 texels at the coarse level ([`super::reference::select_level`])
+//! and, when they do not hide the box, at most [`HZB_FINE_SPAN`]² texels at the fine level
+//! ([`super::reference::select_fine_level`]), as [`super::reference::project_box`] and
 //! [`super::reference::DepthPyramid::is_occluded`] do. Each box gets a status
 //! ([`CULL_VISIBLE`], [`CULL_FRUSTUM_OUTSIDE`], [`CULL_OCCLUDED`]) and each visible box appends
 //! its [`DrawIndexedIndirectArgs`] behind an atomic counter (`shaders/wgsl/hzb_cull.wgsl`).
@@ -16,7 +18,7 @@
 
 use citywalk_shaders::constants::HZB_CULL_WORKGROUP;
 pub use citywalk_shaders::constants::{
-    CULL_FRUSTUM_OUTSIDE, CULL_OCCLUDED, CULL_VISIBLE, HZB_ROUNDING_REL,
+    CULL_FRUSTUM_OUTSIDE, CULL_OCCLUDED, CULL_VISIBLE, HZB_FINE_SPAN, HZB_ROUNDING_REL,
 };
 use citywalk_shaders::{BuildingRecord, DrawIndexedIndirectArgs, HZB_CULL_WGSL, HzbCullParams};
 use glam::Mat4;
@@ -190,6 +192,21 @@ impl HzbCull {
         pyramid: &HzbPyramid,
         view_proj: Mat4,
     ) -> Result<(), CullError> {
+        self.encode_timed(gpu, encoder, records, box_count, (pyramid, view_proj), None)
+    }
+
+    /// As [`HzbCull::encode`], with the compute pass timed by `timestamp_writes`
+    /// ([`crate::gpu_timer::GpuTimer::compute_pass_writes`]). With no boxes an empty pass
+    /// still writes the timestamps, so a timed cull always resolves.
+    pub fn encode_timed(
+        &mut self,
+        gpu: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        records: &wgpu::Buffer,
+        box_count: u32,
+        (pyramid, view_proj): (&HzbPyramid, Mat4),
+        timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
+    ) -> Result<(), CullError> {
         let max = Self::max_boxes(gpu);
         if box_count > max {
             return Err(CullError::TooManyBoxes { box_count, max });
@@ -221,6 +238,12 @@ impl HzbCull {
             Some(u64::from(box_count.max(1)) * COMMAND_BYTES),
         );
         if box_count == 0 {
+            if timestamp_writes.is_some() {
+                encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("hzb cull (no boxes)"),
+                    timestamp_writes,
+                });
+            }
             return Ok(());
         }
         let group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -255,7 +278,7 @@ impl HzbCull {
         });
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("hzb cull"),
-            timestamp_writes: None,
+            timestamp_writes,
         });
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &group, &[]);

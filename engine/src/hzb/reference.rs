@@ -10,9 +10,22 @@
 //! induction, texel `(x, y)` of level `l` is exactly the minimum over the pixels
 //! `[x·2^l, (x+1)·2^l) × [y·2^l, (y+1)·2^l)` clipped to the viewport, so pixel `p` maps to texel
 //! `p >> l` at every level and no pixel is ever left out (the classic odd-size bug).
-//! This follows the two-phase occlusion culling of Kubisch & Tavenrath's GPU-driven rendering
-//! and zeux's niagara, with the level chosen by *ceil* so a rectangle touches at most 2×2 texels.
+//!
+//! The occlusion test reads the pyramid twice: first the coarse level at which the box's screen
+//! rectangle touches at most 2×2 texels (the classic test of Kubisch & Tavenrath's GPU-driven
+//! rendering and zeux's niagara, level chosen by *ceil*), which culls most hidden boxes in four
+//! reads; then, for a box that test keeps, the finest level at which the rectangle spans at most
+//! [`HZB_FINE_SPAN`] texels each way. Texels are nested, so the fine test culls everything the
+//! coarse one does and more (the coarse texels also cover pixels outside the rectangle, often
+//! sky); at street level it keeps about half as many boxes. Its answer alone defines the
+//! result; the coarse read is only a shortcut.
+//!
+//! Frustum: a box is outside when all eight corners lie beyond one plane of the frustum (the four
+//! sides, or the near plane) in clip space. Corners behind the eye are fine for these half-space
+//! tests, so a box that crosses the near plane (a building beside and behind a pedestrian) is
+//! still culled when it is outside the view, instead of being kept as "unbounded".
 
+use citywalk_shaders::constants::{HZB_BEHIND_W, HZB_FINE_SPAN};
 use glam::{Mat4, Vec3, Vec4};
 
 /// One level of the pyramid.
@@ -78,9 +91,19 @@ impl DepthPyramid {
     /// Whether an object covering the pixel rectangle `rect` (inclusive, clamped to the
     /// viewport) whose nearest point has depth `nearest_depth` is hidden behind the depth
     /// buffer everywhere in that rectangle.
+    ///
+    /// Decided at [`select_fine_level`] (the GPU reads [`select_level`] first as a shortcut: same
+    /// answer, see the module documentation).
     pub fn is_occluded(&self, rect: PixelRect, nearest_depth: f32) -> bool {
-        let level = select_level(rect);
-        let l = &self.levels[level.min(self.levels.len() as u32 - 1) as usize];
+        nearest_depth < self.farthest_in(rect, select_fine_level(rect))
+    }
+
+    /// The farthest (minimum) depth of the texels of `level` (clamped to the coarsest) that
+    /// cover `rect`: the farthest depth of the depth buffer over the rectangle, or a smaller
+    /// value as the level gets coarser.
+    pub fn farthest_in(&self, rect: PixelRect, level: u32) -> f32 {
+        let level = level.min(self.levels.len() as u32 - 1);
+        let l = &self.levels[level as usize];
         let (x0, x1) = (rect.x0 >> level, rect.x1 >> level);
         let (y0, y1) = (rect.y0 >> level, rect.y1 >> level);
         let mut farthest = f32::INFINITY;
@@ -89,7 +112,7 @@ impl DepthPyramid {
                 farthest = farthest.min(l.at(x, y));
             }
         }
-        nearest_depth < farthest
+        farthest
     }
 }
 
@@ -107,11 +130,25 @@ pub fn reduce_texel(prev: &PyramidLevel, x: u32, y: u32) -> f32 {
     m
 }
 
-/// The finest level at which `rect` spans at most two texels in each direction (ceil, never
-/// floor: a level too fine would make the test read only part of the rectangle).
+/// The coarse level: the finest at which `rect` spans at most two texels in each direction
+/// (ceil, never floor: the test reads every texel the rectangle touches at that level, so
+/// whatever level is chosen no pixel is left out; this one bounds the reads to 2×2).
 pub fn select_level(rect: PixelRect) -> u32 {
+    level_spanning(rect, 2)
+}
+
+/// The fine level: the finest at which `rect` spans at most [`HZB_FINE_SPAN`] texels in each
+/// direction (level 0, the depth buffer itself, for rectangles up to that many pixels).
+pub fn select_fine_level(rect: PixelRect) -> u32 {
+    level_spanning(rect, HZB_FINE_SPAN)
+}
+
+/// The finest level at which `rect` touches at most `span` (≥ 1) texels in each direction.
+fn level_spanning(rect: PixelRect, span: u32) -> u32 {
     let mut level = 0;
-    while (rect.x1 >> level) - (rect.x0 >> level) > 1 || (rect.y1 >> level) - (rect.y0 >> level) > 1
+    while level < 31
+        && ((rect.x1 >> level) - (rect.x0 >> level) >= span
+            || (rect.y1 >> level) - (rect.y0 >> level) >= span)
     {
         level += 1;
     }
@@ -130,12 +167,25 @@ pub struct PixelRect {
 /// Where an axis-aligned box lands on screen.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum BoxProjection {
-    /// Entirely outside the viewport or behind the camera.
+    /// Entirely beyond one plane of the frustum (a side, or the near plane: behind the camera).
     Outside,
-    /// Some corner is at or behind the near plane: no safe screen rectangle, treat as visible.
+    /// Some corner is at or behind the near plane and the box is not beyond any frustum plane:
+    /// no safe screen rectangle, treat as visible.
     CrossesNear,
     /// The pixels the box can cover and the depth of its nearest point.
     Rect { rect: PixelRect, nearest_depth: f32 },
+}
+
+/// Frustum planes a clip-space point lies beyond, one bit each: right `x > w`, left `x < -w`,
+/// top `y > w`, bottom `y < -w`, near `z > w` (reversed Z: between the eye and the near plane,
+/// or behind the eye). Each is a half-space of world space, so a box whose eight corners share a
+/// bit lies wholly beyond that plane.
+pub fn outcode(clip: Vec4) -> u32 {
+    u32::from(clip.x > clip.w)
+        | u32::from(clip.x < -clip.w) << 1
+        | u32::from(clip.y > clip.w) << 2
+        | u32::from(clip.y < -clip.w) << 3
+        | u32::from(clip.z > clip.w) << 4
 }
 
 /// Projects the box `[lo, hi]` with a reversed-Z `view_proj` onto a `width × height` viewport.
@@ -146,6 +196,8 @@ pub fn project_box(view_proj: Mat4, lo: Vec3, hi: Vec3, width: u32, height: u32)
     let mut ndc_max = glam::Vec2::splat(f32::NEG_INFINITY);
     let mut nearest_depth = 0.0f32;
     let (mut behind, mut inside_near) = (0, 0);
+    // Planes every corner so far lies beyond.
+    let mut beyond_all = 0b1_1111;
     for i in 0..8 {
         let corner = Vec3::new(
             if i & 1 == 0 { lo.x } else { hi.x },
@@ -153,8 +205,9 @@ pub fn project_box(view_proj: Mat4, lo: Vec3, hi: Vec3, width: u32, height: u32)
             if i & 4 == 0 { lo.z } else { hi.z },
         );
         let clip: Vec4 = view_proj * corner.extend(1.0);
+        beyond_all &= outcode(clip);
         // The same threshold as the GPU cull (`shaders/wgsl/hzb_cull.wgsl`).
-        if clip.w <= citywalk_shaders::constants::HZB_BEHIND_W {
+        if clip.w <= HZB_BEHIND_W {
             behind += 1;
             continue;
         }
@@ -168,7 +221,7 @@ pub fn project_box(view_proj: Mat4, lo: Vec3, hi: Vec3, width: u32, height: u32)
         ndc_max = ndc_max.max(ndc.truncate());
         nearest_depth = nearest_depth.max(ndc.z);
     }
-    if behind == 8 {
+    if behind == 8 || beyond_all != 0 {
         return BoxProjection::Outside;
     }
     if behind > 0 || inside_near > 0 {
@@ -266,7 +319,126 @@ mod tests {
             if hidden {
                 prop_assert!(depth < brute_min(w, &buffer, rect));
             }
+            // Rectangles up to HZB_FINE_SPAN pixels each way are tested exactly, at level 0.
+            if rect.x1 - rect.x0 < HZB_FINE_SPAN && rect.y1 - rect.y0 < HZB_FINE_SPAN {
+                prop_assert_eq!(select_fine_level(rect), 0);
+                prop_assert_eq!(hidden, depth < brute_min(w, &buffer, rect));
+            }
+            // The GPU's coarse 2x2 shortcut never culls what the fine test keeps.
+            let coarse = select_level(rect);
+            prop_assert!(coarse >= select_fine_level(rect));
+            if depth < p.farthest_in(rect, coarse) {
+                prop_assert!(hidden);
+            }
+            // The fine level reads at most HZB_FINE_SPAN texels each way, and no coarser level
+            // than needed: one level finer would exceed it (ceil, never floor).
+            let fine = select_fine_level(rect);
+            prop_assert!((rect.x1 >> fine) - (rect.x0 >> fine) < HZB_FINE_SPAN);
+            prop_assert!((rect.y1 >> fine) - (rect.y0 >> fine) < HZB_FINE_SPAN);
+            if fine > 0 {
+                let finer = fine - 1;
+                prop_assert!(
+                    (rect.x1 >> finer) - (rect.x0 >> finer) >= HZB_FINE_SPAN
+                        || (rect.y1 >> finer) - (rect.y0 >> finer) >= HZB_FINE_SPAN
+                );
+            }
         }
+
+        /// The projection is conservative: a box called outside has no point inside the view
+        /// frustum (points sampled over the box, corners and faces included), and every sampled
+        /// point of a projected box inside the frustum lands in its rectangle, no nearer than
+        /// its nearest depth. Cameras at street level and above, boxes around, beside and
+        /// behind the eye as well as ahead; viewports of odd sizes.
+        #[test]
+        fn box_projection_is_conservative(
+            yaw in 0.0f32..std::f32::consts::TAU, pitch in -1.2f32..0.6,
+            eye_z in 1.0f32..60.0,
+            cx in -80.0f32..80.0, cy in -80.0f32..80.0, cz in -10.0f32..60.0,
+            sx in 0.1f32..40.0, sy in 0.1f32..40.0, sz in 0.1f32..60.0,
+            w in 16u32..1400, h in 16u32..900, seed in 0u64..1000,
+        ) {
+            let cam = crate::camera::Camera::new(Vec3::new(0.0, 0.0, eye_z), yaw, pitch);
+            let vp = cam.view_proj(w as f32 / h as f32);
+            let lo = Vec3::new(cx, cy, cz);
+            let hi = lo + Vec3::new(sx, sy, sz);
+            let projection = project_box(vp, lo, hi, w, h);
+            let mut state = seed.wrapping_add(1);
+            let mut unit = || {
+                state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                (state >> 40) as f32 / (1u64 << 24) as f32
+            };
+            for k in 0..400 {
+                // Corners, then points on faces, then anywhere inside.
+                let mut t = Vec3::new(unit(), unit(), unit());
+                if k < 8 {
+                    t = Vec3::new((k & 1) as f32, ((k >> 1) & 1) as f32, ((k >> 2) & 1) as f32);
+                } else if k < 200 {
+                    t[k % 3] = if k % 2 == 0 { 0.0 } else { 1.0 };
+                }
+                let point = lo + (hi - lo) * t;
+                let clip = vp * point.extend(1.0);
+                // Strictly inside the frustum, with a margin for this test's own rounding.
+                let m = 1e-4 * clip.w.abs();
+                let inside = clip.w > 1e-3
+                    && clip.x.abs() < clip.w - m
+                    && clip.y.abs() < clip.w - m
+                    && clip.z < clip.w - m;
+                if !inside {
+                    continue;
+                }
+                match projection {
+                    BoxProjection::Outside => {
+                        prop_assert!(false, "point {point} of [{lo}, {hi}] is in view, box called outside");
+                    }
+                    BoxProjection::CrossesNear => {}
+                    BoxProjection::Rect { rect, nearest_depth } => {
+                        let ndc = clip.truncate() / clip.w;
+                        let px = (ndc.x * 0.5 + 0.5) * w as f32;
+                        let py = (0.5 - ndc.y * 0.5) * h as f32;
+                        prop_assert!(px >= rect.x0 as f32 - 0.01 && px < rect.x1 as f32 + 1.01);
+                        prop_assert!(py >= rect.y0 as f32 - 0.01 && py < rect.y1 as f32 + 1.01);
+                        prop_assert!(ndc.z <= nearest_depth * (1.0 + 1e-5));
+                    }
+                }
+            }
+        }
+    }
+
+    /// The fine test culls a box the coarse 2x2 test keeps: a near wall covers the box's
+    /// rectangle, but the coarse texels around it also cover sky.
+    #[test]
+    fn fine_level_culls_what_the_coarse_level_keeps() {
+        let (w, h) = (97, 61);
+        // Wall at depth 0.5 over x < 40, sky (0) beyond.
+        let depth: Vec<f32> = (0..w * h)
+            .map(|i| if i % w < 40 { 0.5 } else { 0.0 })
+            .collect();
+        let p = DepthPyramid::build(w, h, &depth);
+        let rect = PixelRect {
+            x0: 21,
+            y0: 10,
+            x1: 35,
+            y1: 20,
+        };
+        // The coarse level reads texels reaching into the sky: it keeps the box.
+        let coarse = select_level(rect);
+        assert_eq!(coarse, 4);
+        assert_eq!(p.farthest_in(rect, coarse), 0.0);
+        // The fine one reads exactly the rectangle (15 x 11 pixels at level 0): culled.
+        assert_eq!(select_fine_level(rect), 0);
+        assert!(p.is_occluded(rect, 0.3));
+        // ... and never a box in front of the wall or reaching the sky.
+        assert!(!p.is_occluded(rect, 0.5));
+        assert!(!p.is_occluded(PixelRect { x1: 40, ..rect }, 0.3));
+        // A wide rectangle (60 pixels) is tested at level 2, still inside the wall's texels.
+        let wide = PixelRect {
+            x0: 0,
+            y0: 0,
+            x1: 35,
+            y1: 60,
+        };
+        assert_eq!(select_fine_level(wide), 2);
+        assert!(p.is_occluded(wide, 0.3));
     }
 
     #[test]
@@ -322,6 +494,41 @@ mod tests {
                 vp,
                 Vec3::new(10.0, 50.0, 0.0),
                 Vec3::new(12.0, 52.0, 2.0),
+                1280,
+                720
+            ),
+            BoxProjection::Outside
+        );
+        // A building beside and behind the pedestrian: its box crosses the eye plane, but lies
+        // wholly left of the view (at x = 5 m the view reaches y ≈ 5.1 m). Outside, where the
+        // old test kept every box crossing the near plane.
+        assert_eq!(
+            project_box(
+                vp,
+                Vec3::new(-20.0, 30.0, 0.0),
+                Vec3::new(5.0, 40.0, 10.0),
+                1280,
+                720
+            ),
+            BoxProjection::Outside
+        );
+        // The same building closer to the street is partly in view: kept.
+        assert_eq!(
+            project_box(
+                vp,
+                Vec3::new(-20.0, 3.0, 0.0),
+                Vec3::new(5.0, 10.0, 10.0),
+                1280,
+                720
+            ),
+            BoxProjection::CrossesNear
+        );
+        // Between the eye and the near plane (0.1 m) only: clipped away entirely.
+        assert_eq!(
+            project_box(
+                vp,
+                Vec3::new(0.02, -0.01, 1.69),
+                Vec3::new(0.08, 0.01, 1.71),
                 1280,
                 720
             ),

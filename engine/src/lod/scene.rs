@@ -1,5 +1,8 @@
 //! Buildings and cluster meshes in one GPU scene, so a LOD cut is one
-//! [`SelectedRenderer`](crate::render::selected::SelectedRenderer) draw list.
+//! [`SelectedRenderer`](crate::render::selected::SelectedRenderer) draw list, or one candidate
+//! list of the two-phase occlusion-culled frame
+//! ([`CullingRenderer::render_lod`](crate::frame::CullingRenderer::render_lod), which culls
+//! clusters by [`LodScene::cull_records`]).
 //!
 //! Layout: draw ids `0..building_count` are the buildings (the same ids and geometry as
 //! [`SceneGeometry::from_city`]), then id `building_count + n` is the cluster mesh of tree node
@@ -7,11 +10,12 @@
 //! over two scenes drawn into the same targets because the selected renderer clears its
 //! targets at the start of its pass; the cost is a second copy of the building geometry.
 
-use citywalk_scenes::City;
 use citywalk_scenes::TriangleMesh;
 use citywalk_scenes::city::Building;
 use citywalk_scenes::cluster_tree::ClusterTree;
 use citywalk_scenes::extrude::building_mesh;
+use citywalk_scenes::{BuildingId, City};
+use citywalk_shaders::BuildingRecord;
 use glam::Vec3;
 
 use crate::camera::Camera;
@@ -29,6 +33,12 @@ pub struct LodScene {
     /// The criterion of [`LodScene::default_criterion`]; `None` picks the Chang walkthrough or
     /// flyover preset by the camera's altitude.
     pub criterion: Option<LodCriterion>,
+    /// Per draw id, the record the occlusion cull of the combined frame tests
+    /// ([`crate::frame::CullingRenderer::render_lod`]): a building's own record; a cluster's
+    /// record with its bounds widened to contain every building under it (a cluster mesh stops
+    /// at the area-weighted mean height, below its tallest buildings, and culling it by its own
+    /// box could hide a building the full-detail scene shows). See [`cull_records`].
+    pub cull_records: Vec<BuildingRecord>,
 }
 
 /// One frame's LOD selection.
@@ -41,6 +51,42 @@ pub struct LodFrame {
     pub covered: Vec<u32>,
     /// Triangles of the drawn buildings and clusters.
     pub triangles: u64,
+}
+
+/// The buildings one draw id covers ([`LodScene::covered_by`]).
+#[derive(Debug, Clone)]
+pub enum Covered<'a> {
+    Building(Option<u32>),
+    Cluster(std::slice::Iter<'a, BuildingId>),
+}
+
+impl Iterator for Covered<'_> {
+    type Item = u32;
+
+    fn next(&mut self) -> Option<u32> {
+        match self {
+            Covered::Building(b) => b.take(),
+            Covered::Cluster(it) => it.next().map(|b| b.0),
+        }
+    }
+}
+
+/// The buildings drawn id `id` of a combined scene of `building_count` buildings and the
+/// cluster meshes of `tree` stands for: the building itself (ids below `building_count`) or every
+/// building under cluster node `id - building_count` (none for an id out of range).
+pub fn covered_by(tree: &ClusterTree, building_count: u32, id: u32) -> Covered<'_> {
+    if id < building_count {
+        return Covered::Building(Some(id));
+    }
+    let range = tree
+        .nodes
+        .get((id - building_count) as usize)
+        .and_then(|node| {
+            tree.building_order
+                .get(node.buildings.0 as usize..node.buildings.1 as usize)
+        })
+        .unwrap_or(&[]);
+    Covered::Cluster(range.iter())
 }
 
 /// The combined geometry on the CPU (see the module documentation for the id layout).
@@ -57,15 +103,59 @@ pub fn lod_geometry(city: &City, tree: &ClusterTree) -> SceneGeometry {
     SceneGeometry::from_meshes(&meshes, &fallback)
 }
 
+/// The occlusion cull's record of every draw id, from `geometry_records` (the records of
+/// [`lod_geometry`] of `tree`, whose first `building_count` are the buildings): the same records,
+/// each cluster's bounds grown to the union of its mesh's, its node's and the records of the
+/// buildings under it.
+pub fn cull_records(
+    geometry_records: &[BuildingRecord],
+    building_count: u32,
+    tree: &ClusterTree,
+) -> Vec<BuildingRecord> {
+    let mut out = geometry_records.to_vec();
+    let buildings = geometry_records
+        .get(..building_count as usize)
+        .unwrap_or(&[]);
+    for (n, node) in tree.nodes.iter().enumerate() {
+        let Some(record) = out.get_mut(building_count as usize + n) else {
+            continue;
+        };
+        let mut lo = Vec3::from_array(record.bounds_min_m).min(Vec3::from_array(node.bounds_min));
+        let mut hi = Vec3::from_array(record.bounds_max_m).max(Vec3::from_array(node.bounds_max));
+        let (s, e) = node.buildings;
+        for b in tree
+            .building_order
+            .get(s as usize..e as usize)
+            .unwrap_or(&[])
+        {
+            if let Some(r) = buildings.get(b.index()) {
+                lo = lo.min(Vec3::from_array(r.bounds_min_m));
+                hi = hi.max(Vec3::from_array(r.bounds_max_m));
+            }
+        }
+        record.bounds_min_m = lo.to_array();
+        record.bounds_max_m = hi.to_array();
+    }
+    out
+}
+
 impl LodScene {
     /// Uploads the buildings of `city` and the cluster meshes of `tree` (built from `city`).
     pub fn upload(gpu: &GpuContext, city: &City, tree: ClusterTree) -> LodScene {
+        let geometry = lod_geometry(city, &tree);
+        let building_count = city.buildings.len() as u32;
         LodScene {
-            gpu_scene: SceneGpu::upload(gpu, &lod_geometry(city, &tree)),
-            building_count: city.buildings.len() as u32,
+            cull_records: cull_records(&geometry.records, building_count, &tree),
+            gpu_scene: SceneGpu::upload(gpu, &geometry),
+            building_count,
             tree: LodTree::new(tree),
             criterion: None,
         }
+    }
+
+    /// The buildings drawn id `id` stands for ([`covered_by`]).
+    pub fn covered_by(&self, id: u32) -> Covered<'_> {
+        covered_by(&self.tree.tree, self.building_count, id)
     }
 
     /// The cut of `camera` on a `width_px`×`height_px` viewport under `criterion` (frustum

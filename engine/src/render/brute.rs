@@ -63,23 +63,13 @@ impl BruteRenderer {
         colour: &wgpu::TextureView,
         depth: &DepthTarget,
     ) {
-        self.encode_with(
-            gpu,
-            encoder,
-            scene,
-            camera,
-            colour,
-            depth,
-            "brute scene",
-            |pass| scene.draw_all(pass),
-        );
+        self.encode_timed(gpu, encoder, scene, camera, colour, depth, None);
     }
 
-    /// Records the scene pass — view uniforms, clears, pipeline, scene buffers bound — and lets
-    /// `draw` issue the draws: every building here, a culled list in
-    /// [`crate::render::selected::SelectedRenderer`].
+    /// As [`BruteRenderer::encode`], with the pass timed by `timestamp_writes`
+    /// ([`crate::gpu_timer::GpuTimer::render_pass_writes`]).
     #[expect(clippy::too_many_arguments, reason = "one pass, all inputs explicit")]
-    pub(crate) fn encode_with(
+    pub fn encode_timed(
         &self,
         gpu: &GpuContext,
         encoder: &mut wgpu::CommandEncoder,
@@ -87,14 +77,46 @@ impl BruteRenderer {
         camera: &Camera,
         colour: &wgpu::TextureView,
         depth: &DepthTarget,
+        timestamp_writes: Option<wgpu::RenderPassTimestampWrites<'_>>,
+    ) {
+        self.encode_with(
+            gpu,
+            encoder,
+            scene,
+            camera,
+            (colour, depth),
+            "brute scene",
+            timestamp_writes,
+            |pass| scene.draw_all(pass),
+        );
+    }
+
+    /// Records the scene pass — view uniforms, clears, pipeline, scene buffers bound — and lets
+    /// `draw` issue the draws: every building here, a culled list in
+    /// [`crate::render::selected::SelectedRenderer`]. The pass is timed by `timestamp_writes`.
+    #[expect(clippy::too_many_arguments, reason = "one pass, all inputs explicit")]
+    pub(crate) fn encode_with(
+        &self,
+        gpu: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        scene: &SceneGpu,
+        camera: &Camera,
+        (colour, depth): (&wgpu::TextureView, &DepthTarget),
         label: &str,
+        timestamp_writes: Option<wgpu::RenderPassTimestampWrites<'_>>,
         draw: impl FnOnce(&mut wgpu::RenderPass<'_>),
     ) {
         let uniforms = view_uniforms(camera, depth.width, depth.height, &self.style);
         gpu.queue
             .write_buffer(&self.view_buffer, 0, bytemuck::bytes_of(&uniforms));
-        let mut pass =
-            super::begin_scene_pass(encoder, label, colour, depth, self.style.clear_colour());
+        let mut pass = super::begin_scene_pass(
+            encoder,
+            label,
+            colour,
+            depth,
+            self.style.clear_colour(),
+            timestamp_writes,
+        );
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &self.view_group, &[]);
         scene.bind(&mut pass);

@@ -2,6 +2,7 @@
 //! resources; [`targets`] holds the render targets and GPU-to-CPU readback they share.
 
 pub mod brute;
+pub mod debug;
 pub mod selected;
 pub mod targets;
 pub mod view;
@@ -114,13 +115,15 @@ pub(crate) fn scene_pipeline(
 }
 
 /// Begins a render pass into `colour` and `depth` that clears colour to `clear` and depth to
-/// reversed-Z infinity, storing both: the start of every scene-drawing pass.
+/// reversed-Z infinity, storing both: the start of every scene-drawing pass. `timestamp_writes`
+/// times the pass ([`crate::gpu_timer::GpuTimer::render_pass_writes`]).
 pub(crate) fn begin_scene_pass<'e>(
     encoder: &'e mut wgpu::CommandEncoder,
     label: &str,
     colour: &wgpu::TextureView,
     depth: &DepthTarget,
     clear: wgpu::Color,
+    timestamp_writes: Option<wgpu::RenderPassTimestampWrites<'_>>,
 ) -> wgpu::RenderPass<'e> {
     encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
         label: Some(label),
@@ -134,7 +137,7 @@ pub(crate) fn begin_scene_pass<'e>(
             },
         })],
         depth_stencil_attachment: Some(depth.attachment()),
-        timestamp_writes: None,
+        timestamp_writes,
         occlusion_query_set: None,
         multiview_mask: None,
     })

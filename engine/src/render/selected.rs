@@ -53,6 +53,30 @@ impl SelectedRenderer {
         colour: &wgpu::TextureView,
         depth: &DepthTarget,
     ) -> u32 {
+        self.encode_timed(
+            gpu,
+            encoder,
+            scene,
+            camera,
+            buildings,
+            (colour, depth),
+            None,
+        )
+    }
+
+    /// As [`SelectedRenderer::encode`], with the pass timed by `timestamp_writes`
+    /// ([`crate::gpu_timer::GpuTimer::render_pass_writes`]).
+    #[expect(clippy::too_many_arguments, reason = "one pass, all inputs explicit")]
+    pub fn encode_timed(
+        &mut self,
+        gpu: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        scene: &SceneGpu,
+        camera: &Camera,
+        buildings: &[u32],
+        (colour, depth): (&wgpu::TextureView, &DepthTarget),
+        timestamp_writes: Option<wgpu::RenderPassTimestampWrites<'_>>,
+    ) -> u32 {
         let mut draws: Vec<DrawIndexedIndirectArgs> = buildings
             .iter()
             .filter_map(|&b| scene.records.get(b as usize))
@@ -72,9 +96,9 @@ impl SelectedRenderer {
             encoder,
             scene,
             camera,
-            colour,
-            depth,
+            (colour, depth),
             "selected scene",
+            timestamp_writes,
             |pass| pass.multi_draw_indexed_indirect(buffer, 0, count),
         );
         count

@@ -3,8 +3,6 @@
 use std::sync::Arc;
 use std::time::Instant;
 
-use citywalk_scenes::City;
-use citywalk_scenes::occluder::OccluderSet;
 use image::RgbaImage;
 use winit::application::ApplicationHandler;
 use winit::dpi::PhysicalSize;
@@ -13,20 +11,18 @@ use winit::event_loop::ActiveEventLoop;
 use winit::keyboard::PhysicalKey;
 use winit::window::{CursorGrabMode, Window, WindowId};
 
+use super::draw::{Drawn, FrameDrawer, ViewerScene};
 use super::input::{Command, InputTracker, KEY_HELP};
-use super::overlay::{CullingCounts, Overlay, OverlayStats};
+use super::overlay::{Overlay, OverlayStats, StageCounts};
 use super::screenshot::{ScreenshotError, to_rgba_image};
+use super::settings::{CriterionKind, RenderSettings, SceneFeatures};
 use super::surface::{Acquired, WindowSurface};
 use super::{ViewerError, ViewerOptions};
 use crate::camera::Camera;
 use crate::camera_path_io::{PathPlayer, PathRecorder, pose_from_camera};
 use crate::controller::{CameraRig, CollisionWorld, Mode};
-use crate::frame::{
-    CullingOptions, CullingRenderer, FrameError, FrameStats, OccluderMeshes, Visibility,
-};
+use crate::render::OffscreenTarget;
 use crate::render::targets::read_texture;
-use crate::render::{BruteRenderer, OffscreenTarget};
-use crate::scene_gpu::SceneGpu;
 
 /// Longest time step fed to the controllers (seconds): a stall does not teleport the walker.
 const MAX_DT_S: f32 = 0.25;
@@ -34,7 +30,9 @@ const MAX_DT_S: f32 = 0.25;
 const TITLE_PERIOD_S: f32 = 0.5;
 
 pub(super) struct App {
-    city: City,
+    /// The scene, until the graphics upload it.
+    scene: Option<ViewerScene>,
+    features: SceneFeatures,
     world: CollisionWorld,
     rig: CameraRig,
     options: ViewerOptions,
@@ -55,30 +53,14 @@ pub(super) struct App {
     /// The last measured frame rate and frame time, for the overlay.
     last_fps: Option<f32>,
     frame_ms: f32,
-    /// The scene package's virtual occluders (uploaded with the graphics), if any.
-    occluders: Option<OccluderSet>,
-    /// What the next frame is drawn with (C and V toggle).
-    draw_mode: DrawMode,
-}
-
-/// How the scene is drawn.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-struct DrawMode {
-    /// The two-phase occlusion-culling renderer, else brute force.
-    culling: bool,
-    /// The occluder pre-pass (used only with culling and when the scene has occluders).
-    occluders: bool,
+    /// What the next frame is drawn with (the overlay and the keys edit it).
+    settings: RenderSettings,
 }
 
 /// Everything that exists only while there is a window.
 struct Graphics {
     surface: WindowSurface,
-    renderer: BruteRenderer,
-    culling: CullingRenderer,
-    occluder_meshes: Option<OccluderMeshes>,
-    /// Last frame's visible buildings, carried along the camera stream.
-    visibility: Visibility,
-    scene: SceneGpu,
+    drawer: FrameDrawer,
     overlay: Overlay,
 }
 
@@ -96,11 +78,11 @@ impl MouseLook {
 }
 
 impl App {
-    pub(super) fn new(city: City, occluders: Option<OccluderSet>, options: ViewerOptions) -> App {
-        let world = CollisionWorld::from_city(&city);
-        let rig = CameraRig::for_city(&city, &world, options.mode);
+    pub(super) fn new(scene: ViewerScene, options: ViewerOptions) -> App {
+        let world = CollisionWorld::from_city(&scene.city);
+        let rig = CameraRig::for_city(&scene.city, &world, options.mode);
         tracing::info!(
-            buildings = city.buildings.len(),
+            buildings = scene.city.buildings.len(),
             walls = world.wall_count(),
             start = %rig.camera().to_arg_string(),
             "viewer ready; {KEY_HELP}"
@@ -109,14 +91,10 @@ impl App {
         if let Some(p) = &options.play {
             tracing::info!(poses = p.path.poses.len(), name = %p.path.name, "playing a camera path");
         }
-        let draw_mode = DrawMode {
-            culling: options.culling,
-            occluders: occluders.is_some(),
-        };
         App {
-            city,
-            occluders,
-            draw_mode,
+            features: scene.features(),
+            scene: Some(scene),
+            settings: options.settings,
             world,
             rig,
             options,
@@ -159,19 +137,19 @@ impl App {
         event_loop.exit();
     }
 
-    fn create_graphics(&self, event_loop: &ActiveEventLoop) -> Result<Graphics, ViewerError> {
+    fn create_graphics(&mut self, event_loop: &ActiveEventLoop) -> Result<Graphics, ViewerError> {
         let (width, height) = self.options.size_px;
         let attributes = Window::default_attributes()
             .with_title(format!("citywalk — {}", self.options.title))
             .with_inner_size(PhysicalSize::new(width.max(1), height.max(1)));
         let window = Arc::new(event_loop.create_window(attributes)?);
         let surface = WindowSurface::new(window, self.options.screenshot.is_some())?;
-        let renderer = BruteRenderer::new(&surface.gpu, surface.config.format);
-        let culling = CullingRenderer::new(&surface.gpu, surface.config.format);
-        let occluder_meshes = (self.occluders.as_ref())
-            .filter(|set| !set.occluders.is_empty())
-            .map(|set| OccluderMeshes::upload(&surface.gpu, set));
-        let scene = SceneGpu::upload_city(&surface.gpu, &self.city);
+        let Some(scene) = self.scene.take() else {
+            return Err(ViewerError::Surface(
+                "the scene was uploaded to an earlier window".to_string(),
+            ));
+        };
+        let drawer = FrameDrawer::new(&surface.gpu, surface.config.format, scene);
         let overlay = Overlay::new(
             &surface.gpu,
             &surface.window,
@@ -180,11 +158,7 @@ impl App {
         );
         Ok(Graphics {
             surface,
-            renderer,
-            culling,
-            occluder_meshes,
-            visibility: Visibility::default(),
-            scene,
+            drawer,
             overlay,
         })
     }
@@ -232,17 +206,49 @@ impl App {
                     gfx.overlay.visible = !gfx.overlay.visible;
                 }
             }
+            Command::ToggleFrustum => {
+                let stages = &mut self.settings.stages;
+                stages.frustum = !stages.frustum;
+                tracing::info!(on = stages.frustum, "frustum culling");
+            }
             Command::ToggleCulling => {
-                self.draw_mode.culling = !self.draw_mode.culling;
-                tracing::info!(on = self.draw_mode.culling, "occlusion culling");
+                let stages = &mut self.settings.stages;
+                stages.hzb = !stages.hzb;
+                tracing::info!(on = stages.hzb, "HZB occlusion culling");
             }
             Command::ToggleOccluders => {
-                if self.occluders.is_some() {
-                    self.draw_mode.occluders = !self.draw_mode.occluders;
-                    tracing::info!(on = self.draw_mode.occluders, "occluder pre-pass");
+                if self.features.occluders {
+                    let stages = &mut self.settings.stages;
+                    stages.occluders = !stages.occluders;
+                    tracing::info!(on = stages.occluders, "occluder pre-pass");
                 } else {
                     tracing::info!("this scene has no occluders (they come with scene packages)");
                 }
+            }
+            Command::ToggleLod => {
+                if self.features.cluster_tree {
+                    let stages = &mut self.settings.stages;
+                    stages.lod = !stages.lod;
+                    tracing::info!(on = stages.lod, "LOD cut");
+                } else {
+                    tracing::info!("this scene has no cluster tree (it comes with scene packages)");
+                }
+            }
+            Command::ToggleCriterion => {
+                let lod = &mut self.settings.lod;
+                lod.kind = match lod.kind {
+                    CriterionKind::Chang => CriterionKind::Yang,
+                    CriterionKind::Yang => CriterionKind::Chang,
+                };
+                tracing::info!(criterion = lod.kind.name(), "LOD criterion");
+            }
+            Command::NextDebugView => {
+                self.settings.debug_view = self.settings.debug_view.next();
+                tracing::info!(view = self.settings.debug_view.name(), "debug view");
+            }
+            Command::CoarserMip => self.settings.mip_level = (self.settings.mip_level + 1).min(16),
+            Command::FinerMip => {
+                self.settings.mip_level = self.settings.mip_level.saturating_sub(1);
             }
         }
     }
@@ -296,30 +302,15 @@ impl App {
     }
 
     /// What the overlay shows for the frame drawn with `camera`; `scene_counts` are the
-    /// scene's buildings and triangles, `culled` the culling renderer's statistics when it drew
-    /// the frame.
+    /// scene's buildings and triangles, `counts` what the frame measured.
     fn overlay_stats(
         &self,
         camera: &Camera,
         scene_counts: (usize, usize),
-        culled: Option<&FrameStats>,
+        counts: StageCounts,
     ) -> OverlayStats {
-        let (buildings, triangles) = scene_counts;
+        let (buildings_total, triangles_total) = scene_counts;
         let pose = pose_from_camera(camera);
-        let with_occluders = self.draw_mode.occluders && self.occluders.is_some();
-        let (buildings_drawn, triangles_drawn, renderer) = match culled {
-            Some(c) => (
-                c.drawn as usize,
-                c.triangles as usize,
-                if with_occluders {
-                    "two-phase HiZ culling + occluders"
-                } else {
-                    "two-phase HiZ culling"
-                },
-            ),
-            // The brute-force renderer submits every building.
-            None => (buildings, triangles, "brute force (no culling)"),
-        };
         OverlayStats {
             fps: self.last_fps,
             frame_ms: self.frame_ms,
@@ -331,21 +322,10 @@ impl App {
             position_m: pose.position,
             yaw_deg: pose.yaw_deg,
             pitch_deg: pose.pitch_deg,
-            buildings_drawn,
-            buildings_total: buildings,
-            triangles_drawn,
-            renderer: renderer.to_string(),
-            culling: culled.map(|c| CullingCounts {
-                frustum_culled: c.frustum_culled,
-                occlusion_culled: c.occlusion_culled,
-                drawn: c.drawn,
-                triangles: c.triangles,
-                draw_calls: c.draw_calls,
-                occluders_drawn: c.occluders_drawn,
-                cpu_ms: c.cpu_ms,
-            }),
-            culling_on: self.draw_mode.culling,
-            occluders_on: self.occluders.as_ref().map(|_| self.draw_mode.occluders),
+            buildings_total,
+            triangles_total,
+            counts,
+            features: self.features,
             recording_poses: self.recorder.as_ref().map(PathRecorder::len),
             playback: self.player.as_ref().map(PathPlayer::progress),
         }
@@ -364,9 +344,10 @@ impl App {
         let Acquired::Frame(frame) = gfx.surface.acquire()? else {
             return Ok(());
         };
-        let scene_counts = (gfx.scene.building_count(), gfx.scene.triangle_count);
+        let scene_counts = gfx.drawer.scene_counts();
         let camera = self.next_camera(frame_s.min(MAX_DT_S));
-        let draw_mode = self.draw_mode;
+        let settings = self.settings;
+        let features = self.features;
         let Some(gfx) = &mut self.gfx else {
             return Ok(());
         };
@@ -375,8 +356,16 @@ impl App {
             .texture
             .create_view(&wgpu::TextureViewDescriptor::default());
         let size = (frame.texture.width(), frame.texture.height());
-        let culled = gfx.draw_scene(&view, size, &camera, draw_mode)?;
-        let stats = self.overlay_stats(&camera, scene_counts, culled.as_ref());
+        let drawn: Drawn = gfx.drawer.draw(
+            &gfx.surface.gpu,
+            &view,
+            gfx.surface.depth(),
+            size,
+            &camera,
+            &settings,
+            features,
+        )?;
+        let stats = self.overlay_stats(&camera, scene_counts, drawn.counts);
         let Some(gfx) = &mut self.gfx else {
             return Ok(());
         };
@@ -384,6 +373,7 @@ impl App {
             &gfx.surface.gpu,
             &gfx.surface.window,
             &stats,
+            &mut self.settings,
             self.fov_y_deg,
         );
         gfx.paint_overlay(&view, size);
@@ -394,7 +384,7 @@ impl App {
         let shot = (self.options.screenshot.as_ref())
             .filter(|shot| !self.screenshot_taken && self.frames_drawn >= shot.frames);
         if let Some(shot) = shot {
-            let image = gfx.capture(&frame.texture, &camera, draw_mode)?;
+            let image = gfx.capture(&frame.texture, &camera, &settings, features)?;
             image.save(&shot.path).map_err(|source| ViewerError::Png {
                 path: shot.path.clone(),
                 source,
@@ -419,63 +409,11 @@ impl App {
         if controls.toggle_recording {
             self.command(event_loop, Command::ToggleRecording);
         }
-        if controls.toggle_culling {
-            self.command(event_loop, Command::ToggleCulling);
-        }
-        if controls.toggle_occluders {
-            self.command(event_loop, Command::ToggleOccluders);
-        }
         Ok(())
     }
 }
 
 impl Graphics {
-    /// Draws the scene from `camera` into `view` (`width × height`, the surface's format):
-    /// through the culling renderer (returning its statistics) or brute force.
-    fn draw_scene(
-        &mut self,
-        view: &wgpu::TextureView,
-        (width, height): (u32, u32),
-        camera: &Camera,
-        mode: DrawMode,
-    ) -> Result<Option<FrameStats>, FrameError> {
-        let gpu = &self.surface.gpu;
-        if mode.culling {
-            let options = CullingOptions {
-                occluders: mode.occluders,
-                ..CullingOptions::default()
-            };
-            let output = self.culling.render(
-                gpu,
-                &self.scene,
-                self.occluder_meshes.as_ref(),
-                &options,
-                &mut self.visibility,
-                camera,
-                view,
-                (width, height),
-            )?;
-            return Ok(Some(output.stats));
-        }
-        // Brute force draws everything: the next culled frame starts from an empty set.
-        self.visibility.reset();
-        let mut encoder = gpu
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("viewer frame"),
-            });
-        self.renderer.encode(
-            gpu,
-            &mut encoder,
-            &self.scene,
-            camera,
-            view,
-            self.surface.depth(),
-        );
-        gpu.queue.submit([encoder.finish()]);
-        Ok(None)
-    }
-
     /// Paints the prepared overlay over `view` (`width × height`).
     fn paint_overlay(&mut self, view: &wgpu::TextureView, (width, height): (u32, u32)) {
         let gpu = &self.surface.gpu;
@@ -489,12 +427,13 @@ impl Graphics {
     }
 
     /// The frame just drawn into `target`, read back before it is presented; where the surface
-    /// cannot be copied from, the same view drawn again offscreen (with the same renderer).
+    /// cannot be copied from, the same view drawn again offscreen (with the same settings).
     fn capture(
         &mut self,
         target: &wgpu::Texture,
         camera: &Camera,
-        mode: DrawMode,
+        settings: &RenderSettings,
+        features: SceneFeatures,
     ) -> Result<RgbaImage, ViewerError> {
         let (width, height, format) = (target.width(), target.height(), target.format());
         let texels = if self.surface.copyable {
@@ -502,47 +441,21 @@ impl Graphics {
         } else {
             let offscreen = OffscreenTarget::new(&self.surface.gpu, width, height, format)
                 .map_err(ScreenshotError::from)?;
-            self.draw_offscreen(&offscreen, camera, mode)?;
+            self.drawer.draw(
+                &self.surface.gpu,
+                &offscreen.colour_view,
+                &offscreen.depth,
+                (width, height),
+                camera,
+                settings,
+                features,
+            )?;
             self.paint_overlay(&offscreen.colour_view, (width, height));
             offscreen
                 .read_colour(&self.surface.gpu)
                 .map_err(ScreenshotError::from)?
         };
         Ok(to_rgba_image(texels, width, height, format)?)
-    }
-
-    /// The scene drawn into an offscreen target (brute force with the target's own depth).
-    fn draw_offscreen(
-        &mut self,
-        offscreen: &OffscreenTarget,
-        camera: &Camera,
-        mode: DrawMode,
-    ) -> Result<(), FrameError> {
-        if mode.culling {
-            self.draw_scene(
-                &offscreen.colour_view,
-                (offscreen.width, offscreen.height),
-                camera,
-                mode,
-            )?;
-            return Ok(());
-        }
-        let gpu = &self.surface.gpu;
-        let mut encoder = gpu
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("viewer screenshot"),
-            });
-        self.renderer.encode(
-            gpu,
-            &mut encoder,
-            &self.scene,
-            camera,
-            &offscreen.colour_view,
-            &offscreen.depth,
-        );
-        gpu.queue.submit([encoder.finish()]);
-        Ok(())
     }
 }
 

@@ -27,10 +27,22 @@ pub enum Command {
     ToggleRecording,
     /// H: show or hide the overlay panel.
     ToggleOverlay,
-    /// C: occlusion culling on / off (off draws every building, brute force).
+    /// B: frustum / B-Quadtree culling on / off.
+    ToggleFrustum,
+    /// C: HZB occlusion culling on / off (every stage off draws every building, brute force).
     ToggleCulling,
     /// V: the virtual-occluder pre-pass on / off (scene packages with occluders).
     ToggleOccluders,
+    /// L: the LOD cut on / off (scene packages with a cluster tree).
+    ToggleLod,
+    /// K: LOD criterion Chang ↔ Yang.
+    ToggleCriterion,
+    /// G: the next debug view (off → pyramid → clusters → occluders → off).
+    NextDebugView,
+    /// `]`: a coarser pyramid level in the pyramid view.
+    CoarserMip,
+    /// `[`: a finer pyramid level.
+    FinerMip,
 }
 
 impl Command {
@@ -44,6 +56,12 @@ impl Command {
             KeyCode::KeyH => Some(Command::ToggleOverlay),
             KeyCode::KeyC => Some(Command::ToggleCulling),
             KeyCode::KeyV => Some(Command::ToggleOccluders),
+            KeyCode::KeyB => Some(Command::ToggleFrustum),
+            KeyCode::KeyL => Some(Command::ToggleLod),
+            KeyCode::KeyK => Some(Command::ToggleCriterion),
+            KeyCode::KeyG => Some(Command::NextDebugView),
+            KeyCode::BracketRight => Some(Command::CoarserMip),
+            KeyCode::BracketLeft => Some(Command::FinerMip),
             _ => None,
         }
     }
@@ -129,8 +147,10 @@ impl InputTracker {
 pub const KEY_HELP: &str = "WASD / arrows move, Shift runs, mouse looks while the right button \
 is held (M toggles mouse look, Esc releases it or quits), F / Tab switch walk <-> fly, \
 fly: E / Space up, Q / Ctrl down, wheel changes speed, O goes to the overview, R starts / stops \
-recording the camera path, H shows / hides the overlay, C switches occlusion culling on / off, V \
-switches the virtual-occluder pre-pass on / off";
+recording the camera path, H shows / hides the overlay, B / C / V / L switch frustum (B-Quadtree) \
+culling, HZB occlusion culling, the virtual-occluder pre-pass and the LOD cut on / off (all off: \
+brute force), K switches the LOD criterion Chang <-> Yang, G cycles the debug views (pyramid, \
+clusters, occluders), [ and ] pick the pyramid level";
 
 #[cfg(test)]
 mod tests {
@@ -186,6 +206,16 @@ mod tests {
             t.key(KeyCode::KeyV, ElementState::Pressed, false),
             Some(Command::ToggleOccluders)
         );
+        for (key, command) in [
+            (KeyCode::KeyB, Command::ToggleFrustum),
+            (KeyCode::KeyL, Command::ToggleLod),
+            (KeyCode::KeyK, Command::ToggleCriterion),
+            (KeyCode::KeyG, Command::NextDebugView),
+            (KeyCode::BracketRight, Command::CoarserMip),
+            (KeyCode::BracketLeft, Command::FinerMip),
+        ] {
+            assert_eq!(t.key(key, ElementState::Pressed, false), Some(command));
+        }
         t.release_all();
         assert_eq!(t.take(), InputState::default());
     }

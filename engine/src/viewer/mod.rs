@@ -1,26 +1,32 @@
 //! The interactive viewer: a winit window with a wgpu surface, walk and fly modes
-//! ([`crate::controller`]), an egui overlay with the frame statistics ([`overlay`]; H hides it),
-//! a title bar showing mode, position and frame rate, recording of the camera into a `.path`
+//! ([`crate::controller`]), the frame drawn along the culling stages switched on ([`draw`],
+//! [`settings`]: frustum / B-Quadtree, HZB occlusion, occluder pre-pass, LOD cut) with an
+//! optional debug view (pyramid level, cluster colours, occluders), an egui overlay with the
+//! per-stage statistics, stage toggles, LOD sliders and debug-view choice ([`overlay`]; H hides
+//! it), a title bar showing mode, position and frame rate, recording of the camera into a `.path`
 //! file (R starts and stops) and playback of a path (`--play`).
 //!
 //! `--screenshot` mode renders a fixed number of frames through the real window and surface,
 //! writes the last one to PNG and exits; the Xvfb test drives the viewer that way.
 
 mod app;
+pub mod draw;
 pub mod input;
 pub mod overlay;
 pub mod screenshot;
+pub mod settings;
 mod surface;
 
 use std::path::PathBuf;
 
-use citywalk_scenes::City;
 use citywalk_scenes::camera_path::CameraPath;
-use citywalk_scenes::occluder::OccluderSet;
 
 use crate::camera_path_io::{PlayEnd, RecordError};
 use crate::controller::Mode;
 use crate::gpu::GpuError;
+
+pub use draw::ViewerScene;
+pub use settings::{CriterionKind, DebugView, LodSettings, RenderSettings, Stages};
 
 /// How to run the viewer.
 #[derive(Debug, Clone, PartialEq)]
@@ -39,9 +45,9 @@ pub struct ViewerOptions {
     pub play: Option<PlayRequest>,
     /// Show the overlay panel at start (H toggles it).
     pub overlay: bool,
-    /// Draw with the two-phase occlusion-culling renderer ([`crate::frame::CullingRenderer`])
-    /// at start; off draws every building (brute force). C toggles it.
-    pub culling: bool,
+    /// The culling stages, LOD criterion and debug view at start (the overlay and the keys
+    /// change them).
+    pub settings: RenderSettings,
 }
 
 /// `--play PATH [--loop]`.
@@ -87,16 +93,12 @@ pub enum ViewerError {
     ScreenshotNotTaken { drawn: u32, wanted: u32 },
 }
 
-/// Opens the window and runs until it is closed (or the screenshot is written). `occluders`
-/// (a scene package's virtual occluders) feed the culling renderer's pre-pass (V toggles it).
-pub fn run(
-    city: City,
-    occluders: Option<OccluderSet>,
-    options: ViewerOptions,
-) -> Result<(), ViewerError> {
+/// Opens the window and runs until it is closed (or the screenshot is written). A scene
+/// package's occluders, cluster tree and B-Quadtree feed the culling stages and the LOD cut.
+pub fn run(scene: ViewerScene, options: ViewerOptions) -> Result<(), ViewerError> {
     let event_loop = winit::event_loop::EventLoop::new()?;
     event_loop.set_control_flow(winit::event_loop::ControlFlow::Poll);
-    let mut app = app::App::new(city, occluders, options);
+    let mut app = app::App::new(scene, options);
     event_loop.run_app(&mut app)?;
     app.finish()
 }

@@ -1,11 +1,11 @@
 //! The on-screen overlay: an egui panel with the frame statistics and the viewer's controls,
 //! drawn over the scene into the same colour target.
 //!
-//! Two halves: [`OverlayStats`] / [`OverlayControls`] and [`panel`] (what is shown, plain data
-//! and egui calls, no GPU), and [`Overlay`] (egui-winit input and the egui-wgpu painter).
-//! To show more (the culling stages' counts, their ε / τ / δh / δa sliders and stage toggles),
-//! add fields to [`OverlayStats`] / [`OverlayControls`] and a section to [`panel`]; only show
-//! numbers the renderer really measured.
+//! Two halves: [`OverlayStats`] / [`OverlayControls`] / [`RenderSettings`] and [`panel`] (what
+//! is shown and edited, plain data and egui calls, no GPU), and [`Overlay`] (egui-winit input
+//! and the egui-wgpu painter). The panel shows the counts of each culling stage that ran, the
+//! stage toggles, the LOD criterion with its ε / τ / δh / δa sliders and the debug view; only
+//! numbers the renderer really measured are shown.
 
 use std::sync::Arc;
 
@@ -13,6 +13,7 @@ use glam::Vec3;
 use winit::event::WindowEvent;
 use winit::window::Window;
 
+use super::settings::{CriterionKind, DebugView, LodSettings, RenderSettings, SceneFeatures};
 use crate::gpu::GpuContext;
 
 /// What the panel reports for the frame just drawn.
@@ -27,45 +28,48 @@ pub struct OverlayStats {
     pub position_m: Vec3,
     pub yaw_deg: f32,
     pub pitch_deg: f32,
-    /// Buildings submitted for drawing this frame, and in the scene.
-    pub buildings_drawn: usize,
+    /// Buildings and triangles in the scene.
     pub buildings_total: usize,
-    /// Triangles submitted for drawing this frame.
-    pub triangles_drawn: usize,
-    /// Which renderer drew the frame (e.g. "brute force, no culling").
-    pub renderer: String,
-    /// The culling frame's measured counts, when the culling renderer drew the frame.
-    pub culling: Option<CullingCounts>,
-    /// Whether the culling renderer is on (the checkbox's state).
-    pub culling_on: bool,
-    /// Whether the occluder pre-pass is on; `None` when the scene has no occluders.
-    pub occluders_on: Option<bool>,
+    pub triangles_total: usize,
+    /// What the frame measured, stage by stage.
+    pub counts: StageCounts,
+    /// What the scene offers (stages it lacks are shown disabled).
+    pub features: SceneFeatures,
     /// Poses recorded so far, while recording.
     pub recording_poses: Option<usize>,
     /// (pose shown, pose count) while playing a path.
     pub playback: Option<(usize, usize)>,
 }
 
-/// Counts measured by the culling renderer for one frame ([`crate::frame::FrameStats`]).
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct CullingCounts {
-    /// Buildings outside the view frustum.
-    pub frustum_culled: u32,
-    /// Buildings in the frustum hidden behind the depth pyramid.
-    pub occlusion_culled: u32,
-    /// Buildings drawn (early and late pass).
-    pub drawn: u32,
-    /// Triangles of the buildings drawn.
+/// Counts of one frame, per culling stage; `None` for a stage that did not run.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct StageCounts {
+    /// Which frame drew (e.g. "LOD cut + two-phase HiZ culling").
+    pub renderer: String,
+    /// Culled by the frustum (or B-Quadtree, or left out of the LOD cut): buildings, or
+    /// candidates of the HZB frame.
+    pub frustum_culled: Option<u32>,
+    /// Candidates in the frustum hidden behind the depth pyramid.
+    pub occlusion_culled: Option<u32>,
+    /// Buildings drawn, themselves or through a drawn cluster.
+    pub buildings_drawn: u32,
+    /// Cluster meshes drawn (with LOD).
+    pub clusters_drawn: Option<u32>,
+    /// Triangles of the drawn buildings and clusters.
     pub triangles: u64,
     /// Non-empty draws issued.
     pub draw_calls: u32,
-    /// Virtual occluders drawn into the pyramid's depth.
-    pub occluders_drawn: u32,
-    /// CPU time of the frame (encoding, waiting for the GPU, reading the status back).
+    /// Virtual occluders drawn into the pyramid's depth (with the pre-pass).
+    pub occluders_drawn: Option<u32>,
+    /// CPU time of the frame: selection, recording, submission, waiting for the GPU (ms).
     pub cpu_ms: f64,
+    /// GPU time per phase (ms), where the frame measured it.
+    pub gpu_ms: Vec<(String, f64)>,
+    /// What the debug view shows (e.g. "pyramid level 3 of 11 (160×90)").
+    pub debug: Option<String>,
 }
 
-/// What the user changed in the panel this frame.
+/// What the user did in the panel this frame (the render settings are edited in place).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct OverlayControls {
     /// The field of view slider (degrees); applied to the controllers' cameras.
@@ -74,17 +78,46 @@ pub struct OverlayControls {
     pub toggle_mode: bool,
     /// "record" / "stop recording" was clicked.
     pub toggle_recording: bool,
-    /// The "occlusion culling" checkbox was clicked.
-    pub toggle_culling: bool,
-    /// The "occluder pre-pass" checkbox was clicked.
-    pub toggle_occluders: bool,
 }
 
 /// Narrowest and widest field of view the slider offers (degrees).
 const FOV_RANGE_DEG: std::ops::RangeInclusive<f32> = 20.0..=120.0;
 
-/// The panel's contents.
-pub fn panel(ui: &mut egui::Ui, stats: &OverlayStats, controls: &mut OverlayControls) {
+/// The highest pyramid level the slider offers (a 65536-pixel viewport has 17 levels).
+const MAX_MIP_LEVEL: u32 = 16;
+
+/// The panel's contents: the statistics, the camera controls, and `settings` (stages, LOD
+/// criterion and tolerances, debug view) edited in place.
+pub fn panel(
+    ui: &mut egui::Ui,
+    stats: &OverlayStats,
+    settings: &mut RenderSettings,
+    controls: &mut OverlayControls,
+) {
+    stats_grid(ui, stats);
+    ui.separator();
+    ui.horizontal(|ui| {
+        if stats.playback.is_none() {
+            let other = if stats.mode == "walk" { "fly" } else { "walk" };
+            controls.toggle_mode = ui.button(format!("{other} (F)")).clicked();
+        }
+        let record = match stats.recording_poses {
+            Some(n) => format!("stop recording ({n} poses) (R)"),
+            None => "record (R)".to_string(),
+        };
+        controls.toggle_recording = ui.button(record).clicked();
+    });
+    ui.add(egui::Slider::new(&mut controls.fov_y_deg, FOV_RANGE_DEG).text("fov y (°)"));
+    ui.separator();
+    stage_toggles(ui, stats.features, settings);
+    ui.separator();
+    lod_controls(ui, stats.features, settings);
+    ui.separator();
+    debug_controls(ui, settings);
+    ui.label("H hides this panel");
+}
+
+fn stats_grid(ui: &mut egui::Ui, stats: &OverlayStats) {
     egui::Grid::new("citywalk stats")
         .num_columns(2)
         .striped(true)
@@ -108,48 +141,123 @@ pub fn panel(ui: &mut egui::Ui, stats: &OverlayStats, controls: &mut OverlayCont
                 "yaw / pitch",
                 format!("{:.1}° / {:.1}°", stats.yaw_deg, stats.pitch_deg),
             );
+            let c = &stats.counts;
+            row("renderer", c.renderer.clone());
+            if let Some(n) = c.frustum_culled {
+                row("frustum-culled", n.to_string());
+            }
+            if let Some(n) = c.occlusion_culled {
+                row("occlusion-culled", n.to_string());
+            }
             row(
                 "buildings",
-                format!("{} / {}", stats.buildings_drawn, stats.buildings_total),
+                format!("{} / {}", c.buildings_drawn, stats.buildings_total),
             );
-            row("triangles", stats.triangles_drawn.to_string());
-            row("renderer", stats.renderer.clone());
-            if let Some(c) = &stats.culling {
-                row("frustum-culled", c.frustum_culled.to_string());
-                row("occlusion-culled", c.occlusion_culled.to_string());
-                row("draw calls", c.draw_calls.to_string());
-                row("occluders drawn", c.occluders_drawn.to_string());
-                row("culling cpu", format!("{:.2} ms", c.cpu_ms));
+            if let Some(n) = c.clusters_drawn {
+                row("clusters", n.to_string());
+            }
+            row(
+                "triangles",
+                format!("{} / {}", c.triangles, stats.triangles_total),
+            );
+            row("draw calls", c.draw_calls.to_string());
+            if let Some(n) = c.occluders_drawn {
+                row("occluders drawn", n.to_string());
+            }
+            row("frame cpu", format!("{:.2} ms", c.cpu_ms));
+            for (phase, ms) in &c.gpu_ms {
+                row(&format!("gpu {phase}"), format!("{ms:.3} ms"));
+            }
+            if let Some(debug) = &c.debug {
+                row("debug view", debug.clone());
             }
             if let Some((shown, count)) = stats.playback {
                 row("path", format!("pose {} / {count}", shown + 1));
             }
         });
-    ui.separator();
-    ui.horizontal(|ui| {
-        if stats.playback.is_none() {
-            let other = if stats.mode == "walk" { "fly" } else { "walk" };
-            controls.toggle_mode = ui.button(format!("{other} (F)")).clicked();
-        }
-        let record = match stats.recording_poses {
-            Some(n) => format!("stop recording ({n} poses) (R)"),
-            None => "record (R)".to_string(),
-        };
-        controls.toggle_recording = ui.button(record).clicked();
-    });
-    let mut culling = stats.culling_on;
-    controls.toggle_culling = ui.checkbox(&mut culling, "occlusion culling (C)").clicked();
-    if let Some(on) = stats.occluders_on {
-        let mut occluders = on;
-        controls.toggle_occluders = ui
-            .add_enabled(
-                stats.culling_on,
-                egui::Checkbox::new(&mut occluders, "occluder pre-pass (V)"),
-            )
-            .clicked();
+}
+
+fn stage_toggles(ui: &mut egui::Ui, features: SceneFeatures, settings: &mut RenderSettings) {
+    let stages = &mut settings.stages;
+    let frustum = if features.quadtree {
+        "frustum / B-Quadtree (B)"
+    } else {
+        "frustum (B)"
+    };
+    ui.checkbox(&mut stages.frustum, frustum);
+    ui.checkbox(&mut stages.hzb, "HZB occlusion culling (C)");
+    ui.add_enabled(
+        stages.hzb && features.occluders,
+        egui::Checkbox::new(&mut stages.occluders, "occluder pre-pass (V)"),
+    );
+    ui.add_enabled(
+        features.cluster_tree,
+        egui::Checkbox::new(&mut stages.lod, "LOD cut (L)"),
+    );
+    if !features.cluster_tree {
+        ui.label("(LOD needs a scene package with a cluster tree)");
     }
-    ui.add(egui::Slider::new(&mut controls.fov_y_deg, FOV_RANGE_DEG).text("fov y (°)"));
-    ui.label("H hides this panel");
+}
+
+fn lod_controls(ui: &mut egui::Ui, features: SceneFeatures, settings: &mut RenderSettings) {
+    let enabled = features.cluster_tree && settings.stages.lod;
+    let lod = &mut settings.lod;
+    ui.add_enabled_ui(enabled, |ui| {
+        ui.horizontal(|ui| {
+            ui.label("criterion (K)");
+            ui.radio_value(&mut lod.kind, CriterionKind::Chang, "Chang");
+            ui.radio_value(&mut lod.kind, CriterionKind::Yang, "Yang");
+        });
+        match lod.kind {
+            CriterionKind::Chang => {
+                ui.add(slider(
+                    &mut lod.epsilon_px,
+                    LodSettings::EPSILON_RANGE_PX,
+                    "ε (px)",
+                ));
+                ui.add(slider(&mut lod.tau_px, LodSettings::TAU_RANGE_PX, "τ (px)"));
+            }
+            CriterionKind::Yang => {
+                ui.add(slider(
+                    &mut lod.delta_h_px,
+                    LodSettings::DELTA_H_RANGE_PX,
+                    "δh (px)",
+                ));
+                ui.add(slider(
+                    &mut lod.delta_a_px2,
+                    LodSettings::DELTA_A_RANGE_PX2,
+                    "δa (px²)",
+                ));
+            }
+        }
+        if ui.button("paper defaults").clicked() {
+            *lod = LodSettings {
+                kind: lod.kind,
+                ..LodSettings::default()
+            };
+        }
+    });
+}
+
+/// A logarithmic slider (tolerances span orders of magnitude).
+fn slider<'a>(
+    value: &'a mut f32,
+    range: std::ops::RangeInclusive<f32>,
+    text: &str,
+) -> egui::Slider<'a> {
+    egui::Slider::new(value, range).logarithmic(true).text(text)
+}
+
+fn debug_controls(ui: &mut egui::Ui, settings: &mut RenderSettings) {
+    ui.horizontal(|ui| {
+        ui.label("debug view (G)");
+        for view in DebugView::ALL {
+            ui.radio_value(&mut settings.debug_view, view, view.name());
+        }
+    });
+    if settings.debug_view == DebugView::Pyramid {
+        ui.add(egui::Slider::new(&mut settings.mip_level, 0..=MAX_MIP_LEVEL).text("level ([ ])"));
+    }
 }
 
 /// egui state for one window and the painter for its surface format.
@@ -215,12 +323,14 @@ impl Overlay {
     }
 
     /// Lays out the panel for this frame and uploads what changed (font atlas). Returns what the
-    /// user did; nothing is drawn until [`Overlay::paint`].
+    /// user did (settings changes are made in `settings`, for the next frame); nothing is drawn
+    /// until [`Overlay::paint`].
     pub fn prepare(
         &mut self,
         gpu: &GpuContext,
         window: &Window,
         stats: &OverlayStats,
+        settings: &mut RenderSettings,
         fov_y_deg: f32,
     ) -> OverlayControls {
         let mut controls = OverlayControls {
@@ -231,11 +341,16 @@ impl Overlay {
         let visible = self.visible;
         let mut output = self.context.run_pass(raw, |ctx| {
             if visible {
+                // As tall as the window allows; a smaller window scrolls the panel.
+                let height = (ctx.content_rect().height() - 48.0).max(120.0);
                 egui::Window::new("citywalk")
                     .anchor(egui::Align2::LEFT_TOP, [8.0, 8.0])
                     .resizable(false)
+                    .vscroll(true)
+                    .default_height(height)
+                    .max_height(height)
                     .collapsible(true)
-                    .show(ctx, |ui| panel(ui, stats, &mut controls));
+                    .show(ctx, |ui| panel(ui, stats, settings, &mut controls));
             }
         });
         self.input
@@ -309,18 +424,20 @@ impl Overlay {
 mod tests {
     use super::*;
 
-    /// Runs the panel headless (no window, no GPU) and returns the texts it laid out.
-    fn texts(stats: &OverlayStats) -> String {
+    /// Runs the panel headless (no window, no GPU) and returns the texts it laid out; the
+    /// settings must come back unchanged (no input was given).
+    fn texts(stats: &OverlayStats, settings: &RenderSettings) -> String {
         let context = egui::Context::default();
         let mut controls = OverlayControls {
             fov_y_deg: 60.0,
             ..OverlayControls::default()
         };
+        let mut edited = *settings;
         let mut shown = String::new();
         // Two passes: egui lays out grids on the first and shows them on the second.
         for _ in 0..2 {
             let mut output = context.run_ui(egui::RawInput::default(), |ui| {
-                panel(ui, stats, &mut controls)
+                panel(ui, stats, &mut edited, &mut controls)
             });
             // No painter here: the font atlas is not uploaded anywhere.
             output.textures_delta.clear();
@@ -330,8 +447,8 @@ mod tests {
             }
         }
         assert!(!controls.toggle_mode && !controls.toggle_recording);
-        assert!(!controls.toggle_culling && !controls.toggle_occluders);
         assert_eq!(controls.fov_y_deg, 60.0);
+        assert_eq!(&edited, settings, "no input, no change");
         shown
     }
 
@@ -346,6 +463,12 @@ mod tests {
         }
     }
 
+    fn assert_shows(shown: &str, wanted: &[&str]) {
+        for want in wanted {
+            assert!(shown.contains(want), "{want:?} not in the panel:\n{shown}");
+        }
+    }
+
     #[test]
     fn the_panel_shows_the_stats_it_is_given() {
         let stats = OverlayStats {
@@ -355,81 +478,131 @@ mod tests {
             position_m: Vec3::new(12.0, -3.5, 1.7),
             yaw_deg: 90.0,
             pitch_deg: -5.0,
-            buildings_drawn: 7,
             buildings_total: 9,
-            triangles_drawn: 1234,
-            renderer: "brute force".into(),
-            culling: None,
-            culling_on: false,
-            occluders_on: None,
+            triangles_total: 5000,
+            counts: StageCounts {
+                renderer: "brute force".into(),
+                buildings_drawn: 7,
+                triangles: 1234,
+                draw_calls: 8,
+                cpu_ms: 3.5,
+                ..StageCounts::default()
+            },
+            features: SceneFeatures::default(),
             recording_poses: Some(42),
             playback: None,
         };
-        let shown = texts(&stats);
-        for want in [
-            "59.5",
-            "16.81 ms",
-            "walk",
-            "12.0, -3.5, 1.7 m",
-            "7 / 9",
-            "1234",
-            "brute force",
-            "stop recording (42 poses) (R)",
-            "fly (F)",
-        ] {
-            assert!(shown.contains(want), "{want:?} not in the panel:\n{shown}");
-        }
-        let playing = texts(&OverlayStats {
-            mode: "path".into(),
-            recording_poses: None,
-            playback: Some((4, 60)),
-            ..stats.clone()
-        });
-        assert!(playing.contains("pose 5 / 60"), "{playing}");
-        assert!(
-            !playing.contains("frustum-culled") && !playing.contains("occluder pre-pass"),
-            "no culling counts without the culling renderer:\n{playing}"
+        let plain = RenderSettings::default();
+        let shown = texts(&stats, &plain);
+        assert_shows(
+            &shown,
+            &[
+                "59.5",
+                "16.81 ms",
+                "walk",
+                "12.0, -3.5, 1.7 m",
+                "7 / 9",
+                "1234 / 5000",
+                "brute force",
+                "3.50 ms",
+                "stop recording (42 poses) (R)",
+                "fly (F)",
+                "frustum (B)",
+                "HZB occlusion culling (C)",
+                "LOD needs a scene package",
+                "debug view (G)",
+            ],
         );
-        let culled = texts(&OverlayStats {
-            renderer: "two-phase HiZ culling".into(),
-            buildings_drawn: 17,
-            buildings_total: 540,
-            triangles_drawn: 98_765,
-            culling: Some(CullingCounts {
-                frustum_culled: 301,
-                occlusion_culled: 222,
-                drawn: 17,
-                triangles: 98_765,
-                draw_calls: 19,
-                occluders_drawn: 5,
-                cpu_ms: 1.25,
-            }),
-            culling_on: true,
-            occluders_on: Some(true),
-            ..stats
-        });
-        for want in [
-            "frustum-culled",
-            "301",
-            "occlusion-culled",
-            "222",
-            "17 / 540",
-            "98765",
-            "19",
-            "occluders drawn",
-            "1.25 ms",
-            "occlusion culling (C)",
-            "occluder pre-pass (V)",
-        ] {
-            assert!(
-                culled.contains(want),
-                "{want:?} not in the panel:\n{culled}"
-            );
-        }
-        assert!(playing.contains("record (R)"), "{playing}");
         assert!(
-            !playing.contains("(F)"),
-            "no mode switch while playing:\n{playing}"
+            !shown.contains("frustum-culled") && !shown.contains("occluders drawn"),
+            "no counts of stages that did not run:\n{shown}"
         );
+        let playing = texts(
+            &OverlayStats {
+                mode: "path".into(),
+                recording_poses: None,
+                playback: Some((4, 60)),
+                ..stats.clone()
+            },
+            &plain,
+        );
+        assert_shows(&playing, &["pose 5 / 60", "record (R)"]);
+        assert!(!playing.contains("(F)"), "no mode switch while playing");
+
+        // A package frame with every stage: per-stage counts, GPU phases, the LOD sliders.
+        let package = SceneFeatures {
+            occluders: true,
+            cluster_tree: true,
+            quadtree: true,
+        };
+        let all = RenderSettings {
+            stages: super::super::settings::Stages::ALL,
+            debug_view: DebugView::Pyramid,
+            mip_level: 3,
+            ..plain
+        };
+        let culled = texts(
+            &OverlayStats {
+                buildings_total: 540,
+                features: package,
+                counts: StageCounts {
+                    renderer: "LOD cut + HiZ culling + occluders".into(),
+                    frustum_culled: Some(301),
+                    occlusion_culled: Some(222),
+                    buildings_drawn: 17,
+                    clusters_drawn: Some(6),
+                    triangles: 98_765,
+                    draw_calls: 19,
+                    occluders_drawn: Some(5),
+                    cpu_ms: 1.25,
+                    gpu_ms: vec![("late_pass".into(), 0.75)],
+                    debug: Some("pyramid level 3 of 11 (160×90)".into()),
+                },
+                ..stats.clone()
+            },
+            &all,
+        );
+        assert_shows(
+            &culled,
+            &[
+                "frustum-culled",
+                "301",
+                "occlusion-culled",
+                "222",
+                "17 / 540",
+                "clusters",
+                "98765",
+                "19",
+                "occluders drawn",
+                "1.25 ms",
+                "gpu late_pass",
+                "0.750 ms",
+                "pyramid level 3 of 11",
+                "frustum / B-Quadtree (B)",
+                "occluder pre-pass (V)",
+                "LOD cut (L)",
+                "Chang",
+                "Yang",
+                "ε (px)",
+                "τ (px)",
+                "level ([ ])",
+            ],
+        );
+        let yang = texts(
+            &OverlayStats {
+                features: package,
+                ..stats
+            },
+            &RenderSettings {
+                stages: super::super::settings::Stages::ALL,
+                lod: LodSettings {
+                    kind: CriterionKind::Yang,
+                    ..LodSettings::default()
+                },
+                ..plain
+            },
+        );
+        assert_shows(&yang, &["δh (px)", "δa (px²)"]);
+        assert!(!yang.contains("ε (px)"), "{yang}");
     }
 }

@@ -8,8 +8,11 @@
 //!
 //! Balancing differs in form from the paper's inserted thresholds but not in effect: when a
 //! condensed node would get more than δp children, its removed binary descendants are
-//! restored largest merge distance first (the next largest jump inside that level) until
-//! the node has at most δp children.
+//! restored largest merge distance first (the next largest jump inside that level; among
+//! equal distances the one with the most buildings, which splits the level evenly) until
+//! the node has at most δp children. Thresholds cannot shorten the caterpillars that
+//! single-link chaining builds; those are re-paired before the hulls are merged
+//! ([`super::rebalance`]), so the restored nodes form a balanced tree.
 
 use std::cmp::Ordering;
 use std::collections::{BinaryHeap, VecDeque};
@@ -23,8 +26,10 @@ pub struct Reduced {
     pub target_depth: u32,
 }
 
+/// Merge distance, buildings below, node id: the heap pops the largest distance, then the
+/// largest subtree (equal distances: the split that keeps the children balanced).
 #[derive(Debug, Clone, Copy)]
-struct ByDist(f64, u32);
+struct ByDist(f64, u32, u32);
 impl PartialEq for ByDist {
     fn eq(&self, o: &Self) -> bool {
         self.cmp(o) == Ordering::Equal
@@ -38,7 +43,10 @@ impl PartialOrd for ByDist {
 }
 impl Ord for ByDist {
     fn cmp(&self, o: &Self) -> Ordering {
-        self.0.total_cmp(&o.0).then(self.1.cmp(&o.1))
+        self.0
+            .total_cmp(&o.0)
+            .then(self.1.cmp(&o.1))
+            .then(self.2.cmp(&o.2))
     }
 }
 
@@ -104,14 +112,20 @@ pub fn reduce(
         .collect();
     let p = (n.max(2) as f64).powf(1.0 / target).ceil() as usize;
     let cap = (2 * p).max(2);
+    let mut size = vec![1u32; total];
+    for (k, c) in bin_children.iter().enumerate() {
+        size[n + k] = size[c[0] as usize] + size[c[1] as usize];
+    }
     let mut children = vec![Vec::new(); total];
     let mut queue = VecDeque::from([root]);
     while let Some(x) = queue.pop_front() {
         let Some(cc) = child(x) else { continue };
-        let mut heap: BinaryHeap<ByDist> =
-            cc.iter().map(|&c| ByDist(dist[c as usize], c)).collect();
+        let mut heap: BinaryHeap<ByDist> = cc
+            .iter()
+            .map(|&c| ByDist(dist[c as usize], size[c as usize], c))
+            .collect();
         let mut out = Vec::new();
-        while let Some(ByDist(_, y)) = heap.pop() {
+        while let Some(ByDist(_, _, y)) = heap.pop() {
             let y = y as usize;
             if kept[y] {
                 out.push(y as u32);
@@ -121,7 +135,7 @@ pub fn reduce(
             match child(y) {
                 Some(yc) if count < cap => {
                     for c in yc {
-                        heap.push(ByDist(dist[c as usize], c));
+                        heap.push(ByDist(dist[c as usize], size[c as usize], c));
                     }
                 }
                 _ => {

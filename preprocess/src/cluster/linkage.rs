@@ -15,6 +15,14 @@
 //! to all pairs at any moment, so the heap orders by `size·size·d` (exact, no stale keys) and
 //! the factor is applied to the recorded merge distance.
 //!
+//! Ties: single-link clustering leaves the order of merges at equal distances open (the
+//! clusters at any distance threshold are the same whatever the order). Rows of houses that
+//! share walls are all at adjacent distance 0; merged oldest-first they form a caterpillar
+//! (the cluster grows by one house per merge, a tree as deep as the row is long) that no
+//! distance threshold of the depth reduction can cut. Among equal distances the pair with the
+//! fewest buildings therefore merges first, which pairs houses, then pairs of pairs: a
+//! balanced binary tree for each run of equal distances.
+//!
 //! Lynch's paths: clustering runs inside each urban block first (one triangulation per block),
 //! then between blocks, so no cluster below the block level holds buildings of two blocks.
 
@@ -192,6 +200,8 @@ pub fn adjacent_distance(verts: &[Pt], r1: &[u32], r2: &[u32], lambda: f64) -> f
 #[derive(Debug, Clone, Copy)]
 struct Entry {
     key: f64,
+    /// Buildings in both clusters: among equal keys the smallest pair merges first.
+    size: u32,
     a: u32,
     b: u32,
     va: u32,
@@ -211,9 +221,10 @@ impl PartialOrd for Entry {
 }
 impl Ord for Entry {
     fn cmp(&self, o: &Self) -> Ordering {
-        // Reversed: the heap pops the smallest key; ties by ids for determinism.
+        // Reversed: the heap pops the smallest key; ties by size, then ids (determinism).
         o.key
             .total_cmp(&self.key)
+            .then(o.size.cmp(&self.size))
             .then(o.a.cmp(&self.a))
             .then(o.b.cmp(&self.b))
     }
@@ -260,6 +271,7 @@ impl Agglomeration<'_> {
         let (a, b) = (a.min(b), a.max(b));
         self.heap.push(Entry {
             key,
+            size: self.size[a as usize] + self.size[b as usize],
             a,
             b,
             va: self.version[a as usize],

@@ -5,7 +5,8 @@
 //!
 //! Pipeline ([`build_cluster_tree`]):
 //! 1. leaves: one ring per building in one shared vertex array ([`leaves`]);
-//! 2. single-link clustering inside blocks, then between blocks ([`linkage`]);
+//! 2. single-link clustering inside blocks, then between blocks ([`linkage`]); long chains
+//!    re-paired by weight ([`rebalance`]);
 //! 3. hulls merged bottom-up along the merge order ([`merge`]) and simplified ([`simplify`]);
 //! 4. depth reduction and balancing ([`depth`]);
 //! 5. node data: heights, errors (made monotone), bounds, landmarks, meshes.
@@ -15,12 +16,15 @@ pub mod geom;
 pub mod leaves;
 pub mod linkage;
 pub mod merge;
+pub mod rebalance;
 pub mod simplify;
 
 use citywalk_scenes::City;
 use citywalk_scenes::city::TriangleMesh;
 pub use citywalk_scenes::cluster_tree::{ClusterDistance, ClusterParams};
-use citywalk_scenes::cluster_tree::{ClusterNode, ClusterStats, ClusterTree, HullSimplify};
+use citywalk_scenes::cluster_tree::{
+    ClusterNode, ClusterStats, ClusterTree, HullSimplify, MergeFallback,
+};
 use citywalk_scenes::extrude::extrude_polygon;
 
 use geom::{convex_hull, ring_bounds, signed_area};
@@ -106,65 +110,43 @@ pub fn build_cluster_tree(
         params.distance,
         params.adjacency_lambda,
     )?;
-
-    // Hulls along the merge order.
-    let input_edges: usize = leaves.iter().map(|l| l.ring.len()).sum();
-    let mut rings: Vec<Vec<u32>> = leaves.iter().map(|l| l.ring.clone()).collect();
-    let mut dist = vec![0.0f64; n];
-    let mut bin_children: Vec<[u32; 2]> = Vec::with_capacity(merges.len());
-    let mut areas: Vec<f64> = rings.iter().map(|r| signed_area(&store.verts, r)).collect();
-    let mut level_area_sum: f64 = areas.iter().sum();
-    let mut level_count = n as f64;
-    for m in &merges {
-        let (a, b) = (m.a as usize, m.b as usize);
-        let merged = merge::merge_rings(
-            &mut store,
-            &rings[a],
-            &rings[b],
-            params.merge,
-            params.adjacency_lambda,
-        );
-        if merged.fallback {
-            stats.merge_fallbacks += 1;
-        }
-        let ring = match params.simplify {
-            HullSimplify::ChangSmallestArea => {
-                let hull_len = convex_hull(&store.verts, merged.ring.iter().copied()).len();
-                let target = ((params.chang_keep_fraction
-                    * (rings[a].len() + rings[b].len()) as f64)
-                    .ceil() as usize)
-                    .max((params.chang_min_input_fraction * input_edges as f64).ceil() as usize)
-                    .max(hull_len);
-                simplify::simplify_chang(&store.verts, &merged.ring, target)
-            }
-            HullSimplify::YangConcaveTriangles => {
-                let a_ave = level_area_sum / level_count.max(1.0);
-                simplify::simplify_yang(
-                    &store.verts,
-                    &merged.ring,
-                    a_ave / params.concave_area_divisor,
-                    params.straight_angle_deg,
-                )
-            }
-        };
-        // Growth-only removals keep the ring simple by construction; verify, and keep the
-        // unsimplified ring (counted) should that ever fail.
-        let ring = if geom::ring_is_simple_ccw(&store.verts, &ring) {
-            ring
-        } else {
-            stats.simplify_fallbacks += 1;
-            merged.ring
-        };
-        let area = signed_area(&store.verts, &ring);
-        level_area_sum += area - areas[a] - areas[b];
-        level_count -= 1.0;
-        areas.push(area);
-        rings.push(ring);
-        dist.push(m.distance.max(dist[a]).max(dist[b]));
-        bin_children.push([m.a, m.b]);
-    }
+    let centres: Vec<[f64; 2]> = leaves.iter().map(|l| l.centre).collect();
+    let merges = rebalance::rebalance(n, &merges, blocks, &centres);
+    let hulls = merge_hulls(&mut store, &leaves, &merges, params, &mut stats, false);
     stats.binary_inner_nodes = merges.len() as u32;
+    let (mut nodes, building_order) =
+        assemble_nodes(city, blocks, &store.verts, &leaves, &merges, hulls, params);
+    build_meshes(city, &store.verts, &building_order, &mut nodes);
 
+    Ok(ClusterTree {
+        vertices: store.verts,
+        nodes,
+        root: 0,
+        building_order,
+        params: params.clone(),
+        stats,
+    })
+}
+
+/// Stages 4–5: depth reduction and balancing of the binary tree ([`depth`]), the final nodes
+/// in depth-first preorder, and their data (heights, errors, bounds, landmarks; no meshes).
+pub fn assemble_nodes(
+    city: &City,
+    blocks: &[u32],
+    verts: &[geom::Pt],
+    leaves: &[leaves::Leaf],
+    merges: &[linkage::Merge],
+    hulls: Hulls,
+    params: &ClusterParams,
+) -> (Vec<ClusterNode>, Vec<citywalk_scenes::BuildingId>) {
+    let n = leaves.len();
+    let Hulls {
+        mut rings,
+        areas,
+        dist,
+        bin_children,
+        ..
+    } = hulls;
     // Block roots stay in the reduced tree: the block level is a level of its own.
     let total = rings.len();
     let mut force_keep = vec![false; total];
@@ -240,25 +222,174 @@ pub fn build_cluster_tree(
     fill_node_data(
         city,
         blocks,
-        &store.verts,
-        &leaves,
+        verts,
+        leaves,
         &building_order,
         &mut nodes,
         params,
     );
 
-    Ok(ClusterTree {
-        vertices: store.verts,
-        nodes,
-        root: 0,
-        building_order,
-        params: params.clone(),
-        stats,
-    })
+    (nodes, building_order)
 }
 
-/// Heights (Chang eq. 5), errors (Yang §4, Chang §8, made monotone), bounds, landmarks and
-/// meshes, bottom-up.
+/// Stage 6: cluster meshes, the hull of every inner node extruded from its lowest base to
+/// its height (walls and a constrained-Delaunay roof).
+pub fn build_meshes(
+    city: &City,
+    verts: &[geom::Pt],
+    building_order: &[citywalk_scenes::BuildingId],
+    nodes: &mut [ClusterNode],
+) {
+    // Lowest building base per node, bottom-up (children follow their parent in preorder).
+    let mut base = vec![f32::INFINITY; nodes.len()];
+    for id in (0..nodes.len()).rev() {
+        let n = &nodes[id];
+        base[id] = if n.is_leaf() {
+            building_order
+                .get(n.buildings.0 as usize)
+                .and_then(|b| city.buildings.get(b.index()))
+                .map_or(0.0, |b| b.base_m)
+        } else {
+            n.children
+                .iter()
+                .map(|&c| base[c as usize])
+                .fold(f32::INFINITY, f32::min)
+        };
+    }
+    for (id, n) in nodes.iter_mut().enumerate() {
+        if !n.is_leaf() {
+            n.mesh = cluster_mesh(verts, &n.footprint[0], base[id].min(n.height_m), n.height_m);
+        }
+    }
+}
+
+/// The binary merge tree with its hulls (stage 3).
+#[derive(Debug, Clone, Default)]
+pub struct Hulls {
+    /// Hull ring per binary node (leaves `0..n`, merge k is node `n + k`).
+    pub rings: Vec<Vec<u32>>,
+    /// Hull area per binary node (m²).
+    pub areas: Vec<f64>,
+    /// Monotone merge distance per binary node (0 for leaves).
+    pub dist: Vec<f64>,
+    /// The two children of every merge.
+    pub bin_children: Vec<[u32; 2]>,
+    /// With `record`: per merge, the merged ring before simplification and the
+    /// simplification target inputs `(children's edges, a_ave)`, for the per-stage bench.
+    pub merged: Vec<(Vec<u32>, usize, f64)>,
+}
+
+/// Stage 3: hulls merged bottom-up along the merge order ([`merge::merge_rings`]) and
+/// simplified ([`simplify_hull`]).
+pub fn merge_hulls(
+    store: &mut VertexStore,
+    leaves: &[leaves::Leaf],
+    merges: &[linkage::Merge],
+    params: &ClusterParams,
+    stats: &mut ClusterStats,
+    record: bool,
+) -> Hulls {
+    let n = leaves.len();
+    let input_edges: usize = leaves.iter().map(|l| l.ring.len()).sum();
+    let mut rings: Vec<Vec<u32>> = leaves.iter().map(|l| l.ring.clone()).collect();
+    let mut dist = vec![0.0f64; n];
+    let mut bin_children: Vec<[u32; 2]> = Vec::with_capacity(merges.len());
+    let mut areas: Vec<f64> = rings.iter().map(|r| signed_area(&store.verts, r)).collect();
+    let mut level_area_sum: f64 = areas.iter().sum();
+    let mut level_count = n as f64;
+    let mut recorded = Vec::new();
+    for (k, m) in merges.iter().enumerate() {
+        let (a, b) = (m.a as usize, m.b as usize);
+        let merged = merge::merge_rings(
+            store,
+            &rings[a],
+            &rings[b],
+            params.merge,
+            params.adjacency_lambda,
+        );
+        if let Some(reason) = merged.failure {
+            stats.merge_fallback_log.push(MergeFallback {
+                merge: k as u32,
+                reason,
+                convex_hull: merged.convex_hull,
+            });
+            if merged.convex_hull {
+                stats.merge_fallbacks += 1;
+                tracing::warn!(
+                    merge = k,
+                    ?reason,
+                    "merged hull fell back to the convex hull"
+                );
+            }
+        }
+        let child_edges = rings[a].len() + rings[b].len();
+        let a_ave = level_area_sum / level_count.max(1.0);
+        let ring = simplify_hull(
+            &store.verts,
+            &merged.ring,
+            child_edges,
+            input_edges,
+            a_ave,
+            params,
+        );
+        // Growth-only removals keep the ring simple by construction; verify, and keep the
+        // unsimplified ring (counted) should that ever fail.
+        let ring = if geom::ring_is_simple_ccw(&store.verts, &ring) {
+            ring
+        } else {
+            stats.simplify_fallbacks += 1;
+            merged.ring.clone()
+        };
+        if record {
+            recorded.push((merged.ring, child_edges, a_ave));
+        }
+        let area = signed_area(&store.verts, &ring);
+        level_area_sum += area - areas[a] - areas[b];
+        level_count -= 1.0;
+        areas.push(area);
+        rings.push(ring);
+        dist.push(m.distance.max(dist[a]).max(dist[b]));
+        bin_children.push([m.a, m.b]);
+    }
+    Hulls {
+        rings,
+        areas,
+        dist,
+        bin_children,
+        merged: recorded,
+    }
+}
+
+/// Simplifies one merged hull: Chang's smallest-area removal down to max(2/3 of the
+/// children's edges, 1 % of the input edges, the convex hull's count), or Yang's concave
+/// triangles under δa = `a_ave`/50 then vertices over 175°.
+pub fn simplify_hull(
+    verts: &[geom::Pt],
+    merged: &[u32],
+    child_edges: usize,
+    input_edges: usize,
+    a_ave: f64,
+    params: &ClusterParams,
+) -> Vec<u32> {
+    match params.simplify {
+        HullSimplify::ChangSmallestArea => {
+            let hull_len = convex_hull(verts, merged.iter().copied()).len();
+            let target = ((params.chang_keep_fraction * child_edges as f64).ceil() as usize)
+                .max((params.chang_min_input_fraction * input_edges as f64).ceil() as usize)
+                .max(hull_len);
+            simplify::simplify_chang(verts, merged, target)
+        }
+        HullSimplify::YangConcaveTriangles => simplify::simplify_yang(
+            verts,
+            merged,
+            a_ave / params.concave_area_divisor,
+            params.straight_angle_deg,
+        ),
+    }
+}
+
+/// Heights (Chang eq. 5), errors (Yang §4, Chang §8, made monotone), bounds and landmarks,
+/// bottom-up.
 fn fill_node_data(
     city: &City,
     blocks: &[u32],
@@ -350,7 +481,6 @@ fn fill_node_data(
                     t > n.height_m && t >= threshold
                 })
                 .collect();
-            n.mesh = cluster_mesh(verts, &n.footprint[0], acc.2.min(n.height_m), n.height_m);
         }
     }
 }

@@ -329,11 +329,11 @@ fn degenerate_and_nested_footprints_never_panic() {
     ));
 }
 
-/// Random rectangles on a jittered grid: some touching, some overlapping, slivers, and some
-/// nested inside others.
+/// Random rectangles on a jittered grid: some touching, some overlapping, slivers, some
+/// nested inside others, crossing bars, and squares touching at one corner.
 fn random_city() -> impl Strategy<Value = (City, Vec<u32>)> {
     let rect_s = (
-        0usize..4,
+        0usize..6,
         0.0f64..3.0,
         0.0f64..3.0,
         0.05f64..9.0,
@@ -353,7 +353,23 @@ fn random_city() -> impl Strategy<Value = (City, Vec<u32>)> {
                 _ => (gx + jx, gy + jy),
             };
             let i = b.len();
-            b.push(rect(i, x0, y0, x0 + w, y0 + h, top));
+            match kind {
+                // A bar crossing the cell's building like a plus sign (Chang's bisecting
+                // case) and a square touching it at one corner only (a pinch in the union).
+                4 => {
+                    b.push(rect(i, x0, y0 + 0.4 * h, x0 + w, y0 + 0.6 * h, top));
+                    blocks.push((gx as u32 / 20) % nblocks);
+                    let i = b.len();
+                    b.push(rect(i, x0 + 0.4 * w, y0, x0 + 0.6 * w, y0 + h, top));
+                }
+                5 => {
+                    b.push(rect(i, x0, y0, x0 + w, y0 + h, top));
+                    blocks.push((gx as u32 / 20) % nblocks);
+                    let i = b.len();
+                    b.push(rect(i, x0 + w, y0 + h, x0 + w + 2.0, y0 + h + 2.0, top));
+                }
+                _ => b.push(rect(i, x0, y0, x0 + w, y0 + h, top)),
+            }
             blocks.push((gx as u32 / 20) % nblocks);
             if kind == 3 && w > 2.0 && h > 2.0 {
                 // A building inside this one.
@@ -390,6 +406,12 @@ fn random_cities_satisfy_the_invariants() {
                 .map_err(|e| TestCaseError::fail(e.to_string()))?;
             tree.check_invariants(&c)
                 .map_err(|e| TestCaseError::fail(format!("{p:?}: {e}")))?;
+            prop_assert_eq!(
+                tree.stats.merge_fallbacks,
+                0,
+                "convex-hull fallbacks: {:?}",
+                tree.stats.merge_fallback_log
+            );
             for i in 0..tree.nodes.len() {
                 if tree.nodes[i].block.is_some() {
                     prop_assert!(!spans_both(&tree, &blocks, i));
@@ -604,4 +626,84 @@ fn timing_generated_100k() {
         tree.stats.merge_fallbacks,
         std::hash::Hasher::finish(&h)
     );
+}
+
+/// Fallback reasons, depth and timing on the real extracts and a generated 10k city, and the
+/// blocks with and without pedestrian ways as block boundaries (release; `--ignored`).
+#[test]
+#[ignore = "report on real data, run on demand in release"]
+fn report_real_extracts() {
+    let data = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data/");
+    for (name, path) in [
+        ("chelsea", format!("{data}osm_nyc_chelsea/nyc.osm.pbf")),
+        ("porto", format!("{data}osm_porto_center/porto.osm.pbf")),
+        ("generated-10k", String::new()),
+    ] {
+        let c = if path.is_empty() {
+            citywalk_scenes::generate::generate_city(
+                &citywalk_scenes::generate::GenerateParams::new(10_000, 1),
+            )
+            .expect("generated city")
+        } else {
+            citywalk_scenes::load_city(
+                std::path::Path::new(&path),
+                &citywalk_scenes::LoadOptions::default(),
+            )
+            .expect("extract loads")
+        };
+        let mut classes: BTreeMap<String, usize> = BTreeMap::new();
+        for st in &c.streets {
+            *classes.entry(st.class.name().to_string()).or_default() += 1;
+        }
+        eprintln!("{name}: streets {classes:?}");
+        for pedestrian in [false, true] {
+            let blocks = crate::blocks::build_blocks_with(
+                &c,
+                &crate::blocks::BlockParams {
+                    pedestrian_bounds_blocks: pedestrian,
+                    ..crate::blocks::BlockParams::default()
+                },
+            )
+            .0;
+            let mut sizes: BTreeMap<u32, usize> = BTreeMap::new();
+            for &b in &blocks.block_of_building {
+                *sizes.entry(b).or_default() += 1;
+            }
+            let largest = sizes.values().max().copied().unwrap_or(0);
+            for (label, p) in [
+                ("yang", ClusterParams::default()),
+                (
+                    "chang",
+                    ClusterParams {
+                        distance: ClusterDistance::ChangSizeWeighted,
+                        merge: HullMerge::ChangCases,
+                        simplify: HullSimplify::ChangSmallestArea,
+                        ..ClusterParams::default()
+                    },
+                ),
+            ] {
+                let t = std::time::Instant::now();
+                let tree = build_cluster_tree(&c, &blocks.block_of_building, &p).expect("tree");
+                let s = t.elapsed().as_secs_f64();
+                let check = tree.check_invariants(&c);
+                let mut reasons: BTreeMap<String, (usize, usize)> = BTreeMap::new();
+                for f in &tree.stats.merge_fallback_log {
+                    let e = reasons.entry(format!("{:?}", f.reason)).or_default();
+                    e.0 += 1;
+                    e.1 += usize::from(f.convex_hull);
+                }
+                eprintln!(
+                    "{name} {label} (pedestrian ways bound blocks: {pedestrian}): {} buildings, \
+                     {} blocks (largest {largest}), {} merges, depth {}, {} convex-hull \
+                     fallbacks, first-construction failures (count, convex) {reasons:?}, \
+                     {s:.2} s, check {check:?}",
+                    c.buildings.len(),
+                    blocks.blocks.len(),
+                    tree.stats.binary_inner_nodes,
+                    tree.max_depth(),
+                    tree.stats.merge_fallbacks,
+                );
+            }
+        }
+    }
 }

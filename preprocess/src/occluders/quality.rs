@@ -9,13 +9,16 @@
 //! per image). Pixels the facade covers and the model does not are counted as *leak*: a
 //! contained facade has none beyond rasterisation noise at shared edges.
 //!
-//! *Efficiency* (§4.2): polygon counts (triangles here) and average polygon area, before and
-//! after.
+//! *Efficiency* (§4.2): polygon counts and average polygon area, before and after. A polygon
+//! is a planar face as in the paper's Table 1 (a wall quad is one polygon; see
+//! [`super::polygons`]); triangle counts are reported beside them.
 
 use citywalk_scenes::extrude::building_mesh;
 use citywalk_scenes::occluder::OccluderSet;
 use citywalk_scenes::{City, TriangleMesh};
 use glam::{DVec3, Vec3};
+
+use super::polygons::planar_face_count;
 use serde::{Deserialize, Serialize};
 
 /// How quality is sampled.
@@ -28,6 +31,11 @@ pub struct QualityParams {
     /// Circle radius as a multiple of the model's bounding-sphere radius (≥ 1.5 so the sphere
     /// is in front of the camera). Default 3.
     pub distance_factor: f64,
+    /// Angle of the first viewpoint as a fraction of the step between viewpoints. Default 0
+    /// (the first view looks along −x). Level selection samples with an offset so that it does
+    /// not choose levels on the very views the benchmark reports.
+    #[serde(default)]
+    pub view_offset: f64,
 }
 
 impl Default for QualityParams {
@@ -36,6 +44,7 @@ impl Default for QualityParams {
             views: 16,
             resolution_px: 128,
             distance_factor: 3.0,
+            view_offset: 0.0,
         }
     }
 }
@@ -183,50 +192,100 @@ impl Camera {
     }
 }
 
+/// The viewpoints of §4.1 for one model: `params.views` cameras evenly spaced on a horizontal
+/// circle at half the model's height around its centre, far enough that the whole model is
+/// in every image, and the model's silhouette from each.
+#[derive(Debug, Clone)]
+pub struct Silhouettes {
+    cameras: Vec<Camera>,
+    size: usize,
+    model: Vec<Mask>,
+}
+
+impl Silhouettes {
+    /// Renders `model`; `None` when it is empty or not finite.
+    pub fn new(model: &TriangleMesh, params: &QualityParams) -> Option<Silhouettes> {
+        let (lo, hi) = model.bounds()?;
+        if !(lo.is_finite() && hi.is_finite()) {
+            return None;
+        }
+        let (lo, hi) = (lo.as_dvec3(), hi.as_dvec3());
+        let centre = (lo + hi) * 0.5;
+        let radius = ((hi - lo) * 0.5).length().max(1e-3);
+        let distance = radius * params.distance_factor.max(1.5);
+        let tan_half_fov = radius / (distance * distance - radius * radius).sqrt();
+        let size = params.resolution_px.clamp(8, 4096) as usize;
+        let views = params.views.max(1);
+        let offset = if params.view_offset.is_finite() {
+            params.view_offset
+        } else {
+            0.0
+        };
+        let cameras: Vec<Camera> = (0..views)
+            .map(|k| {
+                let angle = std::f64::consts::TAU * (f64::from(k) + offset) / f64::from(views);
+                let eye = centre + DVec3::new(angle.cos(), angle.sin(), 0.0) * distance;
+                let forward = (centre - eye).normalize();
+                let right = forward.cross(DVec3::Z).normalize();
+                Camera {
+                    eye,
+                    right,
+                    up: right.cross(forward),
+                    forward,
+                    tan_half_fov,
+                    size_px: size as f64,
+                }
+            })
+            .collect();
+        let mut out = Silhouettes {
+            cameras,
+            size,
+            model: Vec::new(),
+        };
+        out.model = out.render(model);
+        Some(out)
+    }
+
+    /// The silhouettes of `mesh` from the same viewpoints, one mask per view.
+    pub fn render(&self, mesh: &TriangleMesh) -> Vec<Mask> {
+        self.cameras
+            .iter()
+            .map(|camera| {
+                let mut mask = Mask::new(self.size, self.size);
+                camera.render(mesh, &mut mask);
+                mask
+            })
+            .collect()
+    }
+
+    /// The model's silhouettes.
+    pub fn model(&self) -> &[Mask] {
+        &self.model
+    }
+
+    /// Pixel counts of `facade` (one mask per view, as [`Silhouettes::render`] gives) against
+    /// the model.
+    pub fn count(&self, facade: &[Mask]) -> PixelCounts {
+        let mut counts = PixelCounts::default();
+        for (model, facade) in self.model.iter().zip(facade) {
+            for (m, f) in model.pixels.iter().zip(&facade.pixels) {
+                counts.model_px += u64::from(*m);
+                counts.facade_px += u64::from(*f);
+                counts.leak_px += u64::from(*f && !*m);
+            }
+        }
+        counts
+    }
+}
+
 /// Renders `model` and `facade` from `params.views` viewpoints on a horizontal circle at half
 /// the model's height around its centre (§4.1) and counts pixels. Empty or non-finite models
 /// give zero counts.
 pub fn measure(model: &TriangleMesh, facade: &TriangleMesh, params: &QualityParams) -> PixelCounts {
-    let mut counts = PixelCounts::default();
-    let Some((lo, hi)) = model.bounds() else {
-        return counts;
-    };
-    if !(lo.is_finite() && hi.is_finite()) {
-        return counts;
+    match Silhouettes::new(model, params) {
+        Some(views) => views.count(&views.render(facade)),
+        None => PixelCounts::default(),
     }
-    let (lo, hi) = (lo.as_dvec3(), hi.as_dvec3());
-    let centre = (lo + hi) * 0.5;
-    let radius = ((hi - lo) * 0.5).length().max(1e-3);
-    let distance = radius * params.distance_factor.max(1.5);
-    let tan_half_fov = radius / (distance * distance - radius * radius).sqrt();
-    let size = params.resolution_px.clamp(8, 4096) as usize;
-    let views = params.views.max(1);
-    let mut model_mask = Mask::new(size, size);
-    let mut facade_mask = Mask::new(size, size);
-    for k in 0..views {
-        let angle = std::f64::consts::TAU * f64::from(k) / f64::from(views);
-        let eye = centre + DVec3::new(angle.cos(), angle.sin(), 0.0) * distance;
-        let forward = (centre - eye).normalize();
-        let right = forward.cross(DVec3::Z).normalize();
-        let camera = Camera {
-            eye,
-            right,
-            up: right.cross(forward),
-            forward,
-            tan_half_fov,
-            size_px: size as f64,
-        };
-        model_mask.pixels.fill(false);
-        facade_mask.pixels.fill(false);
-        camera.render(model, &mut model_mask);
-        camera.render(facade, &mut facade_mask);
-        for (m, f) in model_mask.pixels.iter().zip(&facade_mask.pixels) {
-            counts.model_px += u64::from(*m);
-            counts.facade_px += u64::from(*f);
-            counts.leak_px += u64::from(*f && !*m);
-        }
-    }
-    counts
 }
 
 /// Sum of the 3D areas of a mesh's triangles (m²).
@@ -242,11 +301,17 @@ pub struct BuildingQuality {
     pub building: u32,
     pub source_id: String,
     pub occluders: u32,
+    /// Planar faces of the source geometry (the paper's polygons).
     pub source_polygons: u32,
+    /// Planar faces of this building's occluders (counted per occluder, summed).
     pub occluder_polygons: u32,
-    /// Mean triangle area of the source geometry (m²).
+    /// Triangles of the source geometry.
+    pub source_triangles: u32,
+    /// Triangles of all this building's occluders.
+    pub occluder_triangles: u32,
+    /// Mean polygon (planar face) area of the source geometry (m²).
     pub source_mean_polygon_area_m2: f64,
-    /// Mean triangle area of the occluders (m²); 0 without occluders.
+    /// Mean polygon (planar face) area of the occluders (m²); 0 without occluders.
     pub occluder_mean_polygon_area_m2: f64,
     pub pixels: PixelCounts,
     /// Occlusion-preserving quality in [0, 1]; `None` when the model covers no pixel.
@@ -260,11 +325,16 @@ pub struct QualitySummary {
     pub buildings: usize,
     pub buildings_with_occluders: usize,
     pub occluders: usize,
+    /// Planar faces (the paper's polygons) of all source buildings.
     pub source_polygons: u64,
     pub occluder_polygons: u64,
     /// source_polygons / occluder_polygons over the buildings that have occluders.
     pub polygon_reduction: f64,
-    /// Mean occluder triangle area over mean source triangle area (buildings with occluders).
+    pub source_triangles: u64,
+    pub occluder_triangles: u64,
+    /// source_triangles / occluder_triangles over the buildings that have occluders.
+    pub triangle_reduction: f64,
+    /// Mean occluder polygon area over mean source polygon area (buildings with occluders).
     pub mean_polygon_area_gain: f64,
     /// Over buildings with a quality (a building without occluders counts as 0).
     pub quality_mean: f64,
@@ -278,7 +348,8 @@ pub struct QualitySummary {
     pub leak_fraction: f64,
 }
 
-/// Measures every building of `city` against its occluders in `set`.
+/// Measures every building of `city` against its occluders in `set`. Source counts are taken
+/// from the building's mesh as [`building_mesh`] gives it (2.5D parts extruded).
 pub fn measure_city(
     city: &City,
     set: &OccluderSet,
@@ -295,23 +366,27 @@ pub fn measure_city(
                 facade.append(&o.mesh);
             }
             let pixels = measure(&model, &facade, params);
-            let mean = |m: &TriangleMesh| {
-                let n = m.triangle_count();
-                if n == 0 {
+            // Faces are counted occluder by occluder: coplanar walls of two levels that share
+            // an edge are two polygons to draw, not one.
+            let source_faces = planar_face_count(&model);
+            let facade_faces: usize = occluders.iter().map(|o| planar_face_count(&o.mesh)).sum();
+            let mean = |m: &TriangleMesh, faces: usize| {
+                if faces == 0 {
                     0.0
                 } else {
-                    mesh_area_m2(m) / n as f64
+                    mesh_area_m2(m) / faces as f64
                 }
             };
             BuildingQuality {
                 building: b.id.0,
                 source_id: b.source_id.clone(),
                 occluders: occluders.len() as u32,
-                source_polygons: outcome
-                    .map_or(model.triangle_count() as u32, |o| o.source_polygons),
-                occluder_polygons: facade.triangle_count() as u32,
-                source_mean_polygon_area_m2: mean(&model),
-                occluder_mean_polygon_area_m2: mean(&facade),
+                source_polygons: source_faces as u32,
+                occluder_polygons: facade_faces as u32,
+                source_triangles: model.triangle_count() as u32,
+                occluder_triangles: facade.triangle_count() as u32,
+                source_mean_polygon_area_m2: mean(&model, source_faces),
+                occluder_mean_polygon_area_m2: mean(&facade, facade_faces),
                 pixels,
                 quality: pixels.quality(),
                 reason_if_none: outcome.and_then(|o| o.reason_if_none.clone()),
@@ -326,6 +401,10 @@ pub fn summarise(rows: &[BuildingQuality]) -> QualitySummary {
     let source_polygons: u64 = rows.iter().map(|r| u64::from(r.source_polygons)).sum();
     let occluder_polygons: u64 = rows.iter().map(|r| u64::from(r.occluder_polygons)).sum();
     let with_source: u64 = with.iter().map(|r| u64::from(r.source_polygons)).sum();
+    let source_triangles: u64 = rows.iter().map(|r| u64::from(r.source_triangles)).sum();
+    let occluder_triangles: u64 = rows.iter().map(|r| u64::from(r.occluder_triangles)).sum();
+    let with_source_triangles: u64 = with.iter().map(|r| u64::from(r.source_triangles)).sum();
+    let ratio = |a: u64, b: u64| if b == 0 { 0.0 } else { a as f64 / b as f64 };
     let mean_of = |f: &dyn Fn(&BuildingQuality) -> f64| {
         if with.is_empty() {
             0.0
@@ -362,11 +441,10 @@ pub fn summarise(rows: &[BuildingQuality]) -> QualitySummary {
         occluders: rows.iter().map(|r| r.occluders as usize).sum(),
         source_polygons,
         occluder_polygons,
-        polygon_reduction: if occluder_polygons == 0 {
-            0.0
-        } else {
-            with_source as f64 / occluder_polygons as f64
-        },
+        polygon_reduction: ratio(with_source, occluder_polygons),
+        source_triangles,
+        occluder_triangles,
+        triangle_reduction: ratio(with_source_triangles, occluder_triangles),
         mean_polygon_area_gain: if src_area > 0.0 {
             occ_area / src_area
         } else {
@@ -387,6 +465,44 @@ pub fn summarise(rows: &[BuildingQuality]) -> QualitySummary {
         } else {
             leak_px as f64 / facade_px as f64
         },
+    }
+}
+
+/// How many walls a facade needs just to follow the buildings' outlines: the walls of a
+/// single-level open facade on every building's footprint, and on the union of all footprints
+/// (adjacent buildings merged into blocks, shared walls gone), both simplified as §3.3 allows.
+/// Every footprint vertex gives one wall (§3.3: "each vertex in a footprint accounts for ...
+/// one quad"), so these are the polygon counts below which a facade must give up parts of the
+/// outline, and with them occlusion.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct OutlineWalls {
+    /// Σ over buildings of the edges of the simplified footprint.
+    pub per_building: u64,
+    /// Connected parts of the union of all footprints (blocks).
+    pub blocks: u64,
+    /// Edges of the simplified union of all footprints.
+    pub merged_blocks: u64,
+}
+
+/// Counts [`OutlineWalls`] for `city` with the simplification of `params`.
+pub fn outline_walls(city: &City, params: &super::OccluderParams) -> OutlineWalls {
+    let edges = |mp: &geo::MultiPolygon<f64>| -> u64 {
+        mp.0.iter()
+            .flat_map(|p| std::iter::once(p.exterior()).chain(p.interiors()))
+            .map(|r| r.0.len().saturating_sub(1) as u64)
+            .sum()
+    };
+    let per_building = city
+        .buildings
+        .iter()
+        .map(|b| edges(&super::simplify::simplify_footprint(&b.footprint, params)))
+        .sum();
+    let union = geo::unary_union(city.buildings.iter().flat_map(|b| b.footprint.0.iter()));
+    let merged = super::simplify::simplify_footprint(&union, params);
+    OutlineWalls {
+        per_building,
+        blocks: merged.0.len() as u64,
+        merged_blocks: edges(&merged),
     }
 }
 
@@ -452,6 +568,45 @@ mod tests {
     }
 
     #[test]
+    fn outline_walls_of_two_touching_boxes() {
+        use citywalk_scenes::{
+            Building, BuildingId, BuildingPart, Frame, HeightSource, LoadReport,
+        };
+        let building = |id: u32, x0: f64| {
+            let footprint = MultiPolygon::new(vec![
+                Rect::new(coord! {x: x0, y: 0.0}, coord! {x: x0 + 10.0, y: 8.0}).to_polygon(),
+            ]);
+            Building {
+                id: BuildingId(id),
+                source_id: id.to_string(),
+                parts: vec![BuildingPart {
+                    source_id: id.to_string(),
+                    footprint: footprint.clone(),
+                    base_m: 0.0,
+                    top_m: 10.0,
+                }],
+                footprint,
+                base_m: 0.0,
+                top_m: 10.0,
+                height_source: HeightSource::Geometry,
+                mesh: None,
+                tags: Default::default(),
+            }
+        };
+        let city = City {
+            frame: Frame::local(),
+            buildings: vec![building(0, 0.0), building(1, 10.0), building(2, 40.0)],
+            streets: Vec::new(),
+            report: LoadReport::default(),
+        };
+        let w = outline_walls(&city, &crate::occluders::OccluderParams::default());
+        // Three boxes of four walls; the two touching ones merge into one rectangle.
+        assert_eq!(w.per_building, 12);
+        assert_eq!(w.blocks, 2);
+        assert_eq!(w.merged_blocks, 8);
+    }
+
+    #[test]
     fn summary_percentiles_and_histogram() {
         let row = |q: f64| BuildingQuality {
             building: 0,
@@ -459,6 +614,8 @@ mod tests {
             occluders: 1,
             source_polygons: 100,
             occluder_polygons: 10,
+            source_triangles: 300,
+            occluder_triangles: 20,
             source_mean_polygon_area_m2: 1.0,
             occluder_mean_polygon_area_m2: 10.0,
             pixels: PixelCounts::default(),
@@ -474,6 +631,8 @@ mod tests {
         assert_eq!(s.quality_histogram.iter().sum::<usize>(), 11);
         assert_eq!(s.quality_histogram[9], 2); // 0.9 and 1.0
         assert!((s.polygon_reduction - 10.0).abs() < 1e-12);
+        assert!((s.triangle_reduction - 15.0).abs() < 1e-12);
+        assert_eq!((s.source_triangles, s.occluder_triangles), (3300, 220));
         assert!((s.mean_polygon_area_gain - 10.0).abs() < 1e-12);
     }
 }

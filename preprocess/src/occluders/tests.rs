@@ -223,9 +223,22 @@ fn assert_contained(field: &HeightField, b: &Building, params: &OccluderParams) 
 
 #[test]
 fn podium_tower_keeps_podium_and_tower_and_deletes_the_chimney() {
+    // Both level selections agree here: the benefit rule (gain 0) and silhouette gain.
+    for gain in [
+        0.0,
+        OccluderParams::default().min_silhouette_gain_per_polygon,
+    ] {
+        podium_tower_with_gain(gain);
+    }
+}
+
+fn podium_tower_with_gain(min_silhouette_gain_per_polygon: f64) {
     let field = podium_tower();
     let b = field.building(0);
-    let params = OccluderParams::default();
+    let params = OccluderParams {
+        min_silhouette_gain_per_polygon,
+        ..OccluderParams::default()
+    };
     let built = occluders_for_building(&b, &params);
     let decisions: Vec<(f64, LevelDecision)> = built.decisions.clone();
     assert_eq!(
@@ -278,6 +291,7 @@ fn wall_oriented_walls_rise_where_the_building_is_taller() {
     let b = field.building(0);
     let params = OccluderParams {
         benefit_threshold: 10.0,
+        min_silhouette_gain_per_polygon: 0.0,
         simplify: false,
         ..OccluderParams::default()
     };
@@ -338,6 +352,27 @@ fn build_occluders_reports_every_building() {
             .unwrap()
             .contains("tall")
     );
+}
+
+#[test]
+fn quality_rows_count_polygons_and_triangles() {
+    let city = stepped_city();
+    let set = build_occluders(&city, &OccluderParams::default());
+    let rows = super::quality::measure_city(&city, &set, &QualityParams::default());
+    // The flat 12 × 9 m box: six faces of two triangles; its facade four wall quads.
+    let flat = &rows[1];
+    assert_eq!((flat.source_polygons, flat.source_triangles), (6, 12));
+    assert_eq!((flat.occluder_polygons, flat.occluder_triangles), (4, 8));
+    // The podium with tower: more triangles than faces on both sides.
+    let podium = &rows[0];
+    assert!(podium.source_polygons < podium.source_triangles);
+    assert!(podium.occluder_polygons * 2 == podium.occluder_triangles);
+    let s = super::quality::summarise(&rows);
+    assert_eq!(
+        s.source_polygons,
+        u64::from(flat.source_polygons + podium.source_polygons)
+    );
+    assert!(s.triangle_reduction > 0.0 && s.polygon_reduction > 0.0);
 }
 
 #[test]
@@ -459,10 +494,23 @@ proptest! {
     #[test]
     fn random_stepped_buildings_get_contained_occluders(field in height_field()) {
         let b = field.building(0);
-        for facade in [FacadeKind::WallOriented, FacadeKind::Open, FacadeKind::Closed] {
-            let params = OccluderParams { facade, ..OccluderParams::default() };
-            assert_contained(&field, &b, &params);
+        // Every level selection: silhouette gain (default), the benefit rule alone, and wall
+        // selection.
+        let default_gain = OccluderParams::default().min_silhouette_gain_per_polygon;
+        for (gain, select_walls) in [(default_gain, false), (0.0, false), (1e-6, false), (0.01, true)] {
+            for facade in [FacadeKind::WallOriented, FacadeKind::Open, FacadeKind::Closed] {
+                let params = OccluderParams {
+                    facade,
+                    min_silhouette_gain_per_polygon: gain,
+                    select_walls,
+                    ..OccluderParams::default()
+                };
+                assert_contained(&field, &b, &params);
+            }
         }
+        let walls = OccluderParams { select_walls: true, ..OccluderParams::default() };
+        let set = build_occluders(&city_of(vec![b.clone()]), &walls);
+        prop_assert_eq!(set.check_invariants(), Ok(()));
         let set = build_occluders(&city_of(vec![b]), &OccluderParams::default());
         prop_assert_eq!(set.check_invariants(), Ok(()));
         prop_assert!(set.per_building[0].reason_if_none.is_none(), "{:?}", set.per_building[0]);

@@ -22,8 +22,11 @@ use super::{PackageError, ScenePackage, StageTiming, WriteOptions};
 
 /// The first four bytes of every package.
 pub const MAGIC: [u8; 4] = *b"CWK\0";
-/// The format version this build writes and reads.
-pub const FORMAT_VERSION: u32 = 1;
+/// The format version this build writes and reads. History:
+/// - 1: first format.
+/// - 2: the cluster tree's `ClusterStats` gained `merge_fallback_log` (each merge whose first
+///   construction failed, with its reason).
+pub const FORMAT_VERSION: u32 = 2;
 /// Sections start at multiples of this (a cache line, and enough for any scalar type).
 pub const SECTION_ALIGN: u64 = 64;
 /// The most sections a package may have.

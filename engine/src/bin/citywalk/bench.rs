@@ -39,7 +39,8 @@ pub struct Args {
     /// Path files to replay in addition to (or, with --paths "", instead of) generated ones.
     #[arg(long = "path-file")]
     pub path_files: Vec<PathBuf>,
-    /// Culling modes: brute, frustum, quadtree, hzb, occluders, lod (all is not built yet).
+    /// Culling modes: brute, frustum, quadtree, hzb, occluders, lod, all (quadtree + LOD + HZB +
+    /// occluders).
     #[arg(long, default_value = "brute,frustum,quadtree")]
     pub modes: String,
     /// LOD criterion of the `lod` mode: auto (Chang ε = τ = 1 px at street level, 2 px above

@@ -6,9 +6,10 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use citywalk_engine::camera_path_io::PlayEnd;
 use citywalk_engine::controller::Mode;
-use citywalk_engine::viewer::{self, PlayRequest, ScreenshotRequest, ViewerOptions};
-use citywalk_scenes::City;
-use citywalk_scenes::occluder::OccluderSet;
+use citywalk_engine::viewer::{
+    self, CriterionKind, DebugView, PlayRequest, RenderSettings, ScreenshotRequest, Stages,
+    ViewerOptions, ViewerScene,
+};
 use citywalk_scenes::package::ScenePackage;
 
 use crate::path_arg::PathSource;
@@ -46,16 +47,83 @@ pub struct Args {
     /// Start with the overlay panel hidden (H shows it).
     #[arg(long)]
     pub no_overlay: bool,
-    /// Start drawing brute force, without occlusion culling (C toggles it).
+    /// Start drawing brute force, every culling stage off (B, C, V, L switch them on).
     #[arg(long)]
     pub no_culling: bool,
+    /// Start with the screen-space LOD cut on (scene packages with a cluster tree; L toggles).
+    #[arg(long)]
+    pub lod: bool,
+    /// The LOD criterion at start: `chang` (ε, τ) or `yang` (δh, δa); K switches.
+    #[arg(long, default_value = "chang", value_parser = parse_criterion)]
+    pub criterion: CriterionKind,
+    /// Chang's ε at start (pixels; default 1, the walkthrough tolerance).
+    #[arg(long, value_parser = parse_tolerance)]
+    pub epsilon_px: Option<f32>,
+    /// Chang's landmark tolerance τ at start (pixels; default 1).
+    #[arg(long, value_parser = parse_tolerance)]
+    pub tau_px: Option<f32>,
+    /// Yang's δh at start (pixels; default 20).
+    #[arg(long, value_parser = parse_tolerance)]
+    pub delta_h_px: Option<f32>,
+    /// Yang's δa at start (square pixels; default 200).
+    #[arg(long, value_parser = parse_tolerance)]
+    pub delta_a_px2: Option<f32>,
+    /// The debug view at start: `off`, `pyramid`, `clusters` or `occluders`; G cycles.
+    #[arg(long, default_value = "off", value_parser = parse_debug_view)]
+    pub debug_view: DebugView,
+    /// The pyramid level the `pyramid` debug view shows (the `[` and `]` keys change it).
+    #[arg(long, default_value_t = 0)]
+    pub mip: u32,
+}
+
+fn parse_criterion(s: &str) -> Result<CriterionKind, String> {
+    CriterionKind::parse(s).ok_or_else(|| format!("unknown LOD criterion '{s}' (chang, yang)"))
+}
+
+fn parse_tolerance(s: &str) -> Result<f32, String> {
+    s.trim()
+        .parse::<f32>()
+        .ok()
+        .filter(|v| v.is_finite() && *v > 0.0)
+        .ok_or_else(|| format!("'{s}' is not a positive number of pixels"))
+}
+
+fn parse_debug_view(s: &str) -> Result<DebugView, String> {
+    DebugView::parse(s)
+        .ok_or_else(|| format!("unknown debug view '{s}' (off, pyramid, clusters, occluders)"))
+}
+
+/// The settings at start from the flags.
+fn start_settings(args: &Args) -> RenderSettings {
+    let mut settings = RenderSettings::default();
+    if args.no_culling {
+        settings.stages = Stages::NONE;
+    }
+    settings.stages.lod = args.lod;
+    settings.lod.kind = args.criterion;
+    let lod = &mut settings.lod;
+    for (value, slot) in [
+        (args.epsilon_px, &mut lod.epsilon_px),
+        (args.tau_px, &mut lod.tau_px),
+        (args.delta_h_px, &mut lod.delta_h_px),
+        (args.delta_a_px2, &mut lod.delta_a_px2),
+    ] {
+        if let Some(v) = value {
+            *slot = v;
+        }
+    }
+    settings.debug_view = args.debug_view;
+    settings.mip_level = args.mip;
+    settings
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let (city, occluders) = load_scene(&args.scene)?;
+    let scene = load_scene(&args.scene)?;
+    let city = &scene.city;
+    let settings = start_settings(&args);
     let play = match &args.play {
         Some(arg) => Some(PlayRequest {
-            path: PathSource::of(arg).load(&city, GENERATED_PLAY_POSES)?,
+            path: PathSource::of(arg).load(city, GENERATED_PLAY_POSES)?,
             end: if args.looping {
                 PlayEnd::Loop
             } else {
@@ -79,31 +147,45 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         record_to: args.record,
         play,
         overlay: !args.no_overlay,
-        culling: !args.no_culling,
+        settings,
     };
-    viewer::run(city, occluders, options).context("citywalk view")
+    viewer::run(scene, options).context("citywalk view")
 }
 
-/// The one place the viewer loads its scene: a package's city and virtual occluders, or any
-/// other input's city as it is (no occluders: they come from preprocessing).
-fn load_scene(path: &Path) -> anyhow::Result<(City, Option<OccluderSet>)> {
+/// The one place the viewer loads its scene: a package's city, virtual occluders, cluster tree,
+/// urban blocks and B-Quadtree, or any other input's city as it is (no occluders, tree or
+/// quadtree: they come from preprocessing).
+fn load_scene(path: &Path) -> anyhow::Result<ViewerScene> {
     let named_package = path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("cwk"));
-    let (city, occluders) = if crate::scene_input::is_package(path)? || named_package {
+    let scene = if crate::scene_input::is_package(path)? || named_package {
         let package = ScenePackage::read(path)
             .with_context(|| format!("cannot read the scene package {}", path.display()))?;
-        (package.city(), package.occluders)
+        ViewerScene {
+            city: package.city(),
+            occluders: package.occluders,
+            cluster_tree: package.cluster_tree,
+            blocks: Some((package.blocks, package.quadtree)),
+        }
     } else {
-        (crate::scene_input::load_city(path)?, None)
+        ViewerScene {
+            city: crate::scene_input::load_city(path)?,
+            occluders: None,
+            cluster_tree: None,
+            blocks: None,
+        }
     };
+    let city = &scene.city;
+    let occluders = &scene.occluders;
     tracing::info!(
         buildings = city.buildings.len(),
         streets = city.streets.len(),
         rejected = city.report.rejected.len(),
         occluders = occluders.as_ref().map_or(0, |o| o.occluders.len()),
+        cluster_tree = scene.cluster_tree.is_some(),
         "loaded {}",
         path.display()
     );
-    Ok((city, occluders))
+    Ok(scene)
 }

@@ -1,8 +1,13 @@
 //! `citywalk inspect occluders SCENE [--json] [--views N] [--per-building] [--gltf out.glb]`:
-//! builds the virtual occluders of an input (Germs & Jansen) and reports polygon counts,
-//! average polygon area gain and the occlusion-preserving quality of §4.1 (per building and
-//! in total: mean, min, p5/p25/p50, histogram), plus throughput. `--gltf` writes the
-//! occluders as a GLB for inspection in any glTF viewer.
+//! builds the virtual occluders of an input (Germs & Jansen) and reports polygon counts
+//! (planar faces, as the paper's Table 1 counts them) and triangle counts before and after,
+//! the reductions, average polygon area gain and the occlusion-preserving quality of §4.1
+//! (per building and in total: mean, min, p5/p25/p50, histogram), plus throughput and the
+//! walls the buildings' outlines alone need (single level, per building and merged into
+//! blocks). `--sloped-roof-step`, `--benefit-threshold`, `--merge-dz`, `--min-gain` and
+//! `--select-walls` override the level parameters, so the quality / polygon trade-off can be
+//! swept. `--gltf` writes the occluders
+//! as a GLB for inspection in any glTF viewer.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -10,7 +15,8 @@ use std::time::Instant;
 use anyhow::Context;
 use citywalk_preprocess::occluders::gltf_out::occluders_to_glb;
 use citywalk_preprocess::occluders::quality::{
-    BuildingQuality, QualityParams, QualitySummary, measure_city, summarise,
+    BuildingQuality, OutlineWalls, QualityParams, QualitySummary, measure_city, outline_walls,
+    summarise,
 };
 use citywalk_preprocess::occluders::{OccluderParams, build_occluders};
 use citywalk_scenes::occluder::FacadeKind;
@@ -39,6 +45,23 @@ pub struct Args {
     /// Write the occluders to this GLB file.
     #[arg(long)]
     gltf: Option<PathBuf>,
+    /// Sample sloped roofs every this many metres (0 = off, the paper's plain clustering).
+    #[arg(long)]
+    sloped_roof_step: Option<f64>,
+    /// T_B of §3.2 (a huge value keeps only the lowest level of each building).
+    #[arg(long)]
+    benefit_threshold: Option<f64>,
+    /// ΔZ of §3.2 in metres.
+    #[arg(long)]
+    merge_dz: Option<f64>,
+    /// Level selection by silhouette gain: minimum share of the building's silhouette a level
+    /// must add per polygon (0 = the paper's benefit rule alone).
+    #[arg(long)]
+    min_gain: Option<f64>,
+    /// Choose single walls by silhouette gain instead of whole levels (beyond the paper; the
+    /// facades no longer close their footprints).
+    #[arg(long)]
+    select_walls: bool,
 }
 
 #[derive(Debug, Serialize)]
@@ -50,6 +73,7 @@ struct Report<'a> {
     build_seconds: f64,
     buildings_per_second: f64,
     summary: QualitySummary,
+    outline_walls: OutlineWalls,
     #[serde(skip_serializing_if = "Option::is_none")]
     per_building: Option<&'a [BuildingQuality]>,
 }
@@ -62,9 +86,32 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         )
     })?;
     let city = crate::scene_input::load_city(&args.scene)?;
+    let defaults = OccluderParams::default();
+    let non_negative = |name: &str, v: Option<f64>, default: f64| match v {
+        None => Ok(default),
+        Some(v) if v.is_finite() && v >= 0.0 => Ok(v),
+        Some(v) => Err(anyhow::anyhow!("--{name} must be finite and ≥ 0, got {v}")),
+    };
     let params = OccluderParams {
         facade,
-        ..OccluderParams::default()
+        sloped_roof_step_m: non_negative(
+            "sloped-roof-step",
+            args.sloped_roof_step,
+            defaults.sloped_roof_step_m,
+        )?,
+        benefit_threshold: non_negative(
+            "benefit-threshold",
+            args.benefit_threshold,
+            defaults.benefit_threshold,
+        )?,
+        merge_delta_z_m: non_negative("merge-dz", args.merge_dz, defaults.merge_delta_z_m)?,
+        min_silhouette_gain_per_polygon: non_negative(
+            "min-gain",
+            args.min_gain,
+            defaults.min_silhouette_gain_per_polygon,
+        )?,
+        select_walls: args.select_walls,
+        ..defaults
     };
     let start = Instant::now();
     let set = build_occluders(&city, &params);
@@ -79,6 +126,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let rows = measure_city(&city, &set, &quality_params);
     let summary = summarise(&rows);
+    let outline = outline_walls(&city, &params);
     if let Some(path) = &args.gltf {
         let bytes = occluders_to_glb(&set)?;
         std::fs::write(path, bytes).with_context(|| format!("cannot write {}", path.display()))?;
@@ -91,6 +139,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         build_seconds,
         buildings_per_second: city.buildings.len() as f64 / build_seconds.max(1e-9),
         summary,
+        outline_walls: outline,
         per_building: args.per_building.then_some(&rows[..]),
     };
     if args.json {
@@ -107,7 +156,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 fn print_text(report: &Report<'_>, rows: &[BuildingQuality], per_building: bool) {
     let s = &report.summary;
     if per_building {
-        println!("building  source_id  occluders  polygons(src→occ)  area_gain  quality  reason");
+        println!(
+            "building  source_id  occluders  polygons(src→occ)  triangles(src→occ)  area_gain  quality  reason"
+        );
         for r in rows {
             let gain = if r.source_mean_polygon_area_m2 > 0.0 {
                 r.occluder_mean_polygon_area_m2 / r.source_mean_polygon_area_m2
@@ -115,12 +166,14 @@ fn print_text(report: &Report<'_>, rows: &[BuildingQuality], per_building: bool)
                 0.0
             };
             println!(
-                "{:>6}  {}  {}  {}→{}  {:.2}×  {}  {}",
+                "{:>6}  {}  {}  {}→{}  {}→{}  {:.2}×  {}  {}",
                 r.building,
                 r.source_id,
                 r.occluders,
                 r.source_polygons,
                 r.occluder_polygons,
+                r.source_triangles,
+                r.occluder_triangles,
                 gain,
                 r.quality
                     .map_or_else(|| "-".to_owned(), |q| format!("{:.1} %", q * 100.0)),
@@ -135,8 +188,17 @@ fn print_text(report: &Report<'_>, rows: &[BuildingQuality], per_building: bool)
         s.buildings, s.buildings_with_occluders, s.occluders
     );
     println!(
-        "polygons (triangles): {} → {} ({:.2}× fewer), mean polygon area gain {:.2}×",
+        "polygons (planar faces): {} → {} ({:.2}× fewer), mean polygon area gain {:.2}×",
         s.source_polygons, s.occluder_polygons, s.polygon_reduction, s.mean_polygon_area_gain
+    );
+    println!(
+        "triangles: {} → {} ({:.2}× fewer)",
+        s.source_triangles, s.occluder_triangles, s.triangle_reduction
+    );
+    let o = &report.outline_walls;
+    println!(
+        "outline walls (one level): {} per building, {} merged into {} blocks",
+        o.per_building, o.merged_blocks, o.blocks
     );
     println!(
         "quality: mean {:.1} %, min {:.1} %, p5 {:.1} %, p25 {:.1} %, p50 {:.1} % ({} views, {} px)",

@@ -76,8 +76,29 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         tree.stats.merge_fallbacks,
         args.output.display()
     );
+    print_merge_fallbacks(&tree);
     print_level_polygons(&city, &tree);
     Ok(())
+}
+
+/// Merges whose first construction failed, by reason: rescued by Chang's full hull search,
+/// or left as the convex hull.
+fn print_merge_fallbacks(tree: &ClusterTree) {
+    let mut by_reason: std::collections::BTreeMap<String, (usize, usize)> =
+        std::collections::BTreeMap::new();
+    for f in &tree.stats.merge_fallback_log {
+        let e = by_reason.entry(format!("{:?}", f.reason)).or_default();
+        if f.convex_hull {
+            e.1 += 1;
+        } else {
+            e.0 += 1;
+        }
+    }
+    for (reason, (carved, convex)) in &by_reason {
+        println!(
+            "merge fallback {reason}: {carved} carved by the full hull search, {convex} convex hulls"
+        );
+    }
 }
 
 /// Triangles drawn when the whole city is shown at each level of the tree, against the input

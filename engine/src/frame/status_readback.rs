@@ -1,0 +1,61 @@
+//! The cull status on its way to the CPU (one `u32` per candidate).
+
+use crate::frame::grow_buffer::GrowBuffer;
+use crate::gpu::GpuContext;
+use crate::render::targets::ReadbackError;
+
+/// A mappable copy of the cull status, grown to the largest candidate count seen.
+#[derive(Debug)]
+pub(super) struct StatusReadback {
+    buffer: GrowBuffer,
+}
+
+impl StatusReadback {
+    pub fn new(device: &wgpu::Device) -> StatusReadback {
+        StatusReadback {
+            buffer: GrowBuffer::new(
+                device,
+                "cull status readback",
+                wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            ),
+        }
+    }
+
+    /// Makes room for `n` entries (call before recording the copy).
+    pub fn reserve(&mut self, gpu: &GpuContext, n: usize) {
+        self.buffer.reserve(&gpu.device, (n.max(1) * 4) as u64);
+    }
+
+    /// Records the copy of the first `n` entries of `status`.
+    pub fn copy_from(&self, encoder: &mut wgpu::CommandEncoder, status: &wgpu::Buffer, n: usize) {
+        if n > 0 {
+            encoder.copy_buffer_to_buffer(status, 0, &self.buffer.buffer, 0, (n * 4) as u64);
+        }
+    }
+
+    /// Waits for the GPU and reads the `n` entries copied by the submitted frame.
+    pub fn read(&self, gpu: &GpuContext, n: usize) -> Result<Vec<u32>, ReadbackError> {
+        if n == 0 {
+            gpu.wait_idle();
+            return Ok(Vec::new());
+        }
+        let slice = self.buffer.buffer.slice(..(n * 4) as u64);
+        let (tx, rx) = std::sync::mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        gpu.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(ReadbackError::from)?;
+        rx.recv()
+            .map_err(|e| ReadbackError::MappedRange(e.to_string()))?
+            .map_err(ReadbackError::from)?;
+        let mapped = slice
+            .get_mapped_range()
+            .map_err(|e| ReadbackError::MappedRange(e.to_string()))?;
+        let status: Vec<u32> = bytemuck::pod_collect_to_vec(&mapped);
+        drop(mapped);
+        self.buffer.buffer.unmap();
+        Ok(status)
+    }
+}

@@ -1,0 +1,208 @@
+//! Debug view of the virtual occluders (Germs & Jansen 2001, built by the preprocessor): every
+//! occluder mesh blended over the frame in [`DEBUG_OCCLUDER_RGB`], the occluders the frame's
+//! pre-pass selected drawn again on top in [`DEBUG_OCCLUDER_SELECTED_RGB`]
+//! (`wgsl/debug_occluders.wgsl`). Occluders hide each other (a depth target of their own, filled
+//! by a depth-only draw first, so each pixel blends its nearest occluder surface once) but not
+//! the scene, which they lie inside.
+
+use citywalk_scenes::occluder::OccluderSet;
+use citywalk_shaders::DEBUG_OCCLUDERS_WGSL;
+use citywalk_shaders::SceneVertex;
+#[cfg(doc)]
+use citywalk_shaders::constants::{DEBUG_OCCLUDER_RGB, DEBUG_OCCLUDER_SELECTED_RGB};
+use wgpu::util::DeviceExt;
+
+use super::{DebugDepth, DebugPipelineMode};
+use crate::camera::Camera;
+use crate::gpu::GpuContext;
+use crate::render::view::{SceneStyle, view_uniforms};
+
+/// One occluder's triangles in [`OccluderOverlayMeshes`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct OccluderRange {
+    /// The building the occluder stands for.
+    pub building: u32,
+    /// Its indices (absolute vertex numbers) in the index buffer.
+    pub first_index: u32,
+    pub index_count: u32,
+}
+
+/// Every occluder mesh of a scene in one vertex and one index buffer with absolute indices,
+/// so the whole set is one draw.
+#[derive(Debug)]
+pub struct OccluderOverlayMeshes {
+    vertex_buffer: wgpu::Buffer,
+    index_buffer: wgpu::Buffer,
+    /// Every occluder with a non-empty mesh of finite bounds, in the set's order: the same
+    /// occluders, in the same order, as [`crate::frame::OccluderMeshes::occluders`], so an
+    /// index of the frame's occluder selection is an index here.
+    pub ranges: Vec<OccluderRange>,
+}
+
+impl OccluderOverlayMeshes {
+    /// Uploads the occluders of `set`; triangles with an index outside their mesh and meshes
+    /// with non-finite bounds are left out (the rule of [`crate::frame::OccluderMeshes::upload`]).
+    pub fn upload(gpu: &GpuContext, set: &OccluderSet) -> OccluderOverlayMeshes {
+        let mut vertices: Vec<SceneVertex> = Vec::new();
+        let mut indices: Vec<u32> = Vec::new();
+        let mut ranges = Vec::new();
+        for o in &set.occluders {
+            let mesh = &o.mesh;
+            let Some((lo, hi)) = mesh.bounds() else {
+                continue;
+            };
+            if !(lo.is_finite() && hi.is_finite()) {
+                continue;
+            }
+            let n = mesh.positions.len() as u32;
+            let base = vertices.len() as u32;
+            let first_index = indices.len() as u32;
+            for t in mesh.indices.chunks_exact(3) {
+                if t.iter().all(|&v| v < n) {
+                    indices.extend(t.iter().map(|&v| base + v));
+                }
+            }
+            let index_count = indices.len() as u32 - first_index;
+            if index_count == 0 {
+                continue;
+            }
+            vertices.extend(mesh.positions.iter().map(|p| SceneVertex {
+                position_m: p.to_array(),
+                building_id: o.building.0,
+            }));
+            ranges.push(OccluderRange {
+                building: o.building.0,
+                first_index,
+                index_count,
+            });
+        }
+        // Buffers are never empty, so they can always be bound.
+        if vertices.is_empty() {
+            vertices.push(SceneVertex {
+                position_m: [0.0; 3],
+                building_id: 0,
+            });
+        }
+        if indices.is_empty() {
+            indices.extend_from_slice(&[0, 0, 0]);
+        }
+        let device = &gpu.device;
+        OccluderOverlayMeshes {
+            vertex_buffer: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("debug occluder vertices"),
+                contents: bytemuck::cast_slice(&vertices),
+                usage: wgpu::BufferUsages::VERTEX,
+            }),
+            index_buffer: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("debug occluder indices"),
+                contents: bytemuck::cast_slice(&indices),
+                usage: wgpu::BufferUsages::INDEX,
+            }),
+            ranges,
+        }
+    }
+
+    /// Indices of all occluders together.
+    fn index_count(&self) -> u32 {
+        self.ranges
+            .last()
+            .map_or(0, |r| r.first_index + r.index_count)
+    }
+}
+
+/// The occluder view's pipeline, uniforms and depth.
+#[derive(Debug)]
+pub struct OccluderOverlay {
+    /// Nearest occluder surfaces into the overlay's depth.
+    depth_pipeline: wgpu::RenderPipeline,
+    /// Blends the colour on those surfaces only.
+    pipeline: wgpu::RenderPipeline,
+    view_buffer: wgpu::Buffer,
+    view_group: wgpu::BindGroup,
+    depth: DebugDepth,
+}
+
+impl OccluderOverlay {
+    /// An overlay drawing into colour targets of `colour_format`.
+    pub fn new(gpu: &GpuContext, colour_format: wgpu::TextureFormat) -> OccluderOverlay {
+        let device = &gpu.device;
+        let layout = crate::render::view_bind_group_layout(device, "debug occluders view");
+        let (view_buffer, view_group) =
+            crate::render::view_buffer_and_group(device, &layout, "debug occluders view");
+        let pipeline = |label, mode| {
+            super::debug_scene_pipeline(
+                device,
+                label,
+                DEBUG_OCCLUDERS_WGSL,
+                &layout,
+                colour_format,
+                mode,
+            )
+        };
+        OccluderOverlay {
+            depth_pipeline: pipeline("debug occluders depth", DebugPipelineMode::DepthOnly),
+            pipeline: pipeline("debug occluders", DebugPipelineMode::BlendOnNearest),
+            view_buffer,
+            view_group,
+            depth: DebugDepth::default(),
+        }
+    }
+
+    /// Records a pass blending every occluder of `meshes` over `target` (`width × height`,
+    /// loaded, not cleared) from `camera`, and the occluders `selected` (indices into
+    /// [`OccluderOverlayMeshes::ranges`]; others are ignored) again in the highlight colour.
+    /// Returns the number of occluders highlighted. The uniforms are written through the queue:
+    /// submit before recording another view.
+    #[expect(clippy::too_many_arguments, reason = "one pass, all inputs explicit")]
+    pub fn encode(
+        &mut self,
+        gpu: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        meshes: &OccluderOverlayMeshes,
+        camera: &Camera,
+        selected: &[usize],
+        target: &wgpu::TextureView,
+        (width, height): (u32, u32),
+    ) -> u32 {
+        let uniforms = view_uniforms(camera, width, height, &SceneStyle::default());
+        gpu.queue
+            .write_buffer(&self.view_buffer, 0, bytemuck::bytes_of(&uniforms));
+        let depth = self.depth.fit(gpu, width, height);
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("debug occluders"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: target,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Load,
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: Some(depth.attachment()),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        let total = meshes.index_count();
+        if total == 0 {
+            return 0;
+        }
+        pass.set_bind_group(0, &self.view_group, &[]);
+        pass.set_vertex_buffer(0, meshes.vertex_buffer.slice(..));
+        pass.set_index_buffer(meshes.index_buffer.slice(..), wgpu::IndexFormat::Uint32);
+        // Depth first, so each pixel blends its nearest occluder surface only.
+        pass.set_pipeline(&self.depth_pipeline);
+        pass.draw_indexed(0..total, 0, 0..1);
+        pass.set_pipeline(&self.pipeline);
+        // Instance 0: every occluder in the plain colour.
+        pass.draw_indexed(0..total, 0, 0..1);
+        // Instance 1: the selected ones again, highlighted.
+        let mut highlighted = 0;
+        for r in selected.iter().filter_map(|&i| meshes.ranges.get(i)) {
+            pass.draw_indexed(r.first_index..r.first_index + r.index_count, 0, 1..2);
+            highlighted += 1;
+        }
+        highlighted
+    }
+}

@@ -1,0 +1,194 @@
+//! The viewer's frame without a window (`engine::viewer::draw::FrameDrawer`), on a generated,
+//! preprocessed city: at street level (the viewer's walk start) every culling path gives the
+//! brute-force image and reports the counts of the stages that ran, with buildings really
+//! culled; from the overview camera a coarse LOD cut draws clusters and fewer triangles through
+//! both LOD paths; every debug view replaces or tints the frame and says what it shows.
+
+use citywalk_engine::camera::Camera;
+use citywalk_engine::controller::{CameraRig, CollisionWorld, Mode};
+use citywalk_engine::render::BruteRenderer;
+use citywalk_engine::render::targets::OffscreenTarget;
+use citywalk_engine::viewer::draw::{Drawn, FrameDrawer};
+use citywalk_engine::viewer::settings::{DrawPath, SceneFeatures};
+use citywalk_engine::viewer::{DebugView, RenderSettings, Stages, ViewerScene};
+use citywalk_preprocess::pipeline::{NoProgress, PreprocessParams, preprocess};
+use citywalk_scenes::generate::{GenerateParams, generate_city};
+use citywalk_tests::gpu::gpu_or_skip;
+use glam::Vec3;
+
+const SIZE: (u32, u32) = (192, 120);
+
+/// Share of pixels that differ between two RGBA frames.
+fn differing_share(a: &[u8], b: &[u8]) -> f64 {
+    let n = a
+        .chunks_exact(4)
+        .zip(b.chunks_exact(4))
+        .filter(|(p, q)| p != q)
+        .count();
+    n as f64 / (a.len() / 4) as f64
+}
+
+#[test]
+fn every_stage_combination_and_debug_view_renders_and_reports_its_counts() {
+    let Some(gpu) = gpu_or_skip("viewer_frame") else {
+        return;
+    };
+    let city = generate_city(&GenerateParams::new(300, 11)).expect("generate");
+    let package = preprocess(city, &PreprocessParams::default(), &NoProgress).expect("preprocess");
+    let scene = ViewerScene {
+        city: package.city(),
+        occluders: package.occluders.clone(),
+        cluster_tree: package.cluster_tree.clone(),
+        blocks: Some((package.blocks.clone(), package.quadtree.clone())),
+    };
+    let features = scene.features();
+    assert_eq!(
+        features,
+        SceneFeatures {
+            occluders: true,
+            cluster_tree: true,
+            quadtree: true
+        },
+        "a package brings every structure"
+    );
+    let n = scene.city.buildings.len() as u32;
+    let (lo, hi) = scene.city.buildings.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), b| {
+            let (a, c) = b.bounds();
+            (lo.min(a), hi.max(c))
+        },
+    );
+    let overview = Camera::overview(lo, hi);
+    let street = CameraRig::for_city(
+        &scene.city,
+        &CollisionWorld::from_city(&scene.city),
+        Mode::Walk,
+    )
+    .camera();
+    let format = BruteRenderer::PNG_FORMAT;
+    let mut drawer = FrameDrawer::new(&gpu, format, scene);
+    let target = OffscreenTarget::new(&gpu, SIZE.0, SIZE.1, format).expect("target");
+    let mut frame = |settings: &RenderSettings, camera: &Camera| -> (Drawn, Vec<u8>) {
+        let drawn = drawer
+            .draw(
+                &gpu,
+                &target.colour_view,
+                &target.depth,
+                SIZE,
+                camera,
+                settings,
+                features,
+            )
+            .expect("frame");
+        (drawn, target.read_colour(&gpu).expect("read the frame"))
+    };
+    let with = |stages: Stages| RenderSettings {
+        stages,
+        ..RenderSettings::default()
+    };
+
+    let (brute, brute_image) = frame(&with(Stages::NONE), &street);
+    let (brute_above, brute_above_image) = frame(&with(Stages::NONE), &overview);
+    assert_eq!(brute.counts.renderer, DrawPath::Brute.describe());
+    assert_eq!(brute.counts.buildings_drawn, n);
+    assert_eq!(brute.counts.frustum_culled, None);
+    assert_eq!(brute.counts.occlusion_culled, None);
+    assert_eq!(brute.ids.len() as u32, n);
+
+    let frustum_only = Stages {
+        frustum: true,
+        ..Stages::NONE
+    };
+    let hzb = Stages {
+        lod: false,
+        ..Stages::ALL
+    };
+    for stages in [frustum_only, hzb] {
+        // Twice: the HZB frame starts from last frame's visible set the second time.
+        for _ in 0..2 {
+            let (drawn, image) = frame(&with(stages), &street);
+            let c = &drawn.counts;
+            let share = differing_share(&brute_image, &image);
+            assert!(
+                share < 0.01,
+                "{}: {:.2} % of pixels differ",
+                c.renderer,
+                share * 100.0
+            );
+            assert!(c.buildings_drawn < n && c.buildings_drawn > 0, "{c:?}");
+            assert!(c.frustum_culled.is_some_and(|k| k > 0), "{c:?}");
+            assert!(
+                c.triangles > 0 && c.draw_calls > 0 && c.cpu_ms > 0.0,
+                "{c:?}"
+            );
+            assert_eq!(c.occlusion_culled.is_some(), stages.hzb, "{c:?}");
+            assert_eq!(c.occluders_drawn.is_some(), stages.hzb, "{c:?}");
+            if stages.hzb {
+                assert!(c.occlusion_culled.is_some_and(|k| k > 0), "{c:?}");
+            }
+        }
+    }
+
+    // A coarse cut (Chang ε = 10⁵, τ = 100) draws clusters and fewer triangles, alone and as
+    // the HZB frame's candidates.
+    let mut coarse = with(Stages::ALL);
+    coarse.lod.epsilon_px = 1e5;
+    coarse.lod.tau_px = 100.0;
+    let lod_alone = RenderSettings {
+        stages: Stages {
+            lod: true,
+            frustum: true,
+            ..Stages::NONE
+        },
+        ..coarse
+    };
+    for settings in [lod_alone, coarse] {
+        let (drawn, image) = frame(&settings, &overview);
+        let c = &drawn.counts;
+        assert!(drawn.lod_scene, "{c:?}");
+        assert!(c.clusters_drawn.is_some_and(|k| k > 0), "{c:?}");
+        assert!(
+            drawn.ids.iter().any(|&id| id >= n),
+            "cluster draw ids follow the buildings"
+        );
+        assert!(c.triangles < brute_above.counts.triangles, "{c:?}");
+        assert!(
+            differing_share(&brute_above_image, &image) > 0.0,
+            "{}",
+            c.renderer
+        );
+    }
+
+    // Debug views: the pyramid and cluster views replace the frame, the occluder view tints it.
+    for (view, min_share, max_share, says) in [
+        (DebugView::Pyramid, 0.5, 1.0, "pyramid level 2"),
+        (DebugView::Clusters, 0.5, 1.0, "entries coloured"),
+        (DebugView::Occluders, 0.001, 0.95, "selected"),
+    ] {
+        let settings = RenderSettings {
+            debug_view: view,
+            mip_level: 2,
+            ..with(hzb)
+        };
+        let (drawn, image) = frame(&settings, &street);
+        let share = differing_share(&brute_image, &image);
+        assert!(
+            (min_share..=max_share).contains(&share),
+            "{}: {:.1} % of pixels changed",
+            view.name(),
+            share * 100.0
+        );
+        let debug = drawn.counts.debug.clone().unwrap_or_default();
+        assert!(debug.contains(says), "{}: {debug:?}", view.name());
+        if view == DebugView::Occluders {
+            // The occluders highlighted are the ones the frame drew into its pyramid.
+            let drawn_by_frame = drawn.counts.occluders_drawn.unwrap_or(0);
+            assert!(drawn_by_frame > 0, "{:?}", drawn.counts);
+            assert!(
+                debug.contains(&format!(", {drawn_by_frame} selected")),
+                "{debug:?} vs {drawn_by_frame} occluders drawn"
+            );
+        }
+    }
+}
