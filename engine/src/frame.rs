@@ -91,7 +91,7 @@ use glam::Mat4;
 use crate::camera::Camera;
 use crate::gpu::GpuContext;
 use crate::gpu_timer::{FRAME_PHASES, GpuTimer, GpuTimes};
-use crate::hzb::HzbCull;
+use crate::hzb::{HzbCull, HzbPyramid};
 use crate::hzb::cull::CullError;
 use crate::lod::scene::{LodFrame, LodScene};
 use crate::render::targets::ReadbackError;
@@ -217,6 +217,12 @@ pub struct CullingRenderer {
 }
 
 impl CullingRenderer {
+    /// The pyramid the last frame culled against (its early depth, with the selected occluders
+    /// when the pre-pass ran), for debug views; `None` before the first frame.
+    pub fn pyramid(&self) -> Option<&HzbPyramid> {
+        self.targets.as_ref().map(|t| &t.pyramid)
+    }
+
     /// A renderer drawing into colour targets of `colour_format` (as
     /// [`crate::render::BruteRenderer::new`]).
     pub fn new(gpu: &GpuContext, colour_format: wgpu::TextureFormat) -> CullingRenderer {

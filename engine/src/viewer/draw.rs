@@ -58,6 +58,8 @@ pub struct Drawn {
     /// Draw ids drawn (into the LOD scene when `lod_scene`, else the plain scene).
     pub ids: Vec<u32>,
     pub lod_scene: bool,
+    /// The frame went through the two-phase HZB renderer (its pyramid is the frame's).
+    pub hzb: bool,
     /// The occluders the pre-pass selected, indices into [`OccluderMeshes::occluders`] (the
     /// rule of [`OccluderMeshes::select`], recomputed from the visible set the frame started
     /// with).
@@ -300,6 +302,7 @@ impl FrameDrawer {
                     size.1,
                     &options,
                 );
+                drawn.hzb = true;
                 let output = self.culling.render_lod(
                     gpu,
                     lod,
@@ -338,6 +341,7 @@ impl FrameDrawer {
                     size.1,
                     &options,
                 );
+                drawn.hzb = true;
                 let output = self.culling.render(
                     gpu,
                     &self.scene,
@@ -361,9 +365,6 @@ impl FrameDrawer {
         counts.draw_calls = s.draw_calls;
         counts.occluders_drawn = occluders.map(|_| s.occluders_drawn);
         counts.cpu_ms = s.cpu_ms;
-        counts.gpu_ms = (s.gpu.phases.iter())
-            .filter_map(|p| Some((p.name.to_string(), p.span?.duration_ms())))
-            .collect();
         counts.gpu_ms = s.gpu.timed().map(|(p, ms)| (p.to_string(), ms)).collect();
         if !with_occluders {
             drawn.selected_occluders.clear();
@@ -393,14 +394,19 @@ impl FrameDrawer {
         match settings.debug_view {
             DebugView::Off => return Ok(()),
             DebugView::Pyramid => {
-                let pyramid = self.depth_pyramid.encode(
-                    gpu,
-                    &mut encoder,
-                    scene,
-                    camera,
-                    &drawn.ids,
-                    size,
-                )?;
+                // The culling frame's own pyramid when it drew this frame; otherwise one built
+                // the same way from the depth of what was drawn.
+                let pyramid = match self.culling.pyramid().filter(|_| drawn.hzb) {
+                    Some(pyramid) => pyramid,
+                    None => self.depth_pyramid.encode(
+                        gpu,
+                        &mut encoder,
+                        scene,
+                        camera,
+                        &drawn.ids,
+                        size,
+                    )?,
+                };
                 let (min, max) = scene.bounds;
                 let range = GreyRange::for_bounds(camera.near_m, camera.position, min, max);
                 let level = self.pyramid_view.encode(

@@ -1,8 +1,7 @@
-//! The depth pyramid the pyramid debug view shows: a depth-only draw of the frame's drawn
-//! geometry (the ground and a draw list of a scene) and an [`HzbPyramid`] built from it with
-//! the same GPU build as the culling frame's. It is the pyramid a frame's early pass builds
-//! when last frame's visible set is this frame's (the culling renderer keeps its own pyramid
-//! private; occluders are not drawn into this one).
+//! The depth pyramid the pyramid debug view shows when the frame did not go through the
+//! culling renderer (whose own pyramid, [`crate::frame::CullingRenderer::pyramid`], is shown
+//! otherwise): a depth-only draw of the frame's drawn geometry (the ground and a draw list of
+//! a scene) and an [`HzbPyramid`] built from it with the same GPU build as the culling frame's.
 
 use citywalk_shaders::{DrawIndexedIndirectArgs, SCENE_WGSL};
 
