@@ -108,9 +108,11 @@ pub use visibility::Visibility;
 
 /// Default projected-size threshold of the occluder selection: an occluder is drawn when its
 /// bounding sphere's projected diameter exceeds this many pixels (a "near" occluder: Germs &
-/// Jansen §4 select occluders by their screen size; the value is ours, chosen so that a
-/// street-level view draws the street's facades and not the whole city).
-pub const DEFAULT_OCCLUDER_MIN_PX: f32 = 48.0;
+/// Jansen §4 select occluders by their screen size; the value is ours, measured on the
+/// generated 100k city's street walk: 48 px left the far end of the street open and the cull
+/// kept 10.9 × the visible set, 24 px keeps 3.7 × at the same frame time, 12 px 2.4 × but
+/// costs ~20 % more frame time on lavapipe).
+pub const DEFAULT_OCCLUDER_MIN_PX: f32 = 24.0;
 
 /// Why a frame could not be rendered.
 #[derive(Debug, thiserror::Error)]
