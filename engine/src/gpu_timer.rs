@@ -23,7 +23,7 @@
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use crate::gpu::GpuContext;
-use crate::render::targets::ReadbackError;
+use crate::render::targets::{ReadbackError, map_read};
 
 /// The phases of the two-phase culling frame ([`crate::frame::CullingRenderer`]), one pass each,
 /// in frame order: the early pass, the occluder pre-pass, the pyramid build, the cull and the
@@ -243,20 +243,7 @@ impl GpuTimer {
         if !self.any_written() {
             return Ok(none());
         }
-        let slice = q.readback.slice(..);
-        let (tx, rx) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
-        gpu.device.poll(wgpu::PollType::wait_indefinitely())?;
-        rx.recv()
-            .map_err(|e| ReadbackError::MappedRange(e.to_string()))??;
-        let mapped = slice
-            .get_mapped_range()
-            .map_err(|e| ReadbackError::MappedRange(e.to_string()))?;
-        let words: Vec<u64> = bytemuck::pod_collect_to_vec(&mapped);
-        drop(mapped);
-        q.readback.unmap();
+        let words: Vec<u64> = bytemuck::pod_collect_to_vec(&map_read(gpu, &q.readback)?);
         let stride = (PHASE_STRIDE_BYTES / 8) as usize;
         let ticks: Vec<Option<(u64, u64)>> = (0..self.phases.len())
             .map(|i| {

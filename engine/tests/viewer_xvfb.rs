@@ -153,6 +153,41 @@ fn write_aerial_path(path: &Path) {
     std::fs::write(path, text).expect("write the test path");
 }
 
+/// A fresh temporary directory `citywalk-{name}-{pid}` with the grid scene written into it:
+/// `(directory, scene file)`; `None` (skipped, or failed under CI) without `xvfb-run`.
+fn scratch_scene(name: &str) -> Option<(PathBuf, PathBuf)> {
+    if !has_program("xvfb-run") {
+        unavailable("xvfb-run is not installed (apt-get install xvfb)");
+        return None;
+    }
+    let dir: PathBuf = std::env::temp_dir().join(format!("citywalk-{name}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("create a temporary directory");
+    let scene = dir.join("grid.geojson");
+    write_scene(&scene);
+    Some((dir, scene))
+}
+
+/// The viewer's screenshot of `scene` with `extra` arguments, written to `dir/{name}.png` and
+/// asserted to be `WIDTH × HEIGHT`; `None` (skipped, or failed under CI) when no adapter can
+/// present to a window.
+fn screenshot(scene: &Path, dir: &Path, name: &str, extra: &[&str]) -> Option<image::RgbaImage> {
+    let out = dir.join(format!("{name}.png"));
+    match run_viewer(scene, &out, extra) {
+        Outcome::NoAdapter(log) => {
+            unavailable(&format!("no GPU adapter can present to a window:\n{log}"));
+            None
+        }
+        Outcome::Screenshot(image) => {
+            assert_eq!(
+                image.dimensions(),
+                (WIDTH, HEIGHT),
+                "{name} screenshot size"
+            );
+            Some(image)
+        }
+    }
+}
+
 /// Pixels that differ between two images of equal size.
 fn differing(a: &image::RgbaImage, b: &image::RgbaImage) -> usize {
     assert_eq!(a.dimensions(), b.dimensions());
@@ -173,15 +208,9 @@ fn commonest_colour_share(image: &image::RgbaImage) -> f64 {
 
 #[test]
 fn viewer_writes_a_screenshot_through_a_real_window() {
-    if !has_program("xvfb-run") {
-        unavailable("xvfb-run is not installed (apt-get install xvfb)");
+    let Some((dir, scene)) = scratch_scene("viewer-xvfb") else {
         return;
-    }
-    let dir: PathBuf =
-        std::env::temp_dir().join(format!("citywalk-viewer-xvfb-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("create a temporary directory");
-    let scene = dir.join("grid.geojson");
-    write_scene(&scene);
+    };
     let path_file = dir.join("walk.path");
     write_path(&path_file);
     let path_arg = path_file.to_str().expect("a UTF-8 temporary path");
@@ -197,51 +226,32 @@ fn viewer_writes_a_screenshot_through_a_real_window() {
             &["--play", path_arg, "--no-overlay", "--no-culling"][..],
         ),
     ] {
-        let out = dir.join(format!("{name}.png"));
-        match run_viewer(&scene, &out, extra) {
-            Outcome::NoAdapter(log) => {
-                unavailable(&format!("no GPU adapter can present to a window:\n{log}"));
-                return;
-            }
-            Outcome::Screenshot(image) => {
-                assert_eq!(
-                    image.dimensions(),
-                    (WIDTH, HEIGHT),
-                    "{name} screenshot size"
-                );
-                // Sky, ground and facades: no colour may cover (nearly) the whole frame.
-                let share = commonest_colour_share(&image);
-                assert!(
-                    share < 0.95,
-                    "{name} screenshot is {:.1} % one colour",
-                    share * 100.0
-                );
-                if name == "play-brute" {
-                    brute = Some(image);
-                } else if name.starts_with("play") {
-                    played.push(image);
-                }
-            }
+        let Some(image) = screenshot(&scene, &dir, name, extra) else {
+            return;
+        };
+        // Sky, ground and facades: no colour may cover (nearly) the whole frame.
+        let share = commonest_colour_share(&image);
+        assert!(
+            share < 0.95,
+            "{name} screenshot is {:.1} % one colour",
+            share * 100.0
+        );
+        if name == "play-brute" {
+            brute = Some(image);
+        } else if name.starts_with("play") {
+            played.push(image);
         }
     }
     let [plain, with_panel] = &played[..] else {
         panic!("two playback screenshots expected, got {}", played.len());
     };
-    let differing = plain
-        .pixels()
-        .zip(with_panel.pixels())
-        .filter(|(a, b)| a != b)
-        .count();
+    let differing_px = differing(plain, with_panel);
     assert!(
-        differing > (WIDTH * HEIGHT / 50) as usize,
-        "the overlay panel changed only {differing} pixels of the same pose"
+        differing_px > (WIDTH * HEIGHT / 50) as usize,
+        "the overlay panel changed only {differing_px} pixels of the same pose"
     );
     let brute = brute.expect("the brute-force playback ran");
-    let changed = plain
-        .pixels()
-        .zip(brute.pixels())
-        .filter(|(a, b)| a != b)
-        .count();
+    let changed = differing(plain, &brute);
     assert!(
         changed * 100 < (WIDTH * HEIGHT) as usize,
         "culling changed {changed} of {} pixels of the same pose",
@@ -253,15 +263,9 @@ fn viewer_writes_a_screenshot_through_a_real_window() {
 
 #[test]
 fn viewer_switches_stages_lod_and_debug_views() {
-    if !has_program("xvfb-run") {
-        unavailable("xvfb-run is not installed (apt-get install xvfb)");
+    let Some((dir, geojson)) = scratch_scene("viewer-stages") else {
         return;
-    }
-    let dir: PathBuf =
-        std::env::temp_dir().join(format!("citywalk-viewer-stages-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("create a temporary directory");
-    let geojson = dir.join("grid.geojson");
-    write_scene(&geojson);
+    };
     let package = dir.join("grid.cwk");
     let status = Command::new(env!("CARGO_BIN_EXE_citywalk"))
         .arg("preprocess")
@@ -297,23 +301,12 @@ fn viewer_switches_stages_lod_and_debug_views() {
     ];
     let mut shots = std::collections::HashMap::new();
     for (name, flags) in runs {
-        let out = dir.join(format!("{name}.png"));
         let mut extra = vec!["--play", path_arg, "--no-overlay"];
         extra.extend(flags);
-        match run_viewer(&package, &out, &extra) {
-            Outcome::NoAdapter(log) => {
-                unavailable(&format!("no GPU adapter can present to a window:\n{log}"));
-                return;
-            }
-            Outcome::Screenshot(image) => {
-                assert_eq!(
-                    image.dimensions(),
-                    (WIDTH, HEIGHT),
-                    "{name} screenshot size"
-                );
-                shots.insert(name, image);
-            }
-        }
+        let Some(image) = screenshot(&package, &dir, name, &extra) else {
+            return;
+        };
+        shots.insert(name, image);
     }
     let pixels = (WIDTH * HEIGHT) as usize;
     let shot = |name: &str| &shots[name];

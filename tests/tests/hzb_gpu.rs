@@ -9,7 +9,8 @@ use citywalk_engine::camera::Camera;
 use citywalk_engine::gpu::GpuContext;
 use citywalk_engine::hzb::cull::{CULL_FRUSTUM_OUTSIDE, CULL_OCCLUDED, CULL_VISIBLE};
 use citywalk_engine::hzb::reference::{BoxProjection, DepthPyramid, project_box, select_level};
-use citywalk_engine::hzb::{HzbCull, HzbPyramid};
+use citywalk_engine::hzb::{CullResults, HzbCull, HzbPyramid};
+use citywalk_engine::render::{fragment_float_texture_entry, fullscreen_pipeline};
 use citywalk_shaders::{BuildingRecord, DrawIndexedIndirectArgs};
 use citywalk_tests::gpu::gpu_or_skip;
 use glam::{Mat4, Vec3};
@@ -85,55 +86,24 @@ fn depth_texture(gpu: &GpuContext, width: u32, height: u32, values: &[f32]) -> w
             | wgpu::TextureUsages::COPY_SRC,
         view_formats: &[],
     });
-    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some("test depth writer"),
-        source: wgpu::ShaderSource::Wgsl(DEPTH_WRITER_WGSL.into()),
-    });
     let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label: Some("test depth writer"),
-        entries: &[wgpu::BindGroupLayoutEntry {
-            binding: 0,
-            visibility: wgpu::ShaderStages::FRAGMENT,
-            ty: wgpu::BindingType::Texture {
-                sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                view_dimension: wgpu::TextureViewDimension::D2,
-                multisampled: false,
-            },
-            count: None,
-        }],
+        entries: &[fragment_float_texture_entry(0)],
     });
-    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-        label: Some("test depth writer"),
-        bind_group_layouts: &[Some(&layout)],
-        immediate_size: 0,
-    });
-    let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-        label: Some("test depth writer"),
-        layout: Some(&pipeline_layout),
-        vertex: wgpu::VertexState {
-            module: &module,
-            entry_point: Some("vs_main"),
-            compilation_options: Default::default(),
-            buffers: &[],
-        },
-        primitive: wgpu::PrimitiveState::default(),
-        depth_stencil: Some(wgpu::DepthStencilState {
+    let pipeline = fullscreen_pipeline(
+        device,
+        "test depth writer",
+        DEPTH_WRITER_WGSL,
+        &layout,
+        Some(wgpu::DepthStencilState {
             format: wgpu::TextureFormat::Depth32Float,
             depth_write_enabled: Some(true),
             depth_compare: Some(wgpu::CompareFunction::Always),
             stencil: wgpu::StencilState::default(),
             bias: wgpu::DepthBiasState::default(),
         }),
-        multisample: wgpu::MultisampleState::default(),
-        fragment: Some(wgpu::FragmentState {
-            module: &module,
-            entry_point: Some("fs_main"),
-            compilation_options: Default::default(),
-            targets: &[],
-        }),
-        multiview_mask: None,
-        cache: None,
-    });
+        &[],
+    );
     let source_view = source.create_view(&wgpu::TextureViewDescriptor::default());
     let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("test depth writer"),
@@ -437,6 +407,38 @@ fn records_for(boxes: &[(Vec3, Vec3)]) -> Vec<BuildingRecord> {
         .collect()
 }
 
+/// Uploads `records`, culls them against `pyramid` seen through `vp` and reads the results back.
+fn cull_records(
+    gpu: &GpuContext,
+    cull: &mut HzbCull,
+    records: &[BuildingRecord],
+    pyramid: &HzbPyramid,
+    vp: Mat4,
+) -> CullResults {
+    let records_buffer = gpu
+        .device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("test records"),
+            contents: bytemuck::cast_slice(records),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
+    let mut encoder = gpu
+        .device
+        .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+    cull.encode(
+        gpu,
+        &mut encoder,
+        &records_buffer,
+        records.len() as u32,
+        pyramid,
+        vp,
+    )
+    .expect("cull");
+    gpu.queue.submit([encoder.finish()]);
+    cull.read_back(gpu, records.len() as u32)
+        .expect("cull readback")
+}
+
 fn key(c: &DrawIndexedIndirectArgs) -> (u32, u32, i32, u32, u32) {
     (
         c.first_index,
@@ -484,29 +486,7 @@ fn gpu_cull_matches_reference_and_never_culls_more() {
         let vp = camera.view_proj(w as f32 / h as f32);
         let boxes = random_boxes(&mut rng, camera, w as f32 / h as f32, 4000);
         let records = records_for(&boxes);
-        let records_buffer = gpu
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("test records"),
-                contents: bytemuck::cast_slice(&records),
-                usage: wgpu::BufferUsages::STORAGE,
-            });
-        let mut encoder = gpu
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
-        cull.encode(
-            &gpu,
-            &mut encoder,
-            &records_buffer,
-            records.len() as u32,
-            &pyramid,
-            vp,
-        )
-        .expect("cull");
-        gpu.queue.submit([encoder.finish()]);
-        let results = cull
-            .read_back(&gpu, records.len() as u32)
-            .expect("cull readback");
+        let results = cull_records(&gpu, &mut cull, &records, &pyramid, vp);
         assert_eq!(results.status.len(), boxes.len());
         for (i, ((lo, hi), &g)) in boxes.iter().zip(&results.status).enumerate() {
             let cpu = cpu_status(&cpu_pyramid, vp, *lo, *hi, w, h);
@@ -604,30 +584,8 @@ fn gpu_culls_boxes_crossing_the_eye_plane_outside_the_view() {
         })
         .collect();
     let records = records_for(&boxes);
-    let records_buffer = gpu
-        .device
-        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("test records"),
-            contents: bytemuck::cast_slice(&records),
-            usage: wgpu::BufferUsages::STORAGE,
-        });
     let mut cull = HzbCull::new(&gpu, 64);
-    let mut encoder = gpu
-        .device
-        .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
-    cull.encode(
-        &gpu,
-        &mut encoder,
-        &records_buffer,
-        records.len() as u32,
-        &pyramid,
-        vp,
-    )
-    .expect("cull");
-    gpu.queue.submit([encoder.finish()]);
-    let results = cull
-        .read_back(&gpu, records.len() as u32)
-        .expect("cull readback");
+    let results = cull_records(&gpu, &mut cull, &records, &pyramid, vp);
     let (mut crossing, mut outside, mut outside_gpu, mut kept) = (0, 0, 0, 0);
     for (i, ((lo, hi), &g)) in boxes.iter().zip(&results.status).enumerate() {
         let projection = project_box(vp, *lo, *hi, w, h);

@@ -21,7 +21,7 @@ use citywalk_engine::gpu::GpuContext;
 use citywalk_engine::hzb::cull::CULL_VISIBLE;
 use citywalk_engine::lod::LodCriterion;
 use citywalk_engine::lod::scene::{LodFrame, LodScene};
-use citywalk_engine::oracle::Oracle;
+use citywalk_engine::oracle::{Oracle, VisibleSet};
 use citywalk_engine::render::BruteRenderer;
 use citywalk_engine::render::targets::OffscreenTarget;
 use citywalk_engine::scene_gpu::SceneGpu;
@@ -181,18 +181,49 @@ fn aerial_camera(rng: &mut Rng, scene: &SceneGpu) -> Camera {
     )
 }
 
-/// The two configurations under test.
-fn configurations() -> [(&'static str, CullingOptions); 2] {
+/// A random street-level (`street`) or aerial camera and the first frame of a short move to it
+/// (a few metres and degrees away): `(before, camera)`.
+fn short_move(rng: &mut Rng, scene: &TestScene, street: bool) -> (Camera, Camera) {
+    let camera = if street {
+        street_camera(rng, &scene.city)
+    } else {
+        aerial_camera(rng, &scene.scene)
+    };
+    let mut before = camera;
+    before.position += Vec3::new(rng.range(-4.0, 4.0), rng.range(-4.0, 4.0), 0.0);
+    before.yaw_rad += rng.range(-0.3, 0.3);
+    (before, camera)
+}
+
+/// The configurations under test: the default, occluders, and occluders with the next frame's
+/// visible set from the final depth.
+fn configurations() -> [(&'static str, CullingOptions); 3] {
     [
         ("hzb", CullingOptions::default()),
         (
             "occluders",
             CullingOptions {
                 occluders: true,
+                visibility_from_final_depth: false,
+                ..CullingOptions::default()
+            },
+        ),
+        (
+            "occluders, visibility from the final depth",
+            CullingOptions {
+                occluders: true,
+                visibility_from_final_depth: true,
                 ..CullingOptions::default()
             },
         ),
     ]
+}
+
+/// The GPU (or `None`: skip the test), a harness on it and the scene `load` prepares.
+fn harness(test: &str, load: fn(&GpuContext) -> TestScene) -> Option<(Harness, TestScene)> {
+    let gpu = gpu_or_skip(test)?;
+    let scene = load(&gpu);
+    Some((Harness::new(gpu), scene))
 }
 
 struct Harness {
@@ -202,6 +233,8 @@ struct Harness {
     brute: BruteRenderer,
     /// The colour of the last frame (RGBA8 sRGB).
     last_rgba: Vec<u8>,
+    /// The combined frame's `CullingOptions::visibility_from_final_depth`.
+    lod_final_depth: bool,
 }
 
 impl Harness {
@@ -211,6 +244,7 @@ impl Harness {
             oracle: Oracle::new(&gpu),
             brute: BruteRenderer::new(&gpu, BruteRenderer::PNG_FORMAT),
             last_rgba: Vec::new(),
+            lod_final_depth: false,
             gpu,
         }
     }
@@ -242,6 +276,13 @@ impl Harness {
         out
     }
 
+    /// The oracle's exact visible set of `camera`.
+    fn visible_set(&self, scene: &TestScene, camera: &Camera, (w, h): (u32, u32)) -> VisibleSet {
+        self.oracle
+            .visible_set(&self.gpu, &scene.scene, camera, w, h)
+            .expect("oracle")
+    }
+
     /// Share of pixels of the last frame that differ from the brute-force frame.
     fn error_vs_brute(&self, scene: &TestScene, camera: &Camera, (w, h): (u32, u32)) -> f64 {
         let brute = self
@@ -262,32 +303,19 @@ impl Harness {
         size: (u32, u32),
     ) -> (FrameOutput, usize) {
         let out = self.frame(scene, options, visibility, camera, size);
-        let visible = self
-            .oracle
-            .visible_set(&self.gpu, &scene.scene, camera, size.0, size.1)
-            .expect("oracle");
-        let missing: Vec<u32> = visible
-            .visible
-            .iter()
-            .map(|b| b.0)
-            .filter(|b| out.drawn.binary_search(b).is_err())
-            .collect();
+        let visible = self.visible_set(scene, camera, size);
+        let missing = Undrawn::of(&visible, &out);
         assert!(
-            missing.is_empty(),
-            "{}, {config}, {}x{}, camera {}: visible buildings {missing:?} not drawn \
+            missing.ids.is_empty(),
+            "{}, {config}, {}x{}, camera {}: visible buildings {:?} not drawn \
              (pixels {:?}, status {:?})",
             scene.name,
             size.0,
             size.1,
             camera.to_arg_string(),
-            missing
-                .iter()
-                .map(|&b| visible.pixel_counts[b as usize])
-                .collect::<Vec<_>>(),
-            missing
-                .iter()
-                .map(|&b| out.status[b as usize])
-                .collect::<Vec<_>>(),
+            missing.ids,
+            missing.pixels,
+            missing.status,
         );
         // The counts add up.
         let s = &out.stats;
@@ -298,6 +326,33 @@ impl Harness {
         assert_eq!(s.drawn as usize, out.drawn.len());
         assert!(s.drawn >= s.cull_kept && s.drawn <= s.early_drawn + s.cull_kept);
         (out, visible.len())
+    }
+}
+
+/// The oracle-visible buildings a frame did not draw, with their visible pixels and cull status
+/// (for the failure message).
+struct Undrawn {
+    ids: Vec<u32>,
+    pixels: Vec<u32>,
+    status: Vec<u32>,
+}
+
+impl Undrawn {
+    fn of(visible: &VisibleSet, out: &FrameOutput) -> Undrawn {
+        let ids: Vec<u32> = visible
+            .visible
+            .iter()
+            .map(|b| b.0)
+            .filter(|b| out.drawn.binary_search(b).is_err())
+            .collect();
+        Undrawn {
+            pixels: ids
+                .iter()
+                .map(|&b| visible.pixel_counts[b as usize])
+                .collect(),
+            status: ids.iter().map(|&b| out.status[b as usize]).collect(),
+            ids,
+        }
     }
 }
 
@@ -348,6 +403,7 @@ impl Harness {
         let cut = Self::cut(scene, criterion, camera, size);
         let options = CullingOptions {
             occluders: true,
+            visibility_from_final_depth: self.lod_final_depth,
             ..CullingOptions::default()
         };
         let target =
@@ -366,32 +422,20 @@ impl Harness {
                 size,
             )
             .expect("combined frame");
-        let visible = self
-            .oracle
-            .visible_set(&self.gpu, &scene.scene, camera, w, h)
-            .expect("oracle");
-        let missing: Vec<u32> = visible
-            .visible
-            .iter()
-            .map(|b| b.0)
-            .filter(|b| out.drawn.binary_search(b).is_err())
-            .collect();
+        let visible = self.visible_set(scene, camera, size);
+        let missing = Undrawn::of(&visible, &out);
         assert!(
-            missing.is_empty(),
-            "{}, combined {criterion:?}, {w}x{h}, camera {}: visible buildings {missing:?} not \
+            missing.ids.is_empty(),
+            "{}, combined {criterion:?}, {w}x{h}, camera {}: visible buildings {:?} not \
              drawn, neither themselves nor through a cluster (pixels {:?}, status {:?}, in the \
              cut {:?})",
             scene.name,
             camera.to_arg_string(),
+            missing.ids,
+            missing.pixels,
+            missing.status,
             missing
-                .iter()
-                .map(|&b| visible.pixel_counts[b as usize])
-                .collect::<Vec<_>>(),
-            missing
-                .iter()
-                .map(|&b| out.status[b as usize])
-                .collect::<Vec<_>>(),
-            missing
+                .ids
                 .iter()
                 .map(|b| cut.covered.binary_search(b).is_ok())
                 .collect::<Vec<_>>(),
@@ -462,14 +506,9 @@ fn sweep_lod(h: &mut Harness, scene: &TestScene, seed: u64, cameras: usize) {
     };
     let criteria = [None, Some(LodCriterion::YANG_PAPER)];
     for i in 0..cameras {
-        let camera = if i % 2 == 0 {
-            street_camera(&mut rng, &scene.city)
-        } else {
-            aerial_camera(&mut rng, &scene.scene)
-        };
-        let mut before = camera;
-        before.position += Vec3::new(rng.range(-4.0, 4.0), rng.range(-4.0, 4.0), 0.0);
-        before.yaw_rad += rng.range(-0.3, 0.3);
+        let (before, camera) = short_move(&mut rng, scene, i % 2 == 0);
+        // Every other pair of cameras with the next visible set from the final depth.
+        h.lod_final_depth = i % 4 >= 2;
         for criterion in criteria {
             let mut visibility = Visibility::default();
             let size = (320, 200);
@@ -511,14 +550,7 @@ fn sweep(h: &mut Harness, scene: &TestScene, seed: u64, cameras: usize) -> Vec<f
     let (mut occluders_drawn, mut occlusion_culled) = (0u64, 0u64);
     for i in 0..cameras {
         let street = i % 2 == 0;
-        let camera = if street {
-            street_camera(&mut rng, &scene.city)
-        } else {
-            aerial_camera(&mut rng, &scene.scene)
-        };
-        let mut before = camera;
-        before.position += Vec3::new(rng.range(-4.0, 4.0), rng.range(-4.0, 4.0), 0.0);
-        before.yaw_rad += rng.range(-0.3, 0.3);
+        let (before, camera) = short_move(&mut rng, scene, street);
         for (config, options) in configurations() {
             let mut visibility = Visibility::default();
             let size = (320, 200);
@@ -569,11 +601,9 @@ fn sweep(h: &mut Harness, scene: &TestScene, seed: u64, cameras: usize) -> Vec<f
 
 #[test]
 fn generated_city_is_conservative_and_culls_most_at_street_level() {
-    let Some(gpu) = gpu_or_skip("two_phase generated") else {
+    let Some((mut h, scene)) = harness("two_phase generated", generated) else {
         return;
     };
-    let scene = generated(&gpu);
-    let mut h = Harness::new(gpu);
     let culled = sweep(&mut h, &scene, 0x5eed_0001, 24);
     let mean = culled.iter().sum::<f64>() / culled.len() as f64;
     eprintln!(
@@ -589,51 +619,41 @@ fn generated_city_is_conservative_and_culls_most_at_street_level() {
 
 #[test]
 fn chelsea_is_conservative() {
-    let Some(gpu) = gpu_or_skip("two_phase chelsea") else {
+    let Some((mut h, scene)) = harness("two_phase chelsea", chelsea) else {
         return;
     };
-    let scene = chelsea(&gpu);
-    let mut h = Harness::new(gpu);
     sweep(&mut h, &scene, 0x5eed_0002, 12);
 }
 
 #[test]
 fn den_haag_is_conservative() {
-    let Some(gpu) = gpu_or_skip("two_phase den haag") else {
+    let Some((mut h, scene)) = harness("two_phase den haag", den_haag) else {
         return;
     };
-    let scene = den_haag(&gpu);
-    let mut h = Harness::new(gpu);
     sweep(&mut h, &scene, 0x5eed_0004, 12);
 }
 
 #[test]
 fn generated_city_combined_frame_is_conservative() {
-    let Some(gpu) = gpu_or_skip("two_phase combined generated") else {
+    let Some((mut h, scene)) = harness("two_phase combined generated", generated) else {
         return;
     };
-    let scene = generated(&gpu);
-    let mut h = Harness::new(gpu);
     sweep_lod(&mut h, &scene, 0x5eed_0101, 16);
 }
 
 #[test]
 fn chelsea_combined_frame_is_conservative() {
-    let Some(gpu) = gpu_or_skip("two_phase combined chelsea") else {
+    let Some((mut h, scene)) = harness("two_phase combined chelsea", chelsea) else {
         return;
     };
-    let scene = chelsea(&gpu);
-    let mut h = Harness::new(gpu);
     sweep_lod(&mut h, &scene, 0x5eed_0102, 10);
 }
 
 #[test]
 fn den_haag_combined_frame_is_conservative() {
-    let Some(gpu) = gpu_or_skip("two_phase combined den haag") else {
+    let Some((mut h, scene)) = harness("two_phase combined den haag", den_haag) else {
         return;
     };
-    let scene = den_haag(&gpu);
-    let mut h = Harness::new(gpu);
     sweep_lod(&mut h, &scene, 0x5eed_0103, 10);
 }
 
@@ -643,11 +663,9 @@ fn den_haag_combined_frame_is_conservative() {
 /// through a cluster are drawn early as themselves once the cut refines that cluster.
 #[test]
 fn lod_cut_changes_between_frames_and_nothing_visible_is_dropped() {
-    let Some(gpu) = gpu_or_skip("two_phase lod changes") else {
+    let Some((mut h, scene)) = harness("two_phase lod changes", generated) else {
         return;
     };
-    let scene = generated(&gpu);
-    let mut h = Harness::new(gpu);
     let (lo, hi) = scene.scene.bounds;
     let centre = (lo + hi) * 0.5;
     let size = (400, 240);
@@ -667,7 +685,11 @@ fn lod_cut_changes_between_frames_and_nothing_visible_is_dropped() {
         .collect();
     let down = poses.clone();
     poses.extend(down.into_iter().rev().skip(1));
-    for criterion in [None, Some(LodCriterion::YANG_PAPER)] {
+    let runs = [None, Some(LodCriterion::YANG_PAPER)]
+        .into_iter()
+        .flat_map(|c| [(c, false), (c, true)]);
+    for (criterion, final_depth) in runs {
+        h.lod_final_depth = final_depth;
         let mut visibility = Visibility::default();
         let mut previous: Option<LodFrame> = None;
         let (mut changed, mut inherited, mut early) = (0, 0, 0);
@@ -709,6 +731,43 @@ fn lod_cut_changes_between_frames_and_nothing_visible_is_dropped() {
     }
 }
 
+/// The benchmark's scene of `city` (preprocessed into `package`): its occluders, and its LOD
+/// scene when `lod` is set.
+fn bench_scene(
+    gpu: &GpuContext,
+    name: &str,
+    city: &City,
+    package: &ScenePackage,
+    lod: bool,
+) -> BenchScene {
+    BenchScene {
+        name: name.into(),
+        gpu_scene: SceneGpu::upload_city(gpu, city),
+        blocks: package.blocks.clone(),
+        quadtree: package.quadtree.clone(),
+        lod: package
+            .cluster_tree
+            .clone()
+            .filter(|_| lod)
+            .map(|tree| LodScene::upload(gpu, city, tree)),
+        occluders: package
+            .occluders
+            .as_ref()
+            .map(|set| OccluderMeshes::upload(gpu, set)),
+    }
+}
+
+/// The benchmark's configuration for `modes` at 320×200, no frames written.
+fn bench_config(modes: Vec<Mode>) -> BenchConfig {
+    BenchConfig {
+        modes,
+        width: 320,
+        height: 200,
+        frames_dir: None,
+        png_every: 0,
+    }
+}
+
 /// The benchmark's `all` mode on a small generated scene: street walk and flyover, zero false
 /// culls on every frame, fewer buildings drawn than brute force, clusters counted as drawing
 /// the buildings under them.
@@ -720,27 +779,8 @@ fn bench_all_mode_on_a_tiny_scene_has_no_false_cull() {
     let city = generate_city(&GenerateParams::new(300, 5)).expect("generate");
     let package = preprocess(city, &PreprocessParams::default(), &NoProgress).expect("preprocess");
     let city = package.city();
-    let scene = BenchScene {
-        name: "tiny".into(),
-        gpu_scene: SceneGpu::upload_city(&gpu, &city),
-        blocks: package.blocks.clone(),
-        quadtree: package.quadtree.clone(),
-        lod: package
-            .cluster_tree
-            .clone()
-            .map(|tree| LodScene::upload(&gpu, &city, tree)),
-        occluders: package
-            .occluders
-            .as_ref()
-            .map(|set| OccluderMeshes::upload(&gpu, set)),
-    };
-    let config = BenchConfig {
-        modes: vec![Mode::Brute, Mode::All],
-        width: 320,
-        height: 200,
-        frames_dir: None,
-        png_every: 0,
-    };
+    let scene = bench_scene(&gpu, "tiny", &city, &package, true);
+    let config = bench_config(vec![Mode::Brute, Mode::All]);
     let mut renderers = BenchRenderers::new(&gpu);
     let mut all_culled = 0.0;
     for path in [street_walk(&city, 6), flyover(&city, 6)] {
@@ -772,11 +812,9 @@ fn bench_all_mode_on_a_tiny_scene_has_no_false_cull() {
 
 #[test]
 fn fast_turn_draws_the_disoccluded_buildings_and_near_boxes_are_kept() {
-    let Some(gpu) = gpu_or_skip("two_phase turn") else {
+    let Some((mut h, scene)) = harness("two_phase turn", generated) else {
         return;
     };
-    let scene = generated(&gpu);
-    let mut h = Harness::new(gpu);
     let mut rng = Rng(0x5eed_0003);
     let mut late_total = 0;
     for _ in 0..4 {
@@ -851,9 +889,7 @@ fn fast_turn_draws_the_disoccluded_buildings_and_near_boxes_are_kept() {
         let out = h.frame(&scene, &options, &mut visibility, &inside, (320, 200));
         assert_eq!(out.status[id], CULL_VISIBLE, "{config}: second frame");
         assert!(
-            h.oracle
-                .visible_set(&h.gpu, &scene.scene, &inside, 320, 200)
-                .expect("oracle")
+            h.visible_set(&scene, &inside, (320, 200))
                 .visible
                 .iter()
                 .all(|b: &BuildingId| out.drawn.binary_search(&b.0).is_ok())
@@ -867,25 +903,9 @@ fn bench_modes_run_a_street_walk_with_no_false_cull() {
         return;
     };
     let TestScene { city, package, .. } = generated(&gpu);
-    let scene = BenchScene {
-        name: "generated".into(),
-        gpu_scene: SceneGpu::upload_city(&gpu, &city),
-        blocks: package.blocks.clone(),
-        quadtree: package.quadtree.clone(),
-        lod: None,
-        occluders: package
-            .occluders
-            .as_ref()
-            .map(|set| OccluderMeshes::upload(&gpu, set)),
-    };
+    let scene = bench_scene(&gpu, "generated", &city, package, false);
     let path = street_walk(&city, 10);
-    let config = BenchConfig {
-        modes: vec![Mode::Brute, Mode::Hzb, Mode::Occluders],
-        width: 320,
-        height: 200,
-        frames_dir: None,
-        png_every: 0,
-    };
+    let config = bench_config(vec![Mode::Brute, Mode::Hzb, Mode::Occluders]);
     let mut renderers = BenchRenderers::new(&gpu);
     let records = run_path(&gpu, &mut renderers, &scene, &path, &config).expect("run");
     assert_eq!(records.len(), 30);
@@ -919,4 +939,97 @@ fn bench_modes_run_a_street_walk_with_no_false_cull() {
         run_path(&gpu, &mut renderers, &bare, &path, &config),
         Err(BenchError::NoOccluders(_))
     ));
+}
+
+/// `visibility_from_final_depth`: the next frame's early set, culled again against the final
+/// depth, is no larger than the first cull's (the final depth is nearer everywhere than the
+/// early depth, with or without occluders: each occluder lies inside a building the late pass
+/// draws), and still holds every building the oracle saw, so a camera that does not move draws
+/// every visible building early. Street-level cameras on the generated city, both
+/// configurations; the frames themselves are held to the oracle as in the sweeps.
+#[test]
+fn final_depth_visibility_is_smaller_and_keeps_every_visible_building() {
+    let Some((mut h, scene)) = harness("two_phase final depth visibility", generated) else {
+        return;
+    };
+    let mut rng = Rng(0x5eed_0007);
+    let size = (320, 200);
+    let (mut from_early, mut from_final, mut visible_total) = (0usize, 0usize, 0usize);
+    for _ in 0..12 {
+        let camera = street_camera(&mut rng, &scene.city);
+        // hzb and occluders; the option is set both ways below.
+        for (config, options) in configurations().into_iter().take(2) {
+            let early_options = CullingOptions {
+                visibility_from_final_depth: false,
+                ..options
+            };
+            let final_options = CullingOptions {
+                visibility_from_final_depth: true,
+                ..options
+            };
+            let mut early_vis = Visibility::default();
+            h.check(
+                &scene,
+                (config, &early_options),
+                &mut early_vis,
+                &camera,
+                size,
+            );
+            let mut final_vis = Visibility::default();
+            let (out, _) = h.check(
+                &scene,
+                (config, &final_options),
+                &mut final_vis,
+                &camera,
+                size,
+            );
+            let visible = h.visible_set(&scene, &camera, size);
+            let (early_ids, final_ids) = (early_vis.visible_ids(), final_vis.visible_ids());
+            let not_in_early: Vec<u32> = final_ids
+                .iter()
+                .copied()
+                .filter(|b| early_ids.binary_search(b).is_err())
+                .collect();
+            assert!(
+                not_in_early.is_empty(),
+                "{config}, camera {}: final-depth set has {not_in_early:?} the first cull culled",
+                camera.to_arg_string()
+            );
+            let missing: Vec<u32> = visible
+                .visible
+                .iter()
+                .map(|b| b.0)
+                .filter(|b| !final_vis.is_visible(*b))
+                .collect();
+            assert!(
+                missing.is_empty(),
+                "{config}, camera {}: visible buildings {missing:?} not in the next early set",
+                camera.to_arg_string()
+            );
+            // This frame's statistics are the first cull's either way.
+            assert_eq!(out.stats.cull_kept as usize, early_ids.len());
+            // The camera does not move: the next frame draws every visible building early.
+            let (next, _) = h.check(
+                &scene,
+                (config, &final_options),
+                &mut final_vis,
+                &camera,
+                size,
+            );
+            assert!(next.stats.early_drawn as usize >= visible.visible.len());
+            assert!(next.stats.early_drawn as usize <= final_ids.len());
+            from_early += early_ids.len();
+            from_final += final_ids.len();
+            visible_total += visible.visible.len();
+        }
+    }
+    eprintln!(
+        "next early set: {from_early} from the early-depth cull, {from_final} from the final \
+         depth, {visible_total} visible (oracle)"
+    );
+    assert!(visible_total > 0, "no camera saw a building");
+    assert!(
+        from_final < from_early,
+        "the final depth never culled more than the early depth"
+    );
 }

@@ -362,6 +362,19 @@ pub fn write_outputs(
 mod tests {
     use super::*;
 
+    /// A 64×48 report of `entries` on a made-up adapter.
+    fn report_of(entries: Vec<ModeSummary>) -> BenchReport {
+        BenchReport {
+            adapter: AdapterSummary {
+                name: "a".into(),
+                backend: "b".into(),
+                device_type: "c".into(),
+            },
+            size: [64, 48],
+            entries,
+        }
+    }
+
     fn record(mode: &str, frame: usize, ms: f64, false_culls: usize) -> FrameRecord {
         FrameRecord {
             scene: "s".into(),
@@ -405,15 +418,7 @@ mod tests {
     #[test]
     fn json_has_the_documented_keys() {
         let records = vec![record("brute", 0, 10.0, 0)];
-        let report = BenchReport {
-            adapter: AdapterSummary {
-                name: "a".into(),
-                backend: "b".into(),
-                device_type: "c".into(),
-            },
-            size: [64, 48],
-            entries: summarise(&records),
-        };
+        let report = report_of(summarise(&records));
         let v: serde_json::Value = serde_json::to_value(&report).unwrap();
         for key in ["adapter", "size", "entries"] {
             assert!(v.get(key).is_some(), "{key}");
@@ -527,15 +532,7 @@ mod tests {
         assert_eq!(rows[3][column("gpu_late_ms")], "1.0000");
         assert_eq!(rows[5][column("gpu_ms")], "");
 
-        let report = BenchReport {
-            adapter: AdapterSummary {
-                name: "a".into(),
-                backend: "b".into(),
-                device_type: "c".into(),
-            },
-            size: [64, 48],
-            entries,
-        };
+        let report = report_of(entries);
         let json: serde_json::Value = serde_json::to_value(&report).unwrap();
         assert_eq!(json["entries"][1]["gpu_phase_ms_median"]["cull"], 0.125);
         assert!(json["entries"][2]["gpu_ms_median"].is_null());

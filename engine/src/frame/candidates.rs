@@ -163,6 +163,15 @@ impl<'a> Candidates<'a> {
     }
 
     /// Next frame's visible buildings from this frame's cull `status` (one per candidate).
+    /// Whether the cull `status` kept a cluster mesh (so the late pass drew one): such a
+    /// frame's final depth holds geometry that is not contained in its buildings.
+    pub fn cluster_kept(&self, status: &[u32]) -> bool {
+        status
+            .iter()
+            .enumerate()
+            .any(|(i, &s)| s == CULL_VISIBLE && self.cluster_node(i).is_some())
+    }
+
     pub fn update_visibility(&self, visibility: &mut Visibility, status: &[u32]) {
         if self.lod.is_none() {
             visibility.update(status);

@@ -21,19 +21,35 @@ impl StatusReadback {
         }
     }
 
-    /// Makes room for `n` entries (call before recording the copy).
-    pub fn reserve(&mut self, gpu: &GpuContext, n: usize) {
-        self.buffer.reserve(&gpu.device, (n.max(1) * 4) as u64);
+    /// Makes room for `slots` statuses of `n` entries each (call before recording the copies).
+    pub fn reserve(&mut self, gpu: &GpuContext, n: usize, slots: usize) {
+        self.buffer
+            .reserve(&gpu.device, (n.max(1) * slots.max(1) * 4) as u64);
     }
 
-    /// Records the copy of the first `n` entries of `status`.
-    pub fn copy_from(&self, encoder: &mut wgpu::CommandEncoder, status: &wgpu::Buffer, n: usize) {
+    /// Records the copy of the first `n` entries of `status` into slot `slot` (entries
+    /// `slot·n .. (slot+1)·n`), so that several culls of one encoder can be read in one map.
+    pub fn copy_from(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        status: &wgpu::Buffer,
+        n: usize,
+        slot: usize,
+    ) {
         if n > 0 {
-            encoder.copy_buffer_to_buffer(status, 0, &self.buffer.buffer, 0, (n * 4) as u64);
+            let bytes = (n * 4) as u64;
+            encoder.copy_buffer_to_buffer(
+                status,
+                0,
+                &self.buffer.buffer,
+                slot as u64 * bytes,
+                bytes,
+            );
         }
     }
 
-    /// Waits for the GPU and reads the `n` entries copied by the submitted frame.
+    /// Waits for the GPU and reads the first `n` entries (all slots copied by the submitted
+    /// frame, one after the other).
     pub fn read(&self, gpu: &GpuContext, n: usize) -> Result<Vec<u32>, ReadbackError> {
         if n == 0 {
             gpu.wait_idle();

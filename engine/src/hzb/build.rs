@@ -19,7 +19,7 @@ use wgpu::util::DeviceExt;
 
 use super::reference::{DepthPyramid, PyramidLevel, level_count};
 use crate::gpu::GpuContext;
-use crate::render::targets::{ReadbackError, check_size};
+use crate::render::targets::{ReadbackError, check_size, map_read};
 
 /// The pyramid's texel format.
 pub const HZB_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Float;
@@ -345,23 +345,4 @@ impl HzbPyramid {
             .collect();
         Ok(DepthPyramid { levels })
     }
-}
-
-/// Maps a `MAP_READ` buffer whose copies were submitted, waits, and returns its bytes.
-pub(crate) fn map_read(gpu: &GpuContext, buffer: &wgpu::Buffer) -> Result<Vec<u8>, ReadbackError> {
-    let slice = buffer.slice(..);
-    let (tx, rx) = std::sync::mpsc::channel();
-    slice.map_async(wgpu::MapMode::Read, move |r| {
-        let _ = tx.send(r);
-    });
-    gpu.device.poll(wgpu::PollType::wait_indefinitely())?;
-    rx.recv()
-        .map_err(|e| ReadbackError::MappedRange(e.to_string()))??;
-    let mapped = slice
-        .get_mapped_range()
-        .map_err(|e| ReadbackError::MappedRange(e.to_string()))?;
-    let bytes = mapped.to_vec();
-    drop(mapped);
-    buffer.unmap();
-    Ok(bytes)
 }

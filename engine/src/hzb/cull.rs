@@ -23,9 +23,9 @@ pub use citywalk_shaders::constants::{
 use citywalk_shaders::{BuildingRecord, DrawIndexedIndirectArgs, HZB_CULL_WGSL, HzbCullParams};
 use glam::Mat4;
 
-use super::build::{HzbPyramid, map_read};
+use super::build::HzbPyramid;
 use crate::gpu::GpuContext;
-use crate::render::targets::ReadbackError;
+use crate::render::targets::{ReadbackError, map_read};
 
 /// Why a cull could not be recorded.
 #[derive(Debug, thiserror::Error)]

@@ -3,6 +3,7 @@
 
 pub mod brute;
 pub mod debug;
+pub(crate) mod draws;
 pub mod selected;
 pub mod targets;
 pub mod view;
@@ -55,7 +56,7 @@ pub(crate) fn view_buffer_and_group(
     (buffer, group)
 }
 
-/// A pipeline drawing [`crate::scene_gpu::SceneVertex`] triangles with no face culling into one
+/// A pipeline drawing [`citywalk_shaders::SceneVertex`] triangles with no face culling into one
 /// colour target, reversed-Z depth test and write. Without a colour format the pipeline writes
 /// depth only (no fragment stage), as the occluder pre-pass does.
 pub(crate) fn scene_pipeline(
@@ -65,22 +66,33 @@ pub(crate) fn scene_pipeline(
     layout: &wgpu::BindGroupLayout,
     colour_format: Option<wgpu::TextureFormat>,
 ) -> wgpu::RenderPipeline {
-    let colour_targets = colour_format.map(|format| {
-        [Some(wgpu::ColorTargetState {
-            format,
-            blend: None,
-            write_mask: wgpu::ColorWrites::ALL,
-        })]
+    let colour = colour_format.map(|format| wgpu::ColorTargetState {
+        format,
+        blend: None,
+        write_mask: wgpu::ColorWrites::ALL,
     });
-    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some(label),
-        source: wgpu::ShaderSource::Wgsl(source.into()),
-    });
-    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-        label: Some(label),
-        bind_group_layouts: &[Some(layout)],
-        immediate_size: 0,
-    });
+    scene_pipeline_with(
+        device,
+        label,
+        source,
+        layout,
+        (Camera::DEPTH_COMPARE, true),
+        colour,
+    )
+}
+
+/// [`scene_pipeline`] with the depth test `depth_compare`, depth writes when `depth_write`, and
+/// the colour target `colour` (`None`: depth only, no fragment stage).
+pub(crate) fn scene_pipeline_with(
+    device: &wgpu::Device,
+    label: &str,
+    source: &str,
+    layout: &wgpu::BindGroupLayout,
+    (depth_compare, depth_write): (wgpu::CompareFunction, bool),
+    colour: Option<wgpu::ColorTargetState>,
+) -> wgpu::RenderPipeline {
+    let colour_targets = colour.map(|target| [Some(target)]);
+    let (module, pipeline_layout) = module_and_layout(device, label, source, layout);
     device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some(label),
         layout: Some(&pipeline_layout),
@@ -97,8 +109,8 @@ pub(crate) fn scene_pipeline(
         },
         depth_stencil: Some(wgpu::DepthStencilState {
             format: DepthTarget::FORMAT,
-            depth_write_enabled: Some(true),
-            depth_compare: Some(Camera::DEPTH_COMPARE),
+            depth_write_enabled: Some(depth_write),
+            depth_compare: Some(depth_compare),
             stencil: wgpu::StencilState::default(),
             bias: wgpu::DepthBiasState::default(),
         }),
@@ -114,6 +126,107 @@ pub(crate) fn scene_pipeline(
     })
 }
 
+/// The WGSL module `source` and a pipeline layout of the single bind group `layout`.
+fn module_and_layout(
+    device: &wgpu::Device,
+    label: &str,
+    source: &str,
+    layout: &wgpu::BindGroupLayout,
+) -> (wgpu::ShaderModule, wgpu::PipelineLayout) {
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(label),
+        source: wgpu::ShaderSource::Wgsl(source.into()),
+    });
+    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some(label),
+        bind_group_layouts: &[Some(layout)],
+        immediate_size: 0,
+    });
+    (module, pipeline_layout)
+}
+
+/// Layout entry of a fragment-stage, unfilterable float 2D texture at `binding`: how depth
+/// (read through `.r`) and `R32Float` pyramid levels are bound (GL trap 2).
+pub fn fragment_float_texture_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::FRAGMENT,
+        ty: wgpu::BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Float { filterable: false },
+            view_dimension: wgpu::TextureViewDimension::D2,
+            multisampled: false,
+        },
+        count: None,
+    }
+}
+
+/// A pipeline drawing one full-screen triangle: `vs_main` makes it from the vertex index (no
+/// vertex buffers), `fs_main` shades it with the single bind group of `layout`, under the depth
+/// state `depth_stencil` (`None`: no depth attachment) into the colour `targets` (empty: depth
+/// only).
+pub fn fullscreen_pipeline(
+    device: &wgpu::Device,
+    label: &str,
+    source: &str,
+    layout: &wgpu::BindGroupLayout,
+    depth_stencil: Option<wgpu::DepthStencilState>,
+    targets: &[Option<wgpu::ColorTargetState>],
+) -> wgpu::RenderPipeline {
+    let (module, pipeline_layout) = module_and_layout(device, label, source, layout);
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some(label),
+        layout: Some(&pipeline_layout),
+        vertex: wgpu::VertexState {
+            module: &module,
+            entry_point: Some("vs_main"),
+            compilation_options: Default::default(),
+            buffers: &[],
+        },
+        primitive: wgpu::PrimitiveState::default(),
+        depth_stencil,
+        multisample: wgpu::MultisampleState::default(),
+        fragment: Some(wgpu::FragmentState {
+            module: &module,
+            entry_point: Some("fs_main"),
+            compilation_options: Default::default(),
+            targets,
+        }),
+        multiview_mask: None,
+        cache: None,
+    })
+}
+
+/// Vertex and index buffers (`"{label} vertices"`, `"{label} indices"`) of a triangle mesh;
+/// an empty side gets one degenerate element, so both can always be bound.
+pub(crate) fn mesh_buffers(
+    device: &wgpu::Device,
+    label: &str,
+    mut vertices: Vec<citywalk_shaders::SceneVertex>,
+    mut indices: Vec<u32>,
+) -> (wgpu::Buffer, wgpu::Buffer) {
+    use wgpu::util::DeviceExt;
+    if vertices.is_empty() {
+        vertices.push(citywalk_shaders::SceneVertex {
+            position_m: [0.0; 3],
+            building_id: 0,
+        });
+    }
+    if indices.is_empty() {
+        indices.extend_from_slice(&[0, 0, 0]);
+    }
+    let vertex_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(&format!("{label} vertices")),
+        contents: bytemuck::cast_slice(&vertices),
+        usage: wgpu::BufferUsages::VERTEX,
+    });
+    let index_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(&format!("{label} indices")),
+        contents: bytemuck::cast_slice(&indices),
+        usage: wgpu::BufferUsages::INDEX,
+    });
+    (vertex_buffer, index_buffer)
+}
+
 /// Begins a render pass into `colour` and `depth` that clears colour to `clear` and depth to
 /// reversed-Z infinity, storing both: the start of every scene-drawing pass. `timestamp_writes`
 /// times the pass ([`crate::gpu_timer::GpuTimer::render_pass_writes`]).
@@ -125,6 +238,36 @@ pub(crate) fn begin_scene_pass<'e>(
     clear: wgpu::Color,
     timestamp_writes: Option<wgpu::RenderPassTimestampWrites<'_>>,
 ) -> wgpu::RenderPass<'e> {
+    colour_pass(
+        encoder,
+        label,
+        colour,
+        wgpu::LoadOp::Clear(clear),
+        Some(depth),
+        timestamp_writes,
+    )
+}
+
+/// Begins an untimed render pass into `colour`, loaded or cleared as `load` and stored, with
+/// `depth` (cleared to reversed-Z infinity) when given.
+pub(crate) fn begin_colour_pass<'e>(
+    encoder: &'e mut wgpu::CommandEncoder,
+    label: &str,
+    colour: &wgpu::TextureView,
+    load: wgpu::LoadOp<wgpu::Color>,
+    depth: Option<&DepthTarget>,
+) -> wgpu::RenderPass<'e> {
+    colour_pass(encoder, label, colour, load, depth, None)
+}
+
+fn colour_pass<'e>(
+    encoder: &'e mut wgpu::CommandEncoder,
+    label: &str,
+    colour: &wgpu::TextureView,
+    load: wgpu::LoadOp<wgpu::Color>,
+    depth: Option<&DepthTarget>,
+    timestamp_writes: Option<wgpu::RenderPassTimestampWrites<'_>>,
+) -> wgpu::RenderPass<'e> {
     encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
         label: Some(label),
         color_attachments: &[Some(wgpu::RenderPassColorAttachment {
@@ -132,11 +275,11 @@ pub(crate) fn begin_scene_pass<'e>(
             depth_slice: None,
             resolve_target: None,
             ops: wgpu::Operations {
-                load: wgpu::LoadOp::Clear(clear),
+                load,
                 store: wgpu::StoreOp::Store,
             },
         })],
-        depth_stencil_attachment: Some(depth.attachment()),
+        depth_stencil_attachment: depth.map(DepthTarget::attachment),
         timestamp_writes,
         occlusion_query_set: None,
         multiview_mask: None,

@@ -6,6 +6,7 @@ use citywalk_shaders::DrawIndexedIndirectArgs;
 use crate::camera::Camera;
 use crate::gpu::GpuContext;
 use crate::render::brute::BruteRenderer;
+use crate::render::draws::IndirectDraws;
 use crate::render::targets::DepthTarget;
 use crate::scene_gpu::SceneGpu;
 
@@ -14,27 +15,15 @@ use crate::scene_gpu::SceneGpu;
 pub struct SelectedRenderer {
     /// Pipeline, view uniforms and style, shared with the brute-force pass.
     pub scene_pass: BruteRenderer,
-    draws: wgpu::Buffer,
-    draws_capacity: usize,
+    draws: IndirectDraws,
 }
 
 impl SelectedRenderer {
     pub fn new(gpu: &GpuContext, colour_format: wgpu::TextureFormat) -> SelectedRenderer {
-        let draws_capacity = 1024;
         SelectedRenderer {
             scene_pass: BruteRenderer::new(gpu, colour_format),
-            draws: Self::draw_buffer(&gpu.device, draws_capacity),
-            draws_capacity,
+            draws: IndirectDraws::new(&gpu.device, "selected draws"),
         }
-    }
-
-    fn draw_buffer(device: &wgpu::Device, capacity: usize) -> wgpu::Buffer {
-        device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("selected draws"),
-            size: (capacity * size_of::<DrawIndexedIndirectArgs>()) as u64,
-            usage: wgpu::BufferUsages::INDIRECT | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        })
     }
 
     /// Records the pass drawing the ground and `buildings` (ids into `scene`; ids out of range
@@ -83,14 +72,8 @@ impl SelectedRenderer {
             .map(|r| r.draw_args())
             .collect();
         draws.push(scene.ground);
-        if draws.len() > self.draws_capacity {
-            self.draws_capacity = draws.len().next_power_of_two();
-            self.draws = Self::draw_buffer(&gpu.device, self.draws_capacity);
-        }
-        gpu.queue
-            .write_buffer(&self.draws, 0, bytemuck::cast_slice(&draws));
-        let count = draws.len() as u32;
-        let buffer = &self.draws;
+        let count = self.draws.write(gpu, &draws);
+        let buffer = self.draws.buffer();
         self.scene_pass.encode_with(
             gpu,
             encoder,

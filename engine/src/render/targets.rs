@@ -166,6 +166,16 @@ pub fn read_texture(
         },
     );
     gpu.queue.submit([encoder.finish()]);
+    let mapped = map_read(gpu, &buffer)?;
+    let mut out = Vec::with_capacity((row_bytes * height) as usize);
+    for row in mapped.chunks_exact(padded_row_bytes as usize) {
+        out.extend_from_slice(&row[..row_bytes as usize]);
+    }
+    Ok(out)
+}
+
+/// Maps a `MAP_READ` buffer whose copies were submitted, waits, and returns its bytes.
+pub fn map_read(gpu: &GpuContext, buffer: &wgpu::Buffer) -> Result<Vec<u8>, ReadbackError> {
     let slice = buffer.slice(..);
     let (tx, rx) = std::sync::mpsc::channel();
     slice.map_async(wgpu::MapMode::Read, move |r| {
@@ -177,11 +187,8 @@ pub fn read_texture(
     let mapped = slice
         .get_mapped_range()
         .map_err(|e| ReadbackError::MappedRange(e.to_string()))?;
-    let mut out = Vec::with_capacity((row_bytes * height) as usize);
-    for row in mapped.chunks_exact(padded_row_bytes as usize) {
-        out.extend_from_slice(&row[..row_bytes as usize]);
-    }
+    let bytes = mapped.to_vec();
     drop(mapped);
     buffer.unmap();
-    Ok(out)
+    Ok(bytes)
 }

@@ -274,7 +274,9 @@ impl FrameDrawer {
         };
         let occluders = self.occluders.as_ref().filter(|_| with_occluders);
         let mut drawn = Drawn::default();
-        let output = match (path, self.lod.as_ref()) {
+        // The LOD cut when the frame draws one, else every building: the candidates the
+        // occluder selection and the cull start from.
+        let lod_frame = match (path, self.lod.as_ref()) {
             (
                 DrawPath::LodHzb {
                     frustum: tree_frustum,
@@ -292,17 +294,31 @@ impl FrameDrawer {
                     tree_frustum,
                     quadtree,
                 );
-                drawn.selected_occluders = selected_occluders(
-                    occluders,
-                    &lod.gpu_scene,
-                    &cut.cut.buildings,
-                    &self.visibility,
-                    camera,
-                    frustum,
-                    size.1,
-                    &options,
-                );
-                drawn.hzb = true;
+                Some((lod, cut))
+            }
+            _ => None,
+        };
+        let all: Vec<u32>;
+        let (candidate_scene, candidates) = match &lod_frame {
+            Some((lod, cut)) => (&lod.gpu_scene, &cut.cut.buildings[..]),
+            None => {
+                all = (0..self.scene.building_count() as u32).collect();
+                (&self.scene, &all[..])
+            }
+        };
+        drawn.selected_occluders = selected_occluders(
+            occluders,
+            candidate_scene,
+            candidates,
+            &self.visibility,
+            camera,
+            frustum,
+            size.1,
+            &options,
+        );
+        drawn.hzb = true;
+        let output = match lod_frame {
+            Some((lod, cut)) => {
                 let output = self.culling.render_lod(
                     gpu,
                     lod,
@@ -329,19 +345,7 @@ impl FrameDrawer {
                 drawn.counts.clusters_drawn = Some(output.stats.clusters_drawn);
                 output
             }
-            _ => {
-                let all: Vec<u32> = (0..self.scene.building_count() as u32).collect();
-                drawn.selected_occluders = selected_occluders(
-                    occluders,
-                    &self.scene,
-                    &all,
-                    &self.visibility,
-                    camera,
-                    frustum,
-                    size.1,
-                    &options,
-                );
-                drawn.hzb = true;
+            None => {
                 let output = self.culling.render(
                     gpu,
                     &self.scene,

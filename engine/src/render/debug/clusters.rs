@@ -6,13 +6,13 @@
 //! `building_count + n`, so each entry of the cut gets its own colour; in a plain
 //! [`SceneGpu`] each building does.
 
+use citywalk_shaders::DEBUG_CLUSTERS_WGSL;
 use citywalk_shaders::constants::DEBUG_WALL_SHADE;
-use citywalk_shaders::{DEBUG_CLUSTERS_WGSL, DrawIndexedIndirectArgs};
 
-use super::DebugDepth;
+use super::DebugCamera;
 use crate::camera::Camera;
 use crate::gpu::GpuContext;
-use crate::render::view::{SceneStyle, view_uniforms};
+use crate::render::draws::IndirectDraws;
 use crate::scene_gpu::SceneGpu;
 
 /// Background of the cluster view (linear RGB).
@@ -61,20 +61,15 @@ pub fn cluster_wall_colour(id: u32) -> [f32; 3] {
 #[derive(Debug)]
 pub struct ClusterView {
     pipeline: wgpu::RenderPipeline,
-    view_buffer: wgpu::Buffer,
-    view_group: wgpu::BindGroup,
-    draws: wgpu::Buffer,
-    draws_capacity: usize,
-    depth: DebugDepth,
+    camera: DebugCamera,
+    draws: IndirectDraws,
 }
 
 impl ClusterView {
     /// A view drawing into colour targets of `colour_format`.
     pub fn new(gpu: &GpuContext, colour_format: wgpu::TextureFormat) -> ClusterView {
         let device = &gpu.device;
-        let layout = crate::render::view_bind_group_layout(device, "debug clusters view");
-        let (view_buffer, view_group) =
-            crate::render::view_buffer_and_group(device, &layout, "debug clusters view");
+        let (camera, layout) = DebugCamera::new(device, "debug clusters view");
         let pipeline = super::debug_scene_pipeline(
             device,
             "debug clusters",
@@ -83,24 +78,11 @@ impl ClusterView {
             colour_format,
             super::DebugPipelineMode::Opaque,
         );
-        let draws_capacity = 1024;
         ClusterView {
             pipeline,
-            view_buffer,
-            view_group,
-            draws: Self::draw_buffer(device, draws_capacity),
-            draws_capacity,
-            depth: DebugDepth::default(),
+            camera,
+            draws: IndirectDraws::new(device, "debug clusters draws"),
         }
-    }
-
-    fn draw_buffer(device: &wgpu::Device, capacity: usize) -> wgpu::Buffer {
-        device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("debug clusters draws"),
-            size: (capacity * size_of::<DrawIndexedIndirectArgs>()) as u64,
-            usage: wgpu::BufferUsages::INDIRECT | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        })
     }
 
     /// Records a pass that clears `target` (`width × height`) and draws the ground and the
@@ -118,23 +100,8 @@ impl ClusterView {
         target: &wgpu::TextureView,
         (width, height): (u32, u32),
     ) -> u32 {
-        let mut draws: Vec<DrawIndexedIndirectArgs> = draw_ids
-            .iter()
-            .filter_map(|&i| scene.records.get(i as usize))
-            .filter(|r| r.index_count > 0)
-            .map(|r| r.draw_args())
-            .collect();
-        draws.push(scene.ground);
-        if draws.len() > self.draws_capacity {
-            self.draws_capacity = draws.len().next_power_of_two();
-            self.draws = Self::draw_buffer(&gpu.device, self.draws_capacity);
-        }
-        gpu.queue
-            .write_buffer(&self.draws, 0, bytemuck::cast_slice(&draws));
-        let uniforms = view_uniforms(camera, width, height, &SceneStyle::default());
-        gpu.queue
-            .write_buffer(&self.view_buffer, 0, bytemuck::bytes_of(&uniforms));
-        let depth = self.depth.fit(gpu, width, height);
+        let count = self.draws.write(gpu, &super::scene_draws(scene, draw_ids));
+        let (depth, view_group) = self.camera.prepare(gpu, camera, (width, height));
         let mut pass = crate::render::begin_scene_pass(
             encoder,
             "debug clusters",
@@ -144,10 +111,10 @@ impl ClusterView {
             None,
         );
         pass.set_pipeline(&self.pipeline);
-        pass.set_bind_group(0, &self.view_group, &[]);
+        pass.set_bind_group(0, view_group, &[]);
         scene.bind(&mut pass);
-        pass.multi_draw_indexed_indirect(&self.draws, 0, draws.len() as u32);
-        draws.len() as u32
+        pass.multi_draw_indexed_indirect(self.draws.buffer(), 0, count);
+        count
     }
 }
 

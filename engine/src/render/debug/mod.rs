@@ -63,50 +63,77 @@ pub(crate) fn debug_scene_pipeline(
             wgpu::ColorWrites::ALL,
         ),
     };
-    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some(label),
-        source: wgpu::ShaderSource::Wgsl(source.into()),
-    });
-    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-        label: Some(label),
-        bind_group_layouts: &[Some(layout)],
-        immediate_size: 0,
-    });
-    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-        label: Some(label),
-        layout: Some(&pipeline_layout),
-        vertex: wgpu::VertexState {
-            module: &module,
-            entry_point: Some("vs_main"),
-            compilation_options: Default::default(),
-            buffers: &[Some(crate::scene_gpu::SCENE_VERTEX_LAYOUT)],
-        },
-        primitive: wgpu::PrimitiveState {
-            topology: wgpu::PrimitiveTopology::TriangleList,
-            cull_mode: None,
-            ..Default::default()
-        },
-        depth_stencil: Some(wgpu::DepthStencilState {
-            format: crate::render::DepthTarget::FORMAT,
-            depth_write_enabled: Some(depth_write),
-            depth_compare: Some(depth_compare),
-            stencil: wgpu::StencilState::default(),
-            bias: wgpu::DepthBiasState::default(),
+    crate::render::scene_pipeline_with(
+        device,
+        label,
+        source,
+        layout,
+        (depth_compare, depth_write),
+        Some(wgpu::ColorTargetState {
+            format: colour_format,
+            blend,
+            write_mask,
         }),
-        multisample: wgpu::MultisampleState::default(),
-        fragment: Some(wgpu::FragmentState {
-            module: &module,
-            entry_point: Some("fs_main"),
-            compilation_options: Default::default(),
-            targets: &[Some(wgpu::ColorTargetState {
-                format: colour_format,
-                blend,
-                write_mask,
-            })],
-        }),
-        multiview_mask: None,
-        cache: None,
-    })
+    )
+}
+
+/// The indirect draws of the entries `draw_ids` of `scene` that have triangles (ids out of
+/// range are ignored), then the ground.
+pub(crate) fn scene_draws(
+    scene: &crate::scene_gpu::SceneGpu,
+    draw_ids: &[u32],
+) -> Vec<citywalk_shaders::DrawIndexedIndirectArgs> {
+    let mut draws: Vec<_> = draw_ids
+        .iter()
+        .filter_map(|&i| scene.records.get(i as usize))
+        .filter(|r| r.index_count > 0)
+        .map(|r| r.draw_args())
+        .collect();
+    draws.push(scene.ground);
+    draws
+}
+
+/// What every scene-drawing debug pass has of the camera: the view uniforms (group 0), their
+/// bind group and the pass's depth target.
+#[derive(Debug)]
+pub(crate) struct DebugCamera {
+    view_buffer: wgpu::Buffer,
+    view_group: wgpu::BindGroup,
+    depth: DebugDepth,
+}
+
+impl DebugCamera {
+    /// The camera side of a pass, with the group-0 layout its pipelines are built with.
+    pub(crate) fn new(device: &wgpu::Device, label: &str) -> (DebugCamera, wgpu::BindGroupLayout) {
+        let layout = crate::render::view_bind_group_layout(device, label);
+        let (view_buffer, view_group) =
+            crate::render::view_buffer_and_group(device, &layout, label);
+        let camera = DebugCamera {
+            view_buffer,
+            view_group,
+            depth: DebugDepth::default(),
+        };
+        (camera, layout)
+    }
+
+    /// Writes the view uniforms of `camera` on a `width × height` viewport through the queue;
+    /// returns the depth target of that size and the bind group to set at group 0.
+    pub(crate) fn prepare(
+        &mut self,
+        gpu: &crate::gpu::GpuContext,
+        camera: &crate::camera::Camera,
+        (width, height): (u32, u32),
+    ) -> (&crate::render::DepthTarget, &wgpu::BindGroup) {
+        let uniforms = crate::render::view_uniforms(
+            camera,
+            width,
+            height,
+            &crate::render::SceneStyle::default(),
+        );
+        gpu.queue
+            .write_buffer(&self.view_buffer, 0, bytemuck::bytes_of(&uniforms));
+        (self.depth.fit(gpu, width, height), &self.view_group)
+    }
 }
 
 /// The depth target a debug pass draws with, remade when the viewport size changes.

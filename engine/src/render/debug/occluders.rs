@@ -10,12 +10,10 @@ use citywalk_shaders::DEBUG_OCCLUDERS_WGSL;
 use citywalk_shaders::SceneVertex;
 #[cfg(doc)]
 use citywalk_shaders::constants::{DEBUG_OCCLUDER_RGB, DEBUG_OCCLUDER_SELECTED_RGB};
-use wgpu::util::DeviceExt;
 
-use super::{DebugDepth, DebugPipelineMode};
+use super::{DebugCamera, DebugPipelineMode};
 use crate::camera::Camera;
 use crate::gpu::GpuContext;
-use crate::render::view::{SceneStyle, view_uniforms};
 
 /// One occluder's triangles in [`OccluderOverlayMeshes`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -76,28 +74,11 @@ impl OccluderOverlayMeshes {
                 index_count,
             });
         }
-        // Buffers are never empty, so they can always be bound.
-        if vertices.is_empty() {
-            vertices.push(SceneVertex {
-                position_m: [0.0; 3],
-                building_id: 0,
-            });
-        }
-        if indices.is_empty() {
-            indices.extend_from_slice(&[0, 0, 0]);
-        }
-        let device = &gpu.device;
+        let (vertex_buffer, index_buffer) =
+            crate::render::mesh_buffers(&gpu.device, "debug occluder", vertices, indices);
         OccluderOverlayMeshes {
-            vertex_buffer: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("debug occluder vertices"),
-                contents: bytemuck::cast_slice(&vertices),
-                usage: wgpu::BufferUsages::VERTEX,
-            }),
-            index_buffer: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("debug occluder indices"),
-                contents: bytemuck::cast_slice(&indices),
-                usage: wgpu::BufferUsages::INDEX,
-            }),
+            vertex_buffer,
+            index_buffer,
             ranges,
         }
     }
@@ -117,18 +98,14 @@ pub struct OccluderOverlay {
     depth_pipeline: wgpu::RenderPipeline,
     /// Blends the colour on those surfaces only.
     pipeline: wgpu::RenderPipeline,
-    view_buffer: wgpu::Buffer,
-    view_group: wgpu::BindGroup,
-    depth: DebugDepth,
+    camera: DebugCamera,
 }
 
 impl OccluderOverlay {
     /// An overlay drawing into colour targets of `colour_format`.
     pub fn new(gpu: &GpuContext, colour_format: wgpu::TextureFormat) -> OccluderOverlay {
         let device = &gpu.device;
-        let layout = crate::render::view_bind_group_layout(device, "debug occluders view");
-        let (view_buffer, view_group) =
-            crate::render::view_buffer_and_group(device, &layout, "debug occluders view");
+        let (camera, layout) = DebugCamera::new(device, "debug occluders view");
         let pipeline = |label, mode| {
             super::debug_scene_pipeline(
                 device,
@@ -142,9 +119,7 @@ impl OccluderOverlay {
         OccluderOverlay {
             depth_pipeline: pipeline("debug occluders depth", DebugPipelineMode::DepthOnly),
             pipeline: pipeline("debug occluders", DebugPipelineMode::BlendOnNearest),
-            view_buffer,
-            view_group,
-            depth: DebugDepth::default(),
+            camera,
         }
     }
 
@@ -164,31 +139,19 @@ impl OccluderOverlay {
         target: &wgpu::TextureView,
         (width, height): (u32, u32),
     ) -> u32 {
-        let uniforms = view_uniforms(camera, width, height, &SceneStyle::default());
-        gpu.queue
-            .write_buffer(&self.view_buffer, 0, bytemuck::bytes_of(&uniforms));
-        let depth = self.depth.fit(gpu, width, height);
-        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("debug occluders"),
-            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: target,
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Load,
-                    store: wgpu::StoreOp::Store,
-                },
-            })],
-            depth_stencil_attachment: Some(depth.attachment()),
-            timestamp_writes: None,
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
+        let (depth, view_group) = self.camera.prepare(gpu, camera, (width, height));
+        let mut pass = crate::render::begin_colour_pass(
+            encoder,
+            "debug occluders",
+            target,
+            wgpu::LoadOp::Load,
+            Some(depth),
+        );
         let total = meshes.index_count();
         if total == 0 {
             return 0;
         }
-        pass.set_bind_group(0, &self.view_group, &[]);
+        pass.set_bind_group(0, view_group, &[]);
         pass.set_vertex_buffer(0, meshes.vertex_buffer.slice(..));
         pass.set_index_buffer(meshes.index_buffer.slice(..), wgpu::IndexFormat::Uint32);
         // Depth first, so each pixel blends its nearest occluder surface only.

@@ -71,10 +71,6 @@ impl PyramidView {
     /// A view drawing into colour targets of `colour_format`.
     pub fn new(gpu: &GpuContext, colour_format: wgpu::TextureFormat) -> PyramidView {
         let device = &gpu.device;
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("debug pyramid"),
-            source: wgpu::ShaderSource::Wgsl(DEBUG_PYRAMID_WGSL.into()),
-        });
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("debug pyramid"),
             entries: &[
@@ -90,48 +86,21 @@ impl PyramidView {
                     },
                     count: None,
                 },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 1,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                        view_dimension: wgpu::TextureViewDimension::D2,
-                        multisampled: false,
-                    },
-                    count: None,
-                },
+                crate::render::fragment_float_texture_entry(1),
             ],
         });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("debug pyramid"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("debug pyramid"),
-            layout: Some(&pipeline_layout),
-            vertex: wgpu::VertexState {
-                module: &module,
-                entry_point: Some("vs_main"),
-                compilation_options: Default::default(),
-                buffers: &[],
-            },
-            primitive: wgpu::PrimitiveState::default(),
-            depth_stencil: None,
-            multisample: wgpu::MultisampleState::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &module,
-                entry_point: Some("fs_main"),
-                compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState {
-                    format: colour_format,
-                    blend: None,
-                    write_mask: wgpu::ColorWrites::ALL,
-                })],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+        let pipeline = crate::render::fullscreen_pipeline(
+            device,
+            "debug pyramid",
+            DEBUG_PYRAMID_WGSL,
+            &layout,
+            None,
+            &[Some(wgpu::ColorTargetState {
+                format: colour_format,
+                blend: None,
+                write_mask: wgpu::ColorWrites::ALL,
+            })],
+        );
         let params = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("debug pyramid params"),
             size: size_of::<PyramidViewParams>() as u64,
@@ -194,22 +163,13 @@ impl PyramidView {
                 },
             ],
         });
-        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("debug pyramid"),
-            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: target,
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
-                    store: wgpu::StoreOp::Store,
-                },
-            })],
-            depth_stencil_attachment: None,
-            timestamp_writes: None,
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
+        let mut pass = crate::render::begin_colour_pass(
+            encoder,
+            "debug pyramid",
+            target,
+            wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+            None,
+        );
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &group, &[]);
         pass.draw(0..3, 0..1);
