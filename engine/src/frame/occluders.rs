@@ -5,7 +5,6 @@ use citywalk_scenes::frustum::{Containment, Frustum};
 use citywalk_scenes::occluder::OccluderSet;
 use citywalk_shaders::{DrawIndexedIndirectArgs, SceneVertex};
 use glam::Vec3;
-use wgpu::util::DeviceExt;
 
 use crate::camera::Camera;
 use crate::gpu::GpuContext;
@@ -74,27 +73,11 @@ impl OccluderMeshes {
             });
         }
         // Buffers are never empty, so they can always be bound.
-        if vertices.is_empty() {
-            vertices.push(SceneVertex {
-                position_m: [0.0; 3],
-                building_id: 0,
-            });
-        }
-        if indices.is_empty() {
-            indices.extend_from_slice(&[0, 0, 0]);
-        }
-        let device = &gpu.device;
+        let (vertex_buffer, index_buffer) =
+            crate::render::mesh_buffers(&gpu.device, "occluder", vertices, indices);
         OccluderMeshes {
-            vertex_buffer: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("occluder vertices"),
-                contents: bytemuck::cast_slice(&vertices),
-                usage: wgpu::BufferUsages::VERTEX,
-            }),
-            index_buffer: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("occluder indices"),
-                contents: bytemuck::cast_slice(&indices),
-                usage: wgpu::BufferUsages::INDEX,
-            }),
+            vertex_buffer,
+            index_buffer,
             occluders,
         }
     }

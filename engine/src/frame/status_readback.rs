@@ -2,7 +2,7 @@
 
 use crate::frame::grow_buffer::GrowBuffer;
 use crate::gpu::GpuContext;
-use crate::render::targets::ReadbackError;
+use crate::render::targets::{ReadbackError, map_read_prefix};
 
 /// A mappable copy of the cull status, grown to the largest candidate count seen.
 #[derive(Debug)]
@@ -55,23 +55,7 @@ impl StatusReadback {
             gpu.wait_idle();
             return Ok(Vec::new());
         }
-        let slice = self.buffer.buffer.slice(..(n * 4) as u64);
-        let (tx, rx) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
-        gpu.device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(ReadbackError::from)?;
-        rx.recv()
-            .map_err(|e| ReadbackError::MappedRange(e.to_string()))?
-            .map_err(ReadbackError::from)?;
-        let mapped = slice
-            .get_mapped_range()
-            .map_err(|e| ReadbackError::MappedRange(e.to_string()))?;
-        let status: Vec<u32> = bytemuck::pod_collect_to_vec(&mapped);
-        drop(mapped);
-        self.buffer.buffer.unmap();
-        Ok(status)
+        let bytes = map_read_prefix(gpu, &self.buffer.buffer, (n * 4) as u64)?;
+        Ok(bytemuck::pod_collect_to_vec(&bytes))
     }
 }

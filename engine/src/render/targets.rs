@@ -176,7 +176,16 @@ pub fn read_texture(
 
 /// Maps a `MAP_READ` buffer whose copies were submitted, waits, and returns its bytes.
 pub fn map_read(gpu: &GpuContext, buffer: &wgpu::Buffer) -> Result<Vec<u8>, ReadbackError> {
-    let slice = buffer.slice(..);
+    map_read_prefix(gpu, buffer, buffer.size())
+}
+
+/// [`map_read`] of the first `len` bytes of `buffer` (a buffer grown past what one read needs).
+pub fn map_read_prefix(
+    gpu: &GpuContext,
+    buffer: &wgpu::Buffer,
+    len: u64,
+) -> Result<Vec<u8>, ReadbackError> {
+    let slice = buffer.slice(..len);
     let (tx, rx) = std::sync::mpsc::channel();
     slice.map_async(wgpu::MapMode::Read, move |r| {
         let _ = tx.send(r);
