@@ -248,7 +248,7 @@ impl CullingRenderer {
     /// The pyramid the last frame culled against last: its early depth, with the selected
     /// occluders when the pre-pass ran, or, with
     /// [`CullingOptions::visibility_from_final_depth`], its final depth; for debug views;
-    /// `None` before the first frame.
+    /// `None` until a frame has made its targets.
     pub fn pyramid(&self) -> Option<&HzbPyramid> {
         self.targets.as_ref().map(|t| &t.pyramid)
     }

@@ -44,7 +44,10 @@ pub const HZB_ROUNDING_REL: f32 = 2e-6;
 
 /// Texels per side of the fine occlusion test: a box's screen rectangle is tested against the
 /// finest pyramid level at which it spans at most this many texels each way (at most 16 × 16
-/// reads, after a 2 × 2 test at the coarse level has not culled it).
+/// reads, after a 2 × 2 test at the coarse level has not culled it). Ours, measured on the
+/// generated 10k city's street walk against the full-scene depth: the 2 × 2 test alone kept
+/// 2.5 × what an exact per-pixel rectangle test keeps (267 vs 95 boxes), a 16 × 16 read within
+/// about 10 % of it (105); more reads cost cull time for little gain.
 pub const HZB_FINE_SPAN: u32 = 16;
 
 // ---- Debug views (engine `render::debug`, `wgsl/debug_*.wgsl`). ----

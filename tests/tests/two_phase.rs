@@ -1033,3 +1033,70 @@ fn final_depth_visibility_is_smaller_and_keeps_every_visible_building() {
         "the final depth never culled more than the early depth"
     );
 }
+
+/// Paths lavapipe would otherwise never take in CI. (1) A frame with no candidate at all: the
+/// camera looks away from the city, the LOD cut is empty, the cull pass runs over zero boxes
+/// (still timed, so no timestamp query is resolved unwritten) and the late pass is skipped.
+/// (2) A device without `MULTI_DRAW_INDIRECT_COUNT`: the late pass walks every command, those
+/// past the kept ones empty; the oracle sweeps must hold there too.
+#[test]
+fn empty_cut_and_devices_without_draw_count_stay_correct() {
+    let Some((mut h, scene)) = harness(
+        "empty_cut_and_devices_without_draw_count_stay_correct",
+        generated,
+    ) else {
+        return;
+    };
+    let (lo, hi) = scene.scene.bounds;
+    let centre_y = 0.5 * (lo.y + hi.y);
+    // East of the city, looking further east.
+    let camera = Camera::new(Vec3::new(hi.x + 300.0, centre_y, 30.0), 0.0, 0.0);
+    let size = (640, 480);
+    let cut = Harness::cut(&scene, None, &camera, size);
+    assert!(cut.draw_ids.is_empty(), "cut not empty: {:?}", cut.draw_ids);
+    let target =
+        OffscreenTarget::new(&h.gpu, size.0, size.1, BruteRenderer::PNG_FORMAT).expect("target");
+    let mut visibility = Visibility::default();
+    for frame in 0..2 {
+        let out = h
+            .renderer
+            .render_lod(
+                &h.gpu,
+                &scene.lod,
+                &cut,
+                Some(&scene.occluders),
+                &CullingOptions {
+                    occluders: true,
+                    ..CullingOptions::default()
+                },
+                &mut visibility,
+                &camera,
+                &target.colour_view,
+                size,
+            )
+            .expect("empty frame");
+        assert_eq!(
+            (out.stats.candidates, out.stats.drawn),
+            (0, 0),
+            "frame {frame}"
+        );
+        assert!(out.drawn.is_empty());
+        if h.gpu.has(wgpu::Features::TIMESTAMP_QUERY) {
+            let gpu = &out.stats.gpu;
+            assert!(gpu.phase_ms("cull").is_some(), "frame {frame}: {gpu:?}");
+            assert_eq!(gpu.phase_ms("late"), None, "frame {frame}: {gpu:?}");
+        }
+    }
+    assert!(h.visible_set(&scene, &camera, size).is_empty());
+
+    // The same sweeps on a device that lacks the draw-count feature.
+    let gpu = GpuContext::headless_with_features(
+        citywalk_engine::gpu::WANTED_FEATURES - wgpu::Features::MULTI_DRAW_INDIRECT_COUNT,
+    )
+    .expect("the adapter found above");
+    assert!(!gpu.has(wgpu::Features::MULTI_DRAW_INDIRECT_COUNT));
+    let scene = generated(&gpu);
+    let mut h = Harness::new(gpu);
+    sweep(&mut h, &scene, 0x5eed_0001, 8);
+    sweep_lod(&mut h, &scene, 0x5eed_0101, 16);
+}

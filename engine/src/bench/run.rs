@@ -386,7 +386,7 @@ fn culling_options(mode: Mode) -> Option<CullingOptions> {
 /// One frame of `hzb` or `occluders` through [`CullingRenderer`]: the drawn set is the early
 /// pass's plus what the cull kept; draw calls count non-empty draws (ground, early buildings,
 /// occluders, late buildings). The culling runs on the GPU inside the frame, so `select_ms` is
-/// the whole frame's CPU wall time before submission is not separated: it is reported as 0.
+/// 0 and `frame_ms` is the frame's CPU wall time.
 fn render_culled(
     gpu: &GpuContext,
     renderers: &mut BenchRenderers,

@@ -221,11 +221,14 @@ impl<'a> Candidates<'a> {
                     }
                 }
             }
-            let drawn = was_early || s == CULL_VISIBLE;
+            // A cluster with an empty mesh shows none of its buildings, kept or not: counting
+            // them as drawn would hide a false cull from the benchmark.
+            let cluster = self.cluster_node(i);
+            let drawn =
+                (was_early || s == CULL_VISIBLE) && (cluster.is_none() || r.index_count > 0);
             if drawn {
                 stats.triangles += u64::from(r.index_count / 3);
             }
-            let cluster = self.cluster_node(i);
             if drawn && let Some(node) = cluster {
                 clusters.push(node);
             }
