@@ -285,10 +285,10 @@ impl CoreExtent {
     }
 }
 
-/// Footprint bounding boxes of the city's buildings, for free-space tests.
 /// How far around a walk position the buildings' bases tell the ground height.
 const GROUND_RADIUS_M: f64 = 30.0;
 
+/// Footprint bounding boxes of the city's buildings, for free-space tests.
 struct Obstacles {
     tree: RTree<FootprintBox>,
 }

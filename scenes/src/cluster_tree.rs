@@ -110,8 +110,8 @@ pub enum MergeFailure {
     UnionNotSimple,
     /// The union's outline does not contain both hulls (rounding of an intersection point).
     UnionMissesChild,
-    /// Chang's candidate-list heuristic found no valid pair of connection edges (or the lists
-    /// were larger than n×m ≤ 12).
+    /// Chang's candidate-list heuristic (lists with n×m ≤ 12) found no valid pair of
+    /// connection edges; larger lists go to the full hull search without a failure.
     HeuristicFailed,
     /// Chang's full hull search (convex hull, then inverse simplification) could not carve a
     /// valid ring: the result is the plain convex hull.

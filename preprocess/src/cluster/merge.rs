@@ -63,11 +63,42 @@ pub enum OverlapCase {
     Intersecting,
 }
 
+/// The axis-aligned bounds of a ring, `[min x, min y, max x, max y]`: a point outside them is
+/// not inside the ring, so the exact (linear) point location can be skipped.
+fn ring_box(verts: &[Pt], ring: &[u32]) -> [f64; 4] {
+    ring.iter().map(|&i| verts[i as usize]).fold(
+        [
+            f64::INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+        ],
+        |b, p| {
+            [
+                b[0].min(p[0]),
+                b[1].min(p[1]),
+                b[2].max(p[0]),
+                b[3].max(p[1]),
+            ]
+        },
+    )
+}
+
+/// Whether `p` lies strictly inside the ring (with its bounds [`ring_box`] as a first test).
+fn strictly_inside(verts: &[Pt], ring: &[u32], bounds: &[f64; 4], p: Pt) -> bool {
+    p[0] > bounds[0]
+        && p[1] > bounds[1]
+        && p[0] < bounds[2]
+        && p[1] < bounds[3]
+        && locate(verts, ring, p) == Side::Inside
+}
+
 /// Classifies two touching, not nested hulls (Chang et al. 2008 §5).
 pub fn overlap_case(verts: &[Pt], a: &[u32], b: &[u32]) -> OverlapCase {
     let intrudes = |r: &[u32], into: &[u32]| {
+        let bounds = ring_box(verts, into);
         r.iter()
-            .any(|&i| locate(verts, into, verts[i as usize]) == Side::Inside)
+            .any(|&i| strictly_inside(verts, into, &bounds, verts[i as usize]))
     };
     if intrudes(a, b) || intrudes(b, a) {
         OverlapCase::Intersecting
@@ -550,6 +581,7 @@ enum Candidates {
 fn chang_candidates(verts: &[Pt], a: &[u32], b: &[u32], touching: &[(usize, usize)]) -> Candidates {
     let list = |r: &[u32], other: &[u32], touching_edges: &mut dyn Iterator<Item = usize>| {
         let n = r.len();
+        let bounds = ring_box(verts, other);
         let mut hit = vec![false; n];
         for e in touching_edges {
             hit[e] = true;
@@ -558,7 +590,7 @@ fn chang_candidates(verts: &[Pt], a: &[u32], b: &[u32], touching: &[(usize, usiz
             if !*h {
                 let (p, q) = (verts[r[e] as usize], verts[r[(e + 1) % n] as usize]);
                 let mid = [0.5 * (p[0] + q[0]), 0.5 * (p[1] + q[1])];
-                *h = locate(verts, other, mid) == Side::Inside;
+                *h = strictly_inside(verts, other, &bounds, mid);
             }
         }
         let mut out: Vec<usize> = Vec::new();

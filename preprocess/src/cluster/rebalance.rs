@@ -169,7 +169,7 @@ pub fn rebalance(n: usize, merges: &[Merge], blocks: &[u32], centres: &[[f64; 2]
         }
     };
     let Some(root) = top[total - 1] else {
-        return merges.to_vec();
+        return unbalanced(merges, "the last merge is not the root");
     };
     let mut eff = vec![0.0f64; new.len()];
     let mut post: Vec<u32> = Vec::with_capacity(new.len());
@@ -211,7 +211,7 @@ pub fn rebalance(n: usize, merges: &[Merge], blocks: &[u32], centres: &[[f64; 2]
         };
         let (ia, ib) = (id(a), id(b));
         if ia == u32::MAX || ib == u32::MAX {
-            return merges.to_vec();
+            return unbalanced(merges, "a node is used before it is made");
         }
         let (ba, bb) = (block_of(a), block_of(b));
         node_block[k as usize] = match (ba, bb) {
@@ -229,8 +229,15 @@ pub fn rebalance(n: usize, merges: &[Merge], blocks: &[u32], centres: &[[f64; 2]
     if out.len() == merges.len() {
         out
     } else {
-        merges.to_vec()
+        unbalanced(merges, "the re-paired tree lost or gained merges")
     }
+}
+
+/// The merges as they were, when re-pairing met an inconsistency it cannot repair (a bug, not
+/// an input problem): logged, never silent.
+fn unbalanced(merges: &[Merge], why: &str) -> Vec<Merge> {
+    tracing::warn!(why, "cluster tree rebalancing skipped");
+    merges.to_vec()
 }
 
 /// A binary tree over `items[lo..=hi]` split where the building counts balance; returns its

@@ -628,11 +628,11 @@ fn timing_generated_100k() {
     );
 }
 
-/// Fallback reasons, depth and timing on the real extracts and a generated 10k city, and the
-/// blocks with and without pedestrian ways as block boundaries (release; `--ignored`).
+/// On the real extracts and a generated 10k city, with and without pedestrian ways as block
+/// boundaries and under both papers' methods: every tree passes `check_invariants` and no merge
+/// ends as a convex hull; prints the fallback reasons, depth and timing (~5 s in release).
 #[test]
-#[ignore = "report on real data, run on demand in release"]
-fn report_real_extracts() {
+fn real_extracts_build_valid_trees_without_convex_hulls() {
     let data = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data/");
     for (name, path) in [
         ("chelsea", format!("{data}osm_nyc_chelsea/nyc.osm.pbf")),
@@ -702,6 +702,11 @@ fn report_real_extracts() {
                     tree.stats.binary_inner_nodes,
                     tree.max_depth(),
                     tree.stats.merge_fallbacks,
+                );
+                assert!(check.is_ok(), "{name} {label}: {check:?}");
+                assert_eq!(
+                    tree.stats.merge_fallbacks, 0,
+                    "{name} {label}: merges ended as convex hulls"
                 );
             }
         }

@@ -96,22 +96,41 @@ pub(crate) fn assemble(
     Ok(city)
 }
 
-/// Moves the local frame's origin up to the lowest building base, so that z = 0 is the ground
-/// the engine draws and walks on. Mesh sources give absolute heights (a vertical datum such as
-/// NAP, or ellipsoid heights for ECEF tiles), which leave the buildings floating metres above
-/// the local ground plane. The origin's height records the shift, so source coordinates are
-/// unchanged: `frame.to_source` of a moved point is the point the file holds.
+/// Moves the local frame's origin up to the lowest base of the mesh buildings, so that z = 0
+/// is the ground the engine draws and walks on. Mesh sources give absolute heights (a vertical
+/// datum such as NAP, or ellipsoid heights for ECEF tiles), which leave the buildings floating
+/// metres above the local ground plane. The origin's height records the shift, so source
+/// coordinates are unchanged: `frame.to_source` of a moved point is the point the file holds.
+/// Buildings without a mesh (footprints with heights above their ground, from a merged OSM or
+/// GeoJSON file) already stand on the ground and stay. A lowest base far below the others (an
+/// underground part, a stray vertex) lifts the whole city: it is logged.
 pub(crate) fn rest_on_ground(city: &mut City) {
-    let lowest_m = city
+    let mut bases: Vec<f32> = city
         .buildings
         .iter()
+        .filter(|b| b.mesh.is_some())
         .map(|b| b.base_m)
-        .fold(f32::INFINITY, f32::min);
-    if !lowest_m.is_finite() || lowest_m == 0.0 {
+        .filter(|z| z.is_finite())
+        .collect();
+    if bases.is_empty() {
+        return;
+    }
+    bases.sort_by(f32::total_cmp);
+    let lowest_m = bases[0];
+    let low_percentile_m = bases[bases.len() / 100];
+    if low_percentile_m - lowest_m > OUTLIER_BASE_M {
+        tracing::warn!(
+            lowest_m,
+            low_percentile_m,
+            "the lowest building base lies far below the others: the city floats above the \
+             ground plane by up to the difference"
+        );
+    }
+    if lowest_m == 0.0 {
         return;
     }
     city.frame.origin[2] += f64::from(lowest_m);
-    for b in &mut city.buildings {
+    for b in city.buildings.iter_mut().filter(|b| b.mesh.is_some()) {
         b.base_m -= lowest_m;
         b.top_m -= lowest_m;
         for part in &mut b.parts {
@@ -123,6 +142,10 @@ pub(crate) fn rest_on_ground(city: &mut City) {
         }
     }
 }
+
+/// How far the lowest base may lie below the 1st percentile of the bases before
+/// [`rest_on_ground`] warns.
+const OUTLIER_BASE_M: f32 = 5.0;
 
 /// Validates each part; returns the surviving parts and the building's mesh.
 fn build_one(

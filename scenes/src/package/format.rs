@@ -25,7 +25,8 @@ pub const MAGIC: [u8; 4] = *b"CWK\0";
 /// The format version this build writes and reads. History:
 /// - 1: first format.
 /// - 2: the cluster tree's `ClusterStats` gained `merge_fallback_log` (each merge whose first
-///   construction failed, with its reason).
+///   construction failed, with its reason); mesh cities (CityJSON, glTF) rest on the ground:
+///   their frame's origin height is the lowest building base, heights are above it.
 pub const FORMAT_VERSION: u32 = 2;
 /// Sections start at multiples of this (a cache line, and enough for any scalar type).
 pub const SECTION_ALIGN: u64 = 64;
