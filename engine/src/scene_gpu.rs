@@ -7,6 +7,7 @@
 //! screen-space derivatives, so vertices are shared between triangles.
 
 use citywalk_scenes::extrude::building_mesh;
+use citywalk_scenes::frustum::{Containment, Frustum};
 use citywalk_scenes::{City, TriangleMesh};
 use citywalk_shaders::{BuildingRecord, DrawIndexedIndirectArgs, GROUND_ID, SceneVertex};
 use glam::Vec3;
@@ -256,6 +257,20 @@ impl SceneGpu {
     /// Number of buildings.
     pub fn building_count(&self) -> usize {
         self.records.len()
+    }
+
+    /// The buildings whose box is not outside `frustum`, in id order (per-building frustum
+    /// culling on the CPU).
+    pub fn buildings_in_frustum(&self, frustum: &Frustum) -> Vec<u32> {
+        (self.records.iter().enumerate())
+            .filter(|(_, r)| {
+                frustum.classify_aabb(
+                    Vec3::from_array(r.bounds_min_m),
+                    Vec3::from_array(r.bounds_max_m),
+                ) != Containment::Outside
+            })
+            .map(|(i, _)| i as u32)
+            .collect()
     }
 
     /// Binds the vertex and index buffers to `pass`.

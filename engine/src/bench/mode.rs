@@ -13,9 +13,9 @@
 use std::fmt;
 
 use citywalk_scenes::blocks::UrbanBlocks;
-use citywalk_scenes::frustum::{Containment, Frustum};
+use citywalk_scenes::frustum::Frustum;
 use citywalk_scenes::quadtree::BQuadtree;
-use glam::{Mat4, Vec3};
+use glam::Mat4;
 
 use crate::camera::Camera;
 use crate::scene_gpu::SceneGpu;
@@ -170,21 +170,9 @@ pub fn select(
             v.retain(|&b| Some(b) != visible_first);
             v
         }
-        Mode::Frustum => {
-            let frustum = Frustum::from_view_proj(view_proj);
-            data.scene
-                .records
-                .iter()
-                .enumerate()
-                .filter(|(_, r)| {
-                    frustum.classify_aabb(
-                        Vec3::from_array(r.bounds_min_m),
-                        Vec3::from_array(r.bounds_max_m),
-                    ) != Containment::Outside
-                })
-                .map(|(i, _)| i as u32)
-                .collect()
-        }
+        Mode::Frustum => data
+            .scene
+            .buildings_in_frustum(&Frustum::from_view_proj(view_proj)),
         Mode::Quadtree => {
             let frustum = Frustum::from_view_proj(view_proj);
             let mut out: Vec<u32> = data

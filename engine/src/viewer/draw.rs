@@ -183,7 +183,7 @@ impl FrameDrawer {
                     ),
                     _ => None,
                 }
-                .unwrap_or_else(|| in_frustum(&self.scene, &frustum));
+                .unwrap_or_else(|| self.scene.buildings_in_frustum(&frustum));
                 drawn.counts.frustum_culled = Some(n.saturating_sub(ids.len() as u32));
                 drawn.counts.draw_calls = self.selected.encode(
                     gpu,
@@ -461,19 +461,6 @@ impl FrameDrawer {
         gpu.queue.submit([encoder.finish()]);
         Ok(())
     }
-}
-
-/// Buildings whose box is not outside `frustum`.
-fn in_frustum(scene: &SceneGpu, frustum: &Frustum) -> Vec<u32> {
-    (scene.records.iter().enumerate())
-        .filter(|(_, r)| {
-            frustum.classify_aabb(
-                Vec3::from_array(r.bounds_min_m),
-                Vec3::from_array(r.bounds_max_m),
-            ) != Containment::Outside
-        })
-        .map(|(i, _)| i as u32)
-        .collect()
 }
 
 /// The LOD cut of `settings`' criterion: after B-Quadtree culling of urban blocks when
