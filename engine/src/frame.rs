@@ -133,6 +133,10 @@ pub const DEFAULT_OCCLUDER_MIN_PX: f32 = 24.0;
 /// on a real GPU both sides are a fraction of a millisecond.
 pub const DEFAULT_VISIBILITY_FROM_FINAL_DEPTH: bool = false;
 
+/// Changed late records closer than this many entries are uploaded in one write (a write has a
+/// fixed cost; 64 records are 3 KiB).
+const LATE_UPLOAD_MERGE_GAP: usize = 64;
+
 /// Why a frame could not be rendered.
 #[derive(Debug, thiserror::Error)]
 pub enum FrameError {
@@ -235,7 +239,8 @@ pub struct CullingRenderer {
     late_records: GrowBuffer,
     status_readback: StatusReadback,
     targets: Option<Targets>,
-    /// The records the cull read last, with zero index counts for early buildings.
+    /// The records the cull read last, with zero index counts for early buildings: the GPU
+    /// buffer's contents, updated per frame where they changed.
     late_records_cpu: Vec<BuildingRecord>,
     multi_draw_count: bool,
     /// Timestamps around each pass ([`FRAME_PHASES`]).
@@ -565,18 +570,23 @@ impl CullingRenderer {
         view_proj: Mat4,
     ) -> Result<(), FrameError> {
         let n = candidates.len();
-        let late = candidates.late_records();
         let bytes = (n.max(1) * size_of::<BuildingRecord>()) as u64;
         let grown = self.late_records.reserve(&gpu.device, bytes);
-        if grown || late != self.late_records_cpu {
-            self.late_records_cpu = late;
-            if !self.late_records_cpu.is_empty() {
-                gpu.queue.write_buffer(
-                    &self.late_records.buffer,
-                    0,
-                    bytemuck::cast_slice(&self.late_records_cpu),
-                );
-            }
+        if grown {
+            // A new buffer holds nothing: every entry is uploaded.
+            self.late_records_cpu.clear();
+        }
+        // Only the entries that changed since the last frame (mostly the early set's) go to
+        // the GPU; the buffer keeps the rest.
+        let runs =
+            candidates.update_late_records(&mut self.late_records_cpu, LATE_UPLOAD_MERGE_GAP);
+        let record_bytes = size_of::<BuildingRecord>() as u64;
+        for (first, end) in runs {
+            gpu.queue.write_buffer(
+                &self.late_records.buffer,
+                first as u64 * record_bytes,
+                bytemuck::cast_slice(&self.late_records_cpu[first..end]),
+            );
         }
         let targets = self.targets.as_ref().expect("fit_targets ran");
         self.cull.encode_timed(

@@ -51,7 +51,8 @@ impl<'a> LodSource<'a> {
 pub(super) struct Candidates<'a> {
     /// Cull record of each candidate: its draw (geometry in the scene) and the box it is tested
     /// with.
-    pub records: Vec<BuildingRecord>,
+    /// Borrowed from the scene when the candidates are its buildings (no per-frame copy).
+    pub records: Cow<'a, [BuildingRecord]>,
     /// Per candidate: drawn by the early pass.
     pub early: Vec<bool>,
     /// Per building of the scene: drawn as itself by the early pass (occluder selection).
@@ -74,7 +75,7 @@ fn in_frustum(frustum: &Frustum, r: &BuildingRecord) -> bool {
 impl<'a> Candidates<'a> {
     /// Every building of `scene`; early: visible last frame and in the frustum.
     pub fn all_buildings(
-        scene: &SceneGpu,
+        scene: &'a SceneGpu,
         visibility: &Visibility,
         frustum: &Frustum,
     ) -> Candidates<'a> {
@@ -85,7 +86,7 @@ impl<'a> Candidates<'a> {
             .map(|(i, r)| visibility.is_visible(i as u32) && in_frustum(frustum, r))
             .collect();
         Candidates {
-            records: scene.records.clone(),
+            records: Cow::Borrowed(&scene.records),
             early_buildings: early.clone(),
             early_draw_count: 1 + early.iter().filter(|&&e| e).count() as u32,
             early,
@@ -130,7 +131,7 @@ impl<'a> Candidates<'a> {
             Cow::Owned(ids)
         };
         Candidates {
-            records,
+            records: Cow::Owned(records),
             early_draw_count: 1 + early.iter().filter(|&&e| e).count() as u32,
             early,
             early_buildings,
@@ -206,7 +207,7 @@ impl<'a> Candidates<'a> {
         let mut through_cluster = vec![false; self.building_count];
         let mut building_status = vec![CULL_FRUSTUM_OUTSIDE; self.building_count];
         let mut clusters = Vec::new();
-        for (i, (&s, r)) in status.iter().zip(&self.records).enumerate() {
+        for (i, (&s, r)) in status.iter().zip(self.records.iter()).enumerate() {
             let was_early = self.early[i];
             match s {
                 CULL_FRUSTUM_OUTSIDE => stats.frustum_culled += 1,
@@ -278,20 +279,57 @@ impl<'a> Candidates<'a> {
         }
     }
 
-    /// The cull records with a zero index count for every early candidate (the cull then emits
-    /// an empty command for those and the late pass draws each candidate at most once).
+    /// The cull record of candidate `i` as the cull reads it: a zero index count when the
+    /// candidate is early (the cull then emits an empty command for it and the late pass draws
+    /// each candidate at most once).
+    fn late_record(&self, i: usize) -> BuildingRecord {
+        let mut r = self.records[i];
+        if self.early[i] {
+            r.index_count = 0;
+        }
+        r
+    }
+
+    /// The cull records with a zero index count for every early candidate
+    /// ([`Candidates::late_record`]).
+    #[cfg(test)]
     pub fn late_records(&self) -> Vec<BuildingRecord> {
-        self.records
-            .iter()
-            .zip(&self.early)
-            .map(|(r, &early)| {
-                let mut r = *r;
-                if early {
-                    r.index_count = 0;
-                }
-                r
-            })
-            .collect()
+        (0..self.len()).map(|i| self.late_record(i)).collect()
+    }
+
+    /// Brings `late` (last frame's late records) to this frame's
+    /// ([`Candidates::late_record`] of every candidate) in place, and returns the runs of
+    /// changed entries as `(first, end)` index ranges, ascending and disjoint: what must be
+    /// uploaded when the GPU copy held `late`. Runs closer than `merge_gap` entries are merged
+    /// (one upload of a few unchanged entries is cheaper than two uploads).
+    pub fn update_late_records(
+        &self,
+        late: &mut Vec<BuildingRecord>,
+        merge_gap: usize,
+    ) -> Vec<(usize, usize)> {
+        let n = self.len();
+        let kept = late.len().min(n);
+        late.truncate(n);
+        let mut runs: Vec<(usize, usize)> = Vec::new();
+        let push = |i: usize, runs: &mut Vec<(usize, usize)>| match runs.last_mut() {
+            Some(last) if i <= last.1 + merge_gap => last.1 = i + 1,
+            _ => runs.push((i, i + 1)),
+        };
+        for (i, slot) in late.iter_mut().enumerate().take(kept) {
+            let r = self.late_record(i);
+            if *slot != r {
+                *slot = r;
+                push(i, &mut runs);
+            }
+        }
+        if n > kept {
+            late.extend((kept..n).map(|i| self.late_record(i)));
+            match runs.last_mut() {
+                Some(last) if kept <= last.1 + merge_gap => last.1 = n,
+                _ => runs.push((kept, n)),
+            }
+        }
+        runs
     }
 }
 
@@ -432,6 +470,43 @@ mod tests {
     }
 
     #[test]
+    fn late_records_are_updated_in_place_with_the_changed_runs() {
+        let (tree, records, frustum) = scene();
+        let lod = LodSource {
+            building_count: 3,
+            cull_records: &records,
+            tree: &tree,
+        };
+        let mut visibility = Visibility::default();
+        visibility.fit(3);
+        let fine = [0, 1, 2];
+        let mut late = Vec::new();
+        // First frame: everything is new.
+        let c = Candidates::lod(lod, &fine, &visibility, &frustum);
+        assert_eq!(c.update_late_records(&mut late, 0), vec![(0, 3)]);
+        assert_eq!(late, c.late_records());
+        // Same candidates, nothing early: nothing changes.
+        assert!(c.update_late_records(&mut late, 0).is_empty());
+        // Buildings 0 and 2 become early: two runs, one when merged across the gap.
+        c.update_visibility(
+            &mut visibility,
+            &[CULL_VISIBLE, CULL_OCCLUDED, CULL_VISIBLE],
+        );
+        let c = Candidates::lod(lod, &fine, &visibility, &frustum);
+        let mut merged = late.clone();
+        assert_eq!(c.update_late_records(&mut late, 0), vec![(0, 1), (2, 3)]);
+        assert_eq!(c.update_late_records(&mut merged, 1), vec![(0, 3)]);
+        assert_eq!(late, c.late_records());
+        assert_eq!(merged, late);
+        // A shorter cut truncates; its changed entries are reported.
+        let coarse = [1, 3 + 2];
+        let c = Candidates::lod(lod, &coarse, &visibility, &frustum);
+        let runs = c.update_late_records(&mut late, 0);
+        assert_eq!(late, c.late_records());
+        assert_eq!(runs, vec![(0, 2)]);
+    }
+
+    #[test]
     fn every_building_is_a_candidate_without_a_cut() {
         let (_, records, frustum) = scene();
         let scene_records = records[..3].to_vec();
@@ -446,7 +521,7 @@ mod tests {
         assert_eq!(early, vec![true, false, true]);
         // The same rule as the LOD path, through the identity cover.
         let c = Candidates {
-            records: scene_records,
+            records: Cow::Owned(scene_records),
             early_buildings: early.clone(),
             early_draw_count: 3,
             early,

@@ -1,6 +1,8 @@
 //! The virtual occluders on the GPU and their per-frame selection by projected size (Germs &
 //! Jansen 2001 build them offline; the pre-pass draws the ones near the camera).
 
+use std::borrow::Cow;
+
 use citywalk_scenes::frustum::{Containment, Frustum};
 use citywalk_scenes::occluder::OccluderSet;
 use citywalk_shaders::{DrawIndexedIndirectArgs, SceneVertex};
@@ -26,6 +28,24 @@ pub struct OccluderMeshes {
     pub(super) index_buffer: wgpu::Buffer,
     /// One entry per occluder with a non-empty mesh.
     pub occluders: Vec<OccluderDraw>,
+    /// Per entry of `occluders`: its bounding sphere, for the selection's distance pre-filter.
+    spheres: Vec<Sphere>,
+}
+
+/// The bounding sphere of an occluder's box (centre, radius in metres).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Sphere {
+    centre_m: Vec3,
+    radius_m: f32,
+}
+
+impl Sphere {
+    fn of(o: &OccluderDraw) -> Sphere {
+        Sphere {
+            centre_m: (o.bounds_min_m + o.bounds_max_m) * 0.5,
+            radius_m: (o.bounds_max_m - o.bounds_min_m).length() * 0.5,
+        }
+    }
 }
 
 impl OccluderMeshes {
@@ -78,6 +98,7 @@ impl OccluderMeshes {
         OccluderMeshes {
             vertex_buffer,
             index_buffer,
+            spheres: occluders.iter().map(Sphere::of).collect(),
             occluders,
         }
     }
@@ -94,19 +115,60 @@ impl OccluderMeshes {
         drawn_early: &[bool],
     ) -> Vec<usize> {
         let px_per_rad = height_px as f32 / (camera.fov_y_rad * 0.5).tan();
-        self.occluders
-            .iter()
-            .enumerate()
-            .filter(|(_, o)| {
-                !drawn_early
-                    .get(o.building as usize)
-                    .copied()
-                    .unwrap_or(false)
-            })
-            .filter(|(_, o)| occluder_wanted(o, camera.position, frustum, px_per_rad, min_px))
-            .map(|(i, _)| i)
-            .collect()
+        let spheres: Cow<'_, [Sphere]> = if self.spheres.len() == self.occluders.len() {
+            Cow::Borrowed(&self.spheres)
+        } else {
+            Cow::Owned(self.occluders.iter().map(Sphere::of).collect())
+        };
+        select_occluders(
+            &self.occluders,
+            &spheres,
+            camera.position,
+            frustum,
+            px_per_rad,
+            min_px,
+            drawn_early,
+        )
     }
+}
+
+/// [`OccluderMeshes::select`] over `occluders` and their `spheres` ([`Sphere::of`], one each):
+/// the indices of those of a building not in `drawn_early` that [`occluder_wanted`] admits.
+fn select_occluders(
+    occluders: &[OccluderDraw],
+    spheres: &[Sphere],
+    eye: Vec3,
+    frustum: &Frustum,
+    px_per_rad: f32,
+    min_px: f32,
+    drawn_early: &[bool],
+) -> Vec<usize> {
+    // A cheap pre-filter before the exact test: an occluder projects to more than `min_px`
+    // only within `radius · max(1, px_per_rad / min_px)` of the eye (a squared distance, no
+    // root); the margin keeps it from rejecting anything the exact test's rounding admits.
+    let reach_per_radius = (px_per_rad / min_px).max(1.0) * (1.0 + 1e-3);
+    let prefilter = min_px > 0.0 && reach_per_radius.is_finite();
+    occluders
+        .iter()
+        .zip(spheres)
+        .enumerate()
+        .filter(|(_, (o, _))| {
+            !drawn_early
+                .get(o.building as usize)
+                .copied()
+                .unwrap_or(false)
+        })
+        .filter(|&(_, (o, &sphere))| {
+            if prefilter {
+                let reach_m = sphere.radius_m * reach_per_radius;
+                if sphere.centre_m.distance_squared(eye) > reach_m * reach_m {
+                    return false;
+                }
+            }
+            occluder_wanted(o, sphere, eye, frustum, px_per_rad, min_px)
+        })
+        .map(|(i, _)| i)
+        .collect()
 }
 
 /// Whether an occluder is near enough to draw: its bounding sphere contains the eye or projects
@@ -114,14 +176,14 @@ impl OccluderMeshes {
 /// box is not outside the frustum.
 fn occluder_wanted(
     o: &OccluderDraw,
+    sphere: Sphere,
     eye: Vec3,
     frustum: &Frustum,
     px_per_rad: f32,
     min_px: f32,
 ) -> bool {
-    let centre = (o.bounds_min_m + o.bounds_max_m) * 0.5;
-    let radius_m = (o.bounds_max_m - o.bounds_min_m).length() * 0.5;
-    let distance_m = centre.distance(eye);
+    let Sphere { centre_m, radius_m } = sphere;
+    let distance_m = centre_m.distance(eye);
     (distance_m <= radius_m || radius_m / distance_m * px_per_rad > min_px)
         && frustum.classify_aabb(o.bounds_min_m, o.bounds_max_m) != Containment::Outside
 }
@@ -153,8 +215,10 @@ mod tests {
             triangles: 1,
         };
         let wanted = |centre: Vec3| {
+            let o = cube(centre);
             occluder_wanted(
-                &cube(centre),
+                &o,
+                Sphere::of(&o),
                 camera.position,
                 &frustum,
                 px_per_rad,
@@ -168,5 +232,74 @@ mod tests {
         assert!(!wanted(Vec3::new(-20.0, 0.0, 0.0)));
         // Around the eye: always.
         assert!(wanted(Vec3::new(1.0, 0.0, 0.0)));
+    }
+
+    #[test]
+    fn the_distance_prefilter_selects_exactly_what_the_exact_test_admits() {
+        // Occluders of many sizes scattered around the eye (a fixed-seed LCG), some of them
+        // right at the projected-size threshold.
+        let camera = Camera::new(Vec3::new(3.0, -2.0, 1.7), 0.4, 0.05);
+        let frustum = Frustum::from_view_proj(camera.view_proj(16.0 / 9.0));
+        let px_per_rad = 720.0 / (camera.fov_y_rad * 0.5).tan();
+        let mut state = 0x2545_f491_4f6c_dd1d_u64;
+        let mut next = move || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let occluders: Vec<OccluderDraw> = (0..4000)
+            .map(|i| {
+                let centre = Vec3::new(
+                    next() * 2000.0 - 1000.0,
+                    next() * 2000.0 - 1000.0,
+                    next() * 40.0,
+                );
+                let half = Vec3::new(next(), next(), next()) * 30.0 + Vec3::splat(0.1);
+                OccluderDraw {
+                    building: i % 50,
+                    draw: DrawIndexedIndirectArgs {
+                        index_count: 3,
+                        instance_count: 1,
+                        first_index: 0,
+                        base_vertex: 0,
+                        first_instance: 0,
+                    },
+                    bounds_min_m: centre - half,
+                    bounds_max_m: centre + half,
+                    triangles: 1,
+                }
+            })
+            .collect();
+        let spheres: Vec<Sphere> = occluders.iter().map(Sphere::of).collect();
+        let drawn_early: Vec<bool> = (0..50).map(|b| b % 7 == 0).collect();
+        for min_px in [DEFAULT_OCCLUDER_MIN_PX, 1.0, 48.0, 0.0, -1.0, f32::NAN] {
+            let exact: Vec<usize> = (0..occluders.len())
+                .filter(|&i| !drawn_early[occluders[i].building as usize])
+                .filter(|&i| {
+                    occluder_wanted(
+                        &occluders[i],
+                        spheres[i],
+                        camera.position,
+                        &frustum,
+                        px_per_rad,
+                        min_px,
+                    )
+                })
+                .collect();
+            let selected = select_occluders(
+                &occluders,
+                &spheres,
+                camera.position,
+                &frustum,
+                px_per_rad,
+                min_px,
+                &drawn_early,
+            );
+            assert_eq!(selected, exact, "min_px {min_px}");
+            if min_px == DEFAULT_OCCLUDER_MIN_PX {
+                assert!(!exact.is_empty() && exact.len() < occluders.len() / 2);
+            }
+        }
     }
 }
