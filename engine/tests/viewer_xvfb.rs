@@ -22,50 +22,14 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
+#[path = "support/grid_scene.rs"]
+mod grid_scene;
+use grid_scene::write_scene;
+
 const WIDTH: u32 = 320;
 const HEIGHT: u32 = 200;
 /// A generous bound on one viewer run on a software adapter (start-up is about a second).
 const RUN_LIMIT: Duration = Duration::from_secs(120);
-
-/// A 3 × 3 grid of buildings (30 m squares, 9 to 33 m tall) separated by 20 m streets, with the
-/// street centre lines, in local metres.
-fn write_scene(path: &Path) {
-    let mut features = Vec::new();
-    for i in 0..3 {
-        for j in 0..3 {
-            let (x, y) = (i as f64 * 50.0, j as f64 * 50.0);
-            let ring = [
-                [x, y],
-                [x + 30.0, y],
-                [x + 30.0, y + 30.0],
-                [x, y + 30.0],
-                [x, y],
-            ];
-            features.push(serde_json::json!({
-                "type": "Feature",
-                "id": format!("b{i}{j}"),
-                "properties": { "building": "yes", "height": 9.0 + 3.0 * (i * 3 + j) as f64 },
-                "geometry": { "type": "Polygon", "coordinates": [ring] }
-            }));
-        }
-    }
-    for k in 0..4 {
-        let c = k as f64 * 50.0 - 10.0;
-        for line in [[[-20.0, c], [150.0, c]], [[c, -20.0], [c, 150.0]]] {
-            features.push(serde_json::json!({
-                "type": "Feature",
-                "properties": { "highway": "residential" },
-                "geometry": { "type": "LineString", "coordinates": line }
-            }));
-        }
-    }
-    let scene = serde_json::json!({
-        "type": "FeatureCollection",
-        "crs": { "type": "name", "properties": { "name": "citywalk:local" } },
-        "features": features
-    });
-    std::fs::write(path, scene.to_string()).expect("write the test scene");
-}
 
 /// Five poses walking north along the street at x = 40 m, the last one the screenshot's.
 fn write_path(path: &Path) {

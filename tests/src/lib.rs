@@ -2,3 +2,4 @@
 
 pub mod city_builder;
 pub mod gpu;
+pub mod rng;

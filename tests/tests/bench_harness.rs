@@ -3,6 +3,7 @@
 
 use citywalk_engine::bench::baseline::{DECIMATED_MODE, DecimatedBaseline};
 use citywalk_engine::bench::decimate::decimate_city;
+use citywalk_engine::bench::output::ENTRY_KEYS;
 use citywalk_engine::bench::run::pose_camera;
 use citywalk_engine::bench::{
     AdapterSummary, BenchConfig, BenchRenderers, BenchReport, BenchScene, FrameRecord, Mode,
@@ -157,24 +158,7 @@ fn oracle_counts_match_the_id_image_and_a_dropped_building_is_caught() {
     let json: serde_json::Value = serde_json::to_value(&report).expect("json");
     assert!(json.get("adapter").is_some() && json.get("size").is_some());
     for e in json["entries"].as_array().expect("entries") {
-        for key in [
-            "scene",
-            "path",
-            "mode",
-            "frames",
-            "false_culls",
-            "visible_mean",
-            "drawn_mean",
-            "clusters_mean",
-            "culled_fraction_mean",
-            "triangles_mean",
-            "draw_calls_mean",
-            "frame_ms_median",
-            "speedup_vs_brute",
-            "pixel_error_mean",
-            "gpu_ms_median",
-            "gpu_phase_ms_median",
-        ] {
+        for key in ENTRY_KEYS {
             assert!(e.get(key).is_some(), "missing {key}");
         }
         // GPU time of the scene pass where the adapter has timestamp queries, null otherwise.

@@ -13,28 +13,9 @@ use citywalk_engine::hzb::{CullResults, HzbCull, HzbPyramid};
 use citywalk_engine::render::{fragment_float_texture_entry, fullscreen_pipeline};
 use citywalk_shaders::{BuildingRecord, DrawIndexedIndirectArgs};
 use citywalk_tests::gpu::gpu_or_skip;
+use citywalk_tests::rng::Rng;
 use glam::{Mat4, Vec3};
 use wgpu::util::DeviceExt;
-
-/// SplitMix64: a small fixed-seed generator for test data.
-struct Rng(u64);
-
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-    /// Uniform in [0, 1) with 24 bits.
-    fn unit(&mut self) -> f32 {
-        (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
-    }
-    fn range(&mut self, lo: f32, hi: f32) -> f32 {
-        lo + (hi - lo) * self.unit()
-    }
-}
 
 const DEPTH_WRITER_WGSL: &str = r"
 @group(0) @binding(0) var values: texture_2d<f32>;

@@ -32,6 +32,7 @@ use citywalk_scenes::generate::{GenerateParams, generate_city};
 use citywalk_scenes::package::ScenePackage;
 use citywalk_scenes::{BuildingId, LoadOptions, load_cities};
 use citywalk_tests::gpu::gpu_or_skip;
+use citywalk_tests::rng::Rng;
 use glam::Vec3;
 
 const CHELSEA: &str = concat!(
@@ -42,25 +43,6 @@ const DEN_HAAG: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
     "/../../shared/data/cityjson_denhaag/DenHaag_01.json"
 );
-
-/// SplitMix64: a small fixed-seed generator for cameras.
-struct Rng(u64);
-
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-    fn unit(&mut self) -> f32 {
-        (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
-    }
-    fn range(&mut self, lo: f32, hi: f32) -> f32 {
-        lo + (hi - lo) * self.unit()
-    }
-}
 
 /// A scene with its occluders, LOD scene and culling structures on the GPU.
 struct TestScene {

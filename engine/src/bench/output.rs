@@ -9,6 +9,27 @@ use serde::Serialize;
 
 use crate::bench::run::{BenchError, DRAW_PHASES, FrameRecord};
 
+/// The keys every `bench.json` entry holds (issue 7's documented set and ours), each a field of
+/// [`ModeSummary`]: what a consumer of the file may rely on.
+pub const ENTRY_KEYS: &[&str] = &[
+    "scene",
+    "path",
+    "mode",
+    "frames",
+    "false_culls",
+    "visible_mean",
+    "drawn_mean",
+    "clusters_mean",
+    "culled_fraction_mean",
+    "triangles_mean",
+    "draw_calls_mean",
+    "frame_ms_median",
+    "speedup_vs_brute",
+    "pixel_error_mean",
+    "gpu_ms_median",
+    "gpu_phase_ms_median",
+];
+
 /// The aggregate of one scene × path × mode.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ModeSummary {
@@ -424,24 +445,7 @@ mod tests {
             assert!(v.get(key).is_some(), "{key}");
         }
         let e = &v["entries"][0];
-        for key in [
-            "scene",
-            "path",
-            "mode",
-            "frames",
-            "false_culls",
-            "visible_mean",
-            "drawn_mean",
-            "clusters_mean",
-            "culled_fraction_mean",
-            "triangles_mean",
-            "draw_calls_mean",
-            "frame_ms_median",
-            "speedup_vs_brute",
-            "pixel_error_mean",
-            "gpu_ms_median",
-            "gpu_phase_ms_median",
-        ] {
+        for key in ENTRY_KEYS {
             assert!(e.get(key).is_some(), "missing {key}");
         }
         let csv = frames_csv(&records);
