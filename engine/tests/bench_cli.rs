@@ -1,6 +1,6 @@
 //! `citywalk bench` end to end on a tiny GeoJSON city: its files (frames.csv, bench.json,
-//! summary.md, plots), the decimated baseline, and the refusal of modes it does not know or
-//! does not have yet.
+//! summary.md, plots), the decimated baseline, `--json` on standard output, and the refusal of
+//! modes it does not know.
 //!
 //! Without a GPU adapter (software ones count) the run is skipped with a message, except under
 //! CI (env `CI` set), where it fails — the rule of `citywalk_tests::gpu::gpu_or_skip`.
@@ -62,10 +62,23 @@ fn bench_writes_its_files_and_plots() {
     let run = bench(
         &scene,
         &out,
-        &["--modes", "brute,frustum", "--baseline", "decimate:25%"],
+        &[
+            "--modes",
+            "brute,frustum",
+            "--baseline",
+            "decimate:25%",
+            "--json",
+        ],
     );
     let log = String::from_utf8_lossy(&run.stderr);
     assert!(run.status.success(), "citywalk bench failed:\n{log}");
+    // With --json, standard output is the report alone, the same as bench.json.
+    let printed: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap_or_else(|e| {
+        panic!(
+            "stdout is not JSON ({e}):\n{}",
+            String::from_utf8_lossy(&run.stdout)
+        )
+    });
     let csv = std::fs::read_to_string(out.join("frames.csv")).expect("frames.csv");
     // Header + 4 frames × (2 modes + the decimated baseline).
     assert_eq!(csv.lines().count(), 1 + 4 * 3, "{csv}");
@@ -80,6 +93,7 @@ fn bench_writes_its_files_and_plots() {
         .collect();
     assert_eq!(modes, ["brute", "frustum", "decimated"]);
     assert_eq!(json["size"], serde_json::json!([96, 64]));
+    assert_eq!(printed, json);
     let summary = std::fs::read_to_string(out.join("summary.md")).expect("summary.md");
     assert!(
         summary.contains("| tiny | street | decimated |"),
@@ -117,13 +131,15 @@ fn unknown_and_unbuilt_modes_are_refused() {
         String::from_utf8_lossy(&run.stderr)
     );
 
-    // Modes named but not built yet (their list shrinks as the runtime grows).
-    for mode in Mode::NAMED.into_iter().filter(|m| !m.is_available()) {
-        let run = bench(&scene, &out, &["--modes", mode.name()]);
-        let log = String::from_utf8_lossy(&run.stderr);
-        assert!(!run.status.success(), "{mode} ran");
-        assert!(log.contains("not implemented yet"), "{mode}: {log}");
-        assert!(!out.join("bench.json").exists());
-    }
+    // `--list-modes` lists every mode the command line takes, in order.
+    let list = Command::new(env!("CARGO_BIN_EXE_citywalk"))
+        .args(["bench", "--list-modes"])
+        .output()
+        .expect("run citywalk bench --list-modes");
+    assert!(list.status.success());
+    assert_eq!(
+        String::from_utf8_lossy(&list.stdout).trim(),
+        Mode::NAMED.map(Mode::name).join(",")
+    );
     std::fs::remove_dir_all(&dir).expect("clean up");
 }

@@ -761,13 +761,26 @@ fn bench_all_mode_on_a_tiny_scene_has_no_false_cull() {
     let city = generate_city(&GenerateParams::new(300, 5)).expect("generate");
     let package = preprocess(city, &PreprocessParams::default(), &NoProgress).expect("preprocess");
     let city = package.city();
-    let scene = bench_scene(&gpu, "tiny", &city, &package, true);
-    let config = bench_config(vec![Mode::Brute, Mode::All]);
+    let mut scene = bench_scene(&gpu, "tiny", &city, &package, true);
+    // Yang's paper tolerances (coarser than the 1–2 px defaults), so the small city's flyover
+    // draws cluster meshes.
+    if let Some(lod) = scene.lod.as_mut() {
+        lod.criterion = Some(LodCriterion::YANG_PAPER);
+    }
+    let config = bench_config(vec![Mode::Brute, Mode::Lod, Mode::All]);
     let mut renderers = BenchRenderers::new(&gpu);
     let mut all_culled = 0.0;
+    // Cluster meshes drawn over the flyover, by mode: both LOD modes draw some from the air
+    // (the bench counts them: draw ids from the building count up).
+    let mut clusters = std::collections::BTreeMap::<String, usize>::new();
     for path in [street_walk(&city, 6), flyover(&city, 6)] {
         let records = run_path(&gpu, &mut renderers, &scene, &path, &config).expect("run");
-        assert_eq!(records.len(), 2 * path.poses.len());
+        assert_eq!(records.len(), 3 * path.poses.len());
+        if path.name == "flyover" {
+            for r in &records {
+                *clusters.entry(r.mode.clone()).or_default() += r.clusters;
+            }
+        }
         for r in &records {
             assert_eq!(
                 r.false_culls, 0,
@@ -784,6 +797,9 @@ fn bench_all_mode_on_a_tiny_scene_has_no_false_cull() {
         }
     }
     assert!(all_culled > 0.0, "mode all culls nothing");
+    assert_eq!(clusters["brute"], 0);
+    assert!(clusters["lod"] > 0, "{clusters:?}");
+    assert!(clusters["all"] > 0, "{clusters:?}");
     // Without a cluster tree the mode is refused, not silently degraded.
     let bare = BenchScene { lod: None, ..scene };
     assert!(matches!(

@@ -67,22 +67,8 @@ impl Mode {
         }
     }
 
-    /// Whether the runtime implements this mode yet.
-    pub fn is_available(self) -> bool {
-        matches!(
-            self,
-            Mode::Brute
-                | Mode::Frustum
-                | Mode::Quadtree
-                | Mode::Hzb
-                | Mode::Occluders
-                | Mode::Lod
-                | Mode::All
-                | Mode::DropOneVisibleForTest
-        )
-    }
-
-    /// Parses a comma-separated list, refusing unknown modes and modes that do not exist yet.
+    /// Parses a comma-separated list, refusing unknown modes (a name no build has is refused
+    /// with the list of those this one runs).
     pub fn parse_list(list: &str) -> Result<Vec<Mode>, String> {
         let mut modes = Vec::new();
         for word in list.split(',').map(str::trim).filter(|w| !w.is_empty()) {
@@ -95,17 +81,6 @@ impl Mode {
                         Mode::NAMED.map(Mode::name).join(", ")
                     )
                 })?;
-            if !mode.is_available() {
-                return Err(format!(
-                    "mode '{word}' is not implemented in this build; available modes: {}",
-                    Mode::NAMED
-                        .into_iter()
-                        .filter(|m| m.is_available())
-                        .map(Mode::name)
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                ));
-            }
             if !modes.contains(&mode) {
                 modes.push(mode);
             }
@@ -209,7 +184,6 @@ mod tests {
             Mode::parse_list("brute,all,lod").unwrap(),
             vec![Mode::Brute, Mode::All, Mode::Lod]
         );
-        assert!(Mode::NAMED.iter().all(|m| m.is_available()));
         assert!(Mode::parse_list("").is_err());
         assert!(Mode::parse_list("drop-one-visible-for-test").is_err());
     }

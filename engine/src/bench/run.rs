@@ -215,8 +215,12 @@ fn render_mode(
             (&target.colour_view, &target.depth),
             renderers.timer.render_pass_writes("draw"),
         );
-        let buildings = lod.gpu_scene.building_count() as u32;
-        let clusters = frame.draw_ids.iter().filter(|&&id| id >= buildings).count();
+        // Draw ids at or above the building count are cluster meshes (`lod::scene`).
+        let clusters = frame
+            .draw_ids
+            .iter()
+            .filter(|&&id| id >= lod.building_count)
+            .count();
         (frame.covered, calls, select_ms, frame.triangles, clusters)
     } else if mode == Mode::Brute {
         renderers.brute.encode_timed(

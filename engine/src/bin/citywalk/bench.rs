@@ -57,7 +57,8 @@ pub struct Args {
     /// Write a PNG of every N-th frame of each path and mode (0: none).
     #[arg(long, default_value_t = 0)]
     pub png_every: usize,
-    /// Print bench.json to standard output as well.
+    /// Print bench.json to standard output (alone: the summary table then goes to standard
+    /// error).
     #[arg(long)]
     pub json: bool,
     /// Also measure the baseline a user would pick instead: the whole city decimated with
@@ -76,12 +77,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let lod_criterion = LodCriterion::parse(&args.lod_criterion).map_err(anyhow::Error::msg)?;
     let _ = LOD_CRITERION.set(lod_criterion);
     if args.list_modes {
-        let available: Vec<&str> = Mode::NAMED
-            .into_iter()
-            .filter(|m| m.is_available())
-            .map(Mode::name)
-            .collect();
-        println!("{}", available.join(","));
+        println!("{}", Mode::NAMED.map(Mode::name).join(","));
         return Ok(());
     }
     let out = args.out.clone().context("--out is required")?;
@@ -113,14 +109,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &config,
         args.baseline,
     )?;
-    print!(
-        "{}",
-        citywalk_engine::bench::output::summary_markdown(&report)
-    );
+    let summary = citywalk_engine::bench::output::summary_markdown(&report);
     if args.json {
+        // Standard output holds the JSON alone (for pipes); the table goes to standard error.
+        eprint!("{summary}");
         println!("{}", serde_json::to_string_pretty(&report)?);
+        eprintln!("wrote {}", out.display());
+    } else {
+        print!("{summary}");
+        println!("wrote {}", out.display());
     }
-    println!("wrote {}", out.display());
     let false_culls = report.false_culls();
     if false_culls > 0 {
         anyhow::bail!(
