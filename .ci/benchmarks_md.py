@@ -128,16 +128,17 @@ if rows:
     print("\n".join(rows))
 print()
 
-print("## Cluster tree: triangles per level (`citywalk inspect tree SCENE`)\n")
-print("Triangles drawn when the whole city is shown at one level of the legibility tree, against the")
-print("input (Chang et al. report 285,039 → 131,409 polygons at ε = 100, τ = 2).\n")
+print("## Cluster tree: polygons and triangles per level (`citywalk inspect tree SCENE.cwk`)\n")
+print("Polygons (planar faces) and triangles drawn when the whole city is shown at one level of the")
+print("package's legibility tree, against the input (Chang et al. report 285,039 → 131,409 polygons")
+print("at ε = 100, τ = 2).\n")
 for label, key in [("Chelsea", "chelsea"), ("Porto", "porto")]:
     p = out / f"tree-{key}.txt"
     if p.exists():
-        first = p.read_text().splitlines()[0].replace(str(out.resolve()), "out/benchmarks")
-        print(f"**{label}**: " + first + "\n")
+        lines = [l.replace(str(out.resolve()), "out/benchmarks") for l in p.read_text().splitlines()]
+        print(f"**{label}** ({lines[0]}): " + lines[1] + "\n")
         print("```")
-        print("\n".join(p.read_text().splitlines()[1:]))
+        print("\n".join(lines[2:]))
         print("```\n")
 
 print("## Occlusion benchmark (`citywalk bench`)\n")

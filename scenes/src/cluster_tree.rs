@@ -142,8 +142,9 @@ pub struct ClusterStats {
     /// Simplifications abandoned (the merged ring kept) because the result was not a simple
     /// ring; growth-only simplification should never need this.
     pub simplify_fallbacks: u32,
-    /// Buildings whose footprint had several polygons or holes and were represented by an
-    /// outline (the union of parts, or the convex hull) as a leaf.
+    /// Buildings whose leaf is the convex hull of their footprint: footprints of several
+    /// polygons, and rings that are not simple (self-intersecting, such as a bow-tie). A
+    /// polygon with holes keeps its exterior ring and is not counted.
     pub multi_part_buildings: u32,
     /// Buildings whose footprint was degenerate (no area) and whose leaf uses the footprint's
     /// bounding box grown by 0.25 m instead; listed by id.

@@ -2,7 +2,8 @@
 //!
 //! `citywalk inspect SCENE [--json] [--check]` summarises a package or input;
 //! `citywalk inspect occluders SCENE` reports virtual-occluder quality;
-//! `citywalk inspect tree SCENE --level K -o map.png` draws the cluster tree at one level.
+//! `citywalk inspect tree SCENE --level K -o map.png [--gltf OUT.glb]` draws the cluster tree
+//! at one level (a package's own tree) and can export that level's meshes.
 
 use clap::Subcommand;
 

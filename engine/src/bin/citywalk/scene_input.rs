@@ -27,16 +27,26 @@ pub fn is_package(path: &Path) -> anyhow::Result<bool> {
     Ok(read == head.len() && head == MAGIC)
 }
 
+/// The package at `path` when it is one (a file starting with the package magic, or named
+/// `*.cwk`, which then must be a valid package); `None` for any other input.
+pub fn open_package(path: &Path) -> anyhow::Result<Option<ScenePackage>> {
+    let named_package = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("cwk"));
+    if !(is_package(path)? || named_package) {
+        return Ok(None);
+    }
+    ScenePackage::read(path)
+        .map(Some)
+        .with_context(|| format!("cannot read the scene package {}", path.display()))
+}
+
 /// Opens a scene: the package at `path` (a file starting with the package magic, or named
 /// `*.cwk`, which then must be a valid package), or the input at `path` preprocessed with the
 /// default parameters (no progress bars; logs through `tracing`).
 pub fn load_scene(path: &Path) -> anyhow::Result<ScenePackage> {
-    let named_package = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("cwk"));
-    if is_package(path)? || named_package {
-        return ScenePackage::read(path)
-            .with_context(|| format!("cannot read the scene package {}", path.display()));
+    if let Some(package) = open_package(path)? {
+        return Ok(package);
     }
     tracing::info!(input = %path.display(), "not a scene package: loading and preprocessing it");
     let city = load_cities(&[PathBuf::from(path)], &LoadOptions::default())
@@ -48,12 +58,7 @@ pub fn load_scene(path: &Path) -> anyhow::Result<ScenePackage> {
 /// Opens the city of a scene for drawing: a package's buildings and streets as stored, or any
 /// other input loaded as it is (no preprocessing: rendering and viewing need only the city).
 pub fn load_city(path: &Path) -> anyhow::Result<citywalk_scenes::City> {
-    let named_package = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("cwk"));
-    if is_package(path)? || named_package {
-        let package = ScenePackage::read(path)
-            .with_context(|| format!("cannot read the scene package {}", path.display()))?;
+    if let Some(package) = open_package(path)? {
         return Ok(package.city());
     }
     citywalk_scenes::load_city(path, &LoadOptions::default())

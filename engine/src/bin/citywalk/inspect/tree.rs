@@ -1,7 +1,14 @@
-//! `citywalk inspect tree SCENE --level K -o map.png`: builds the legibility cluster tree of
-//! an input (Chang et al. 2008, Yang et al. 2011) and draws one level of it top-down, like
-//! Chang's Figure 11: each cluster's hull filled in its own colour, the buildings drawn in a
-//! darker shade of their cluster's colour, streets as grey lines.
+//! `citywalk inspect tree SCENE --level K -o map.png [--gltf clusters.glb]`: draws one level
+//! of the legibility cluster tree (Chang et al. 2008, Yang et al. 2011) top-down, like Chang's
+//! Figure 11: each cluster's hull filled in its own colour, the buildings drawn in a darker
+//! shade of their cluster's colour, streets as grey lines.
+//!
+//! For a scene package the tree drawn is the package's own; it is rebuilt (and the output says
+//! so) only when the package has none or `--chang` / `--binary` ask for other parameters than
+//! it was built with. Any other input is loaded, split into blocks and clustered on the fly.
+//! The per-level table counts triangles and polygons (planar faces: a wall quad is one
+//! polygon, a roof one, as Chang et al. §9 count them); `--gltf` writes the meshes of the
+//! chosen level's cut (cluster meshes, and the buildings left as leaves) with flat normals.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -9,10 +16,13 @@ use std::time::Instant;
 use anyhow::Context;
 use citywalk_preprocess::blocks::build_blocks;
 use citywalk_preprocess::cluster::build_cluster_tree;
-use citywalk_scenes::City;
+use citywalk_preprocess::occluders::gltf_out::{GlbOptions, meshes_to_glb};
+use citywalk_preprocess::occluders::polygons::planar_face_count;
 use citywalk_scenes::cluster_tree::{
     ClusterDistance, ClusterParams, ClusterTree, HullMerge, HullSimplify,
 };
+use citywalk_scenes::extrude::building_mesh;
+use citywalk_scenes::{City, TriangleMesh};
 use image::{Rgb, RgbImage};
 
 /// Arguments of this inspection.
@@ -30,18 +40,23 @@ pub struct Args {
     #[arg(long, default_value_t = 1600)]
     size: u32,
     /// Use Chang et al.'s choices (size-weighted distance, four-case merging, smallest-area
-    /// simplification) instead of Yang et al.'s.
+    /// simplification) instead of Yang et al.'s (rebuilds a package's tree unless it was built
+    /// with them).
     #[arg(long)]
     chang: bool,
-    /// Keep the binary merge tree (no depth reduction).
+    /// Keep the binary merge tree (no depth reduction; rebuilds a package's tree unless it was
+    /// built so).
     #[arg(long)]
     binary: bool,
+    /// Also write the meshes of the level's cut as GLB: one mesh per cluster and per building
+    /// left as a leaf, flat normals.
+    #[arg(long, value_name = "OUT.glb")]
+    gltf: Option<PathBuf>,
 }
 
-pub fn run(args: Args) -> anyhow::Result<()> {
-    let city = crate::scene_input::load_city(&args.scene)?;
-    let blocks = build_blocks(&city);
-    let mut params = ClusterParams::default();
+/// The parameters `--chang` and `--binary` ask for, on top of `base`.
+fn requested_params(args: &Args, base: &ClusterParams) -> ClusterParams {
+    let mut params = base.clone();
     if args.chang {
         params.distance = ClusterDistance::ChangSizeWeighted;
         params.merge = HullMerge::ChangCases;
@@ -50,10 +65,54 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.binary {
         params.depth_lambda = None;
     }
-    let start = Instant::now();
-    let tree = build_cluster_tree(&city, &blocks.block_of_building, &params)
-        .with_context(|| format!("cluster tree of {}", args.scene.display()))?;
-    let seconds = start.elapsed().as_secs_f64();
+    params
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let (city, block_of_building, block_count, stored) =
+        match crate::scene_input::open_package(&args.scene)? {
+            Some(package) => {
+                let city = package.city();
+                (
+                    city,
+                    package.blocks.block_of_building,
+                    package.blocks.blocks.len(),
+                    Some(package.cluster_tree),
+                )
+            }
+            None => {
+                let city = crate::scene_input::load_city(&args.scene)?;
+                let blocks = build_blocks(&city);
+                (city, blocks.block_of_building, blocks.blocks.len(), None)
+            }
+        };
+    let base = match &stored {
+        Some(Some(tree)) => tree.params.clone(),
+        _ => ClusterParams::default(),
+    };
+    let params = requested_params(&args, &base);
+    let (tree, origin) = match stored {
+        Some(Some(tree)) if tree.params == params => (tree, "the package's own tree".to_owned()),
+        stored => {
+            let why = match stored {
+                Some(Some(_)) => {
+                    "rebuilt: --chang / --binary ask for other parameters than the package's"
+                }
+                Some(None) => "rebuilt: the package has no cluster tree",
+                None => "built: the input is not a scene package",
+            };
+            let start = Instant::now();
+            let tree = build_cluster_tree(&city, &block_of_building, &params)
+                .with_context(|| format!("cluster tree of {}", args.scene.display()))?;
+            let seconds = start.elapsed().as_secs_f64();
+            let origin = format!(
+                "{why} ({:.3} s, {:.0} buildings/s)",
+                seconds,
+                city.buildings.len() as f64 / seconds.max(1e-9)
+            );
+            (tree, origin)
+        }
+    };
     if let Err(e) = tree.check_invariants(&city) {
         anyhow::bail!("cluster tree invariants violated: {e}");
     }
@@ -62,23 +121,68 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     image
         .save(&args.output)
         .with_context(|| format!("cannot write {}", args.output.display()))?;
+    println!("cluster tree: {origin}");
     println!(
-        "{} buildings, {} blocks, {} nodes, depth {}, {} clusters at level {}, built in {:.3} s \
-         ({:.0} buildings/s), {} merge fallbacks -> {}",
+        "{} buildings, {} blocks, {} nodes, depth {}, {} clusters at level {}, {} merge \
+         fallbacks -> {}",
         city.buildings.len(),
-        blocks.blocks.len(),
+        block_count,
         tree.nodes.len(),
         tree.max_depth(),
         cut.len(),
         args.level,
-        seconds,
-        city.buildings.len() as f64 / seconds.max(1e-9),
         tree.stats.merge_fallbacks,
         args.output.display()
     );
     print_merge_fallbacks(&tree);
-    print_level_polygons(&city, &tree);
+    let building_meshes: Vec<TriangleMesh> = city.buildings.iter().map(building_mesh).collect();
+    print_level_polygons(&tree, &building_meshes);
+    if let Some(path) = &args.gltf {
+        let meshes = cut_meshes(&tree, &cut, &building_meshes);
+        let written = meshes.iter().filter(|(_, m)| !m.indices.is_empty()).count();
+        let bytes = meshes_to_glb(
+            meshes,
+            GlbOptions {
+                generator: "citywalk inspect tree",
+                scene_name: "cluster tree cut",
+                flat_normals: true,
+            },
+        )?;
+        std::fs::write(path, bytes).with_context(|| format!("cannot write {}", path.display()))?;
+        println!(
+            "wrote {} meshes of level {} to {}",
+            written,
+            args.level,
+            path.display()
+        );
+    }
     Ok(())
+}
+
+/// The meshes of a cut, in cut order: a cluster's own mesh, or the buildings of a leaf.
+fn cut_meshes<'a>(
+    tree: &'a ClusterTree,
+    cut: &[u32],
+    building_meshes: &'a [TriangleMesh],
+) -> Vec<(String, &'a TriangleMesh)> {
+    let mut out = Vec::new();
+    for &n in cut {
+        let node = &tree.nodes[n as usize];
+        let buildings = &tree.building_order[node.buildings.0 as usize..node.buildings.1 as usize];
+        if node.is_leaf() {
+            for b in buildings {
+                if let Some(mesh) = building_meshes.get(b.index()) {
+                    out.push((format!("building {}", b.0), mesh));
+                }
+            }
+        } else {
+            out.push((
+                format!("cluster {n} ({} buildings)", buildings.len()),
+                &node.mesh,
+            ));
+        }
+    }
+    out
 }
 
 /// Merges whose first construction failed, by reason: rescued by Chang's full hull search,
@@ -101,19 +205,24 @@ fn print_merge_fallbacks(tree: &ClusterTree) {
     }
 }
 
-/// Triangles drawn when the whole city is shown at each level of the tree, against the input
-/// (Chang et al. §9 report polygon counts per level: 285,039 → 131,409 at ε = 100, τ = 2).
-fn print_level_polygons(city: &City, tree: &ClusterTree) {
-    let building_triangles: Vec<usize> = city
-        .buildings
+/// Triangles and polygons (planar faces, [`planar_face_count`]) drawn when the whole city is
+/// shown at each level of the tree, against the input (Chang et al. §9 report polygon counts
+/// per level: 285,039 → 131,409 at ε = 100, τ = 2).
+fn print_level_polygons(tree: &ClusterTree, building_meshes: &[TriangleMesh]) {
+    let building_counts: Vec<(usize, usize)> = building_meshes
         .iter()
-        .map(|b| citywalk_scenes::extrude::building_mesh(b).triangle_count())
+        .map(|m| (m.triangle_count(), planar_face_count(m)))
         .collect();
-    let input: usize = building_triangles.iter().sum();
-    println!("level  nodes  triangles  share of input ({input} triangles)");
+    let input = building_counts
+        .iter()
+        .fold((0, 0), |a, c| (a.0 + c.0, a.1 + c.1));
+    println!(
+        "level  nodes  triangles  polygons  share of input ({} triangles, {} polygons)",
+        input.0, input.1
+    );
     for level in 0..=tree.max_depth() {
         let cut = tree.cut_at_level(level);
-        let triangles: usize = cut
+        let (triangles, polygons) = cut
             .iter()
             .map(|&n| {
                 let node = &tree.nodes[n as usize];
@@ -121,17 +230,19 @@ fn print_level_polygons(city: &City, tree: &ClusterTree) {
                     let (start, end) = node.buildings;
                     tree.building_order[start as usize..end as usize]
                         .iter()
-                        .map(|b| building_triangles[b.index()])
-                        .sum()
+                        .filter_map(|b| building_counts.get(b.index()))
+                        .fold((0, 0), |a, c| (a.0 + c.0, a.1 + c.1))
                 } else {
-                    node.mesh.triangle_count()
+                    (node.mesh.triangle_count(), planar_face_count(&node.mesh))
                 }
             })
-            .sum();
+            .fold((0, 0), |a, c| (a.0 + c.0, a.1 + c.1));
+        let share = |x: usize, of: usize| 100.0 * x as f64 / of.max(1) as f64;
         println!(
-            "{level:>5}  {:>5}  {triangles:>9}  {:>6.1} %",
+            "{level:>5}  {:>5}  {triangles:>9}  {polygons:>8}  {:>6.1} % / {:>5.1} %",
             cut.len(),
-            100.0 * triangles as f64 / input.max(1) as f64
+            share(triangles, input.0),
+            share(polygons, input.1)
         );
         if cut.iter().all(|&n| tree.nodes[n as usize].is_leaf()) {
             break;
