@@ -1,5 +1,5 @@
-//! Cluster-tree construction (clustering, hull merging, simplification, depth reduction, node
-//! data and meshes) on synthetic cities of 1k / 10k / 100k buildings.
+//! Cluster-tree construction (clustering, rebalancing, hull merging, simplification, depth
+//! reduction, node data and meshes) on synthetic cities of 1k / 10k / 100k buildings.
 //!
 //! `cargo bench -p citywalk-preprocess --bench cluster` (ten samples each; filter with
 //! `-- cluster/10000` for one size, `-- cluster-stage` for the stages of a 10k city, e.g.
@@ -13,6 +13,7 @@ use std::time::Duration;
 use citywalk_preprocess::cluster::leaves::{VertexStore, build_leaves};
 use citywalk_preprocess::cluster::linkage::single_link;
 use citywalk_preprocess::cluster::merge::merge_rings;
+use citywalk_preprocess::cluster::rebalance::rebalance;
 use citywalk_preprocess::cluster::{
     ClusterParams, assemble_nodes, build_cluster_tree, build_meshes, merge_hulls, simplify_hull,
 };
@@ -124,7 +125,14 @@ fn stages(c: &mut Criterion) {
         group.bench_function(format!("{label}/clustering"), |b| {
             b.iter(|| black_box(single(&store).len()))
         });
-        let merges = single(&store);
+        let binary = single(&store);
+        // Rebalancing of long heavy paths (ours, see `cluster::rebalance`), as the pipeline
+        // does before hull merging; the later stages work on its merges.
+        let centres: Vec<[f64; 2]> = leaves.iter().map(|l| l.centre).collect();
+        group.bench_function(format!("{label}/rebalancing"), |b| {
+            b.iter(|| black_box(rebalance(leaves.len(), &binary, &blocks, &centres).len()))
+        });
+        let merges = rebalance(leaves.len(), &binary, &blocks, &centres);
         let mut stats = ClusterStats::default();
         let hulls = merge_hulls(&mut store, &leaves, &merges, &params, &mut stats, true);
         // Hull merging: every merge of the tree on its recorded (simplified) children, in a

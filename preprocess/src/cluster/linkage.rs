@@ -8,9 +8,11 @@
 //!   `N = (l1'/l1 + l2'/l2)/2` from the adjacent sides of the two footprints.
 //!
 //! Not the papers' O(n²)–O(n³): candidate pairs are the edges of a Delaunay triangulation
-//! (spade) of the building centres (Chang) or footprint vertices (Yang). For centre distances
-//! this is exact: the closest pair between two point sets is a Gabriel edge, hence a Delaunay
-//! edge, of their union. Merges come from a binary heap with version stamps (lazy deletion);
+//! (spade) of the building centres (Chang) or footprint vertices (Yang). For plain single-link
+//! on centre distances this is exact (the minimum spanning tree, which single-link follows, is
+//! a subgraph of the Delaunay triangulation). With Chang's size weights it is an approximation
+//! we chose: two clusters are candidates only when a Delaunay edge joins them (neighbours), so
+//! a weighted pair with no Delaunay edge between them never merges directly. Merges come from a binary heap with version stamps (lazy deletion);
 //! only the merged cluster's pairs are re-keyed. Chang's factor `1/avgClusterSize²` is common
 //! to all pairs at any moment, so the heap orders by `size·size·d` (exact, no stale keys) and
 //! the factor is applied to the recorded merge distance.

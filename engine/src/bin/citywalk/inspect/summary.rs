@@ -58,6 +58,9 @@ struct Summary {
     cluster_tree_nodes: Option<usize>,
     cluster_tree_depth: Option<u32>,
     cluster_tree_vertices: Option<usize>,
+    /// Footprint repairs and fallbacks of the cluster tree (`ClusterStats`): nothing is
+    /// dropped, but a person should see what was repaired.
+    cluster_tree_repairs: Option<ClusterRepairs>,
     counts: BTreeMap<String, u64>,
     parameters_json: String,
     warnings: Vec<String>,
@@ -65,6 +68,15 @@ struct Summary {
     stage_seconds: Vec<(String, f64)>,
     sections: Vec<SectionSummary>,
     check: Option<Vec<String>>,
+}
+
+/// What the cluster tree repaired or fell back on ([`citywalk_scenes::cluster_tree::ClusterStats`]).
+#[derive(Debug, Serialize)]
+struct ClusterRepairs {
+    degenerate_buildings: usize,
+    multi_part_buildings: u32,
+    merge_fallbacks: u32,
+    simplify_fallbacks: u32,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -159,6 +171,12 @@ fn summarise(
         cluster_tree_nodes: pkg.cluster_tree.as_ref().map(|t| t.nodes.len()),
         cluster_tree_depth: pkg.cluster_tree.as_ref().map(|t| t.max_depth()),
         cluster_tree_vertices: pkg.cluster_tree.as_ref().map(|t| t.vertices.len()),
+        cluster_tree_repairs: pkg.cluster_tree.as_ref().map(|t| ClusterRepairs {
+            degenerate_buildings: t.stats.degenerate_buildings.len(),
+            multi_part_buildings: t.stats.multi_part_buildings,
+            merge_fallbacks: t.stats.merge_fallbacks,
+            simplify_fallbacks: t.stats.simplify_fallbacks,
+        }),
         counts: pkg.provenance.counts.clone(),
         parameters_json: pkg.provenance.parameters_json.clone(),
         warnings: pkg.provenance.warnings.clone(),
@@ -226,6 +244,14 @@ fn print_summary(s: &Summary) {
         s.cluster_tree_depth.map_or("-".into(), |d| d.to_string()),
         opt(s.cluster_tree_vertices)
     );
+    if let Some(r) = &s.cluster_tree_repairs {
+        println!(
+            "cluster tree repairs: {} degenerate footprints (grown to a box), {} multi-part or \
+             self-crossing footprints (their hull), {} merge fallbacks, {} simplification \
+             fallbacks",
+            r.degenerate_buildings, r.multi_part_buildings, r.merge_fallbacks, r.simplify_fallbacks
+        );
+    }
     for sec in &s.sections {
         println!(
             "section {:<12} at {:>10}: {:>10} bytes, crc32 {}",
