@@ -50,8 +50,25 @@ preprocess() { # name input...
   local name=$1; shift
   "$cw" preprocess "$@" -o "$out/$name.cwk" --json > "$out/preprocess-$name.json"
 }
-preprocess generated-10k "$out/generated-10000.geojson"
-preprocess generated-100k "$out/generated-100000.geojson"
+# The n log n check (time(100k) / time(10k)) compares two runs: each of those two cities is
+# preprocessed three times and the fastest run kept, so a moment of other load on a shared
+# machine does not decide it. Packages are byte-for-byte deterministic, so the kept run's
+# package is the same as the others'.
+preprocess_best_of_3() { # name input
+  local name=$1 best="" t
+  for _ in 1 2 3; do
+    preprocess "$name" "$2"
+    t=$(python3 -c 'import json, sys; print(json.load(open(sys.argv[1]))["total_seconds"])' \
+      "$out/preprocess-$name.json")
+    if [ -z "$best" ] || python3 -c 'import sys; sys.exit(0 if float(sys.argv[1]) < float(sys.argv[2]) else 1)' "$t" "$best"; then
+      best=$t
+      cp "$out/preprocess-$name.json" "$out/preprocess-$name.best.json"
+    fi
+  done
+  mv "$out/preprocess-$name.best.json" "$out/preprocess-$name.json"
+}
+preprocess_best_of_3 generated-10k "$out/generated-10000.geojson"
+preprocess_best_of_3 generated-100k "$out/generated-100000.geojson"
 preprocess generated-1m "$out/generated-1000000.geojson"
 preprocess porto "$data/osm_porto_center/porto.osm.pbf"
 preprocess chelsea "$root/scenes/data/chelsea.osm.pbf"
