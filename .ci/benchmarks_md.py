@@ -19,7 +19,7 @@ def mib(b):
 
 
 print("# citywalk benchmarks\n")
-print("Regenerate everything on this page with one command (release build, about 10 minutes on 2 cores):\n")
+print("Regenerate everything on this page with one command (release build, about 15 minutes on 2 cores):\n")
 print("```sh\nbash .ci/setup.sh && bash .ci/benchmarks.sh\n```\n")
 print("Raw outputs (JSON, CSV, PNG) are written to `out/benchmarks/`. On a software adapter")
 print("(lavapipe) compare ratios within one run; absolute times mean something only on a real GPU.\n")
