@@ -188,56 +188,32 @@ pub fn meshes_to_glb<'m>(
             json::buffer::Target::ElementArrayBuffer,
         );
         for (name, first_vertex, vertex_count, first_index, index_count, lo, hi) in spans {
-            let pos = root.push(json::Accessor {
-                buffer_view: Some(pos_view),
-                byte_offset: Some(USize64::from(first_vertex * 12)),
-                count: USize64::from(vertex_count),
-                component_type: Valid(json::accessor::GenericComponentType(
-                    json::accessor::ComponentType::F32,
-                )),
-                extensions: Default::default(),
-                extras: Default::default(),
-                type_: Valid(json::accessor::Type::Vec3),
-                min: Some(json::Value::from(Vec::from(lo))),
-                max: Some(json::Value::from(Vec::from(hi))),
-                name: None,
-                normalized: false,
-                sparse: None,
-            });
-            let idx = root.push(json::Accessor {
-                buffer_view: Some(idx_view),
-                byte_offset: Some(USize64::from(first_index * 4)),
-                count: USize64::from(index_count),
-                component_type: Valid(json::accessor::GenericComponentType(
-                    json::accessor::ComponentType::U32,
-                )),
-                extensions: Default::default(),
-                extras: Default::default(),
-                type_: Valid(json::accessor::Type::Scalar),
-                min: None,
-                max: None,
-                name: None,
-                normalized: false,
-                sparse: None,
-            });
+            let pos = root.push(accessor(
+                pos_view,
+                first_vertex * 12,
+                vertex_count,
+                json::accessor::ComponentType::F32,
+                json::accessor::Type::Vec3,
+                Some((Vec::from(lo), Vec::from(hi))),
+            ));
+            let idx = root.push(accessor(
+                idx_view,
+                first_index * 4,
+                index_count,
+                json::accessor::ComponentType::U32,
+                json::accessor::Type::Scalar,
+                None,
+            ));
             let mut attributes = BTreeMap::from([(Valid(json::mesh::Semantic::Positions), pos)]);
             if let Some(normal_view) = normal_view {
-                let normal = root.push(json::Accessor {
-                    buffer_view: Some(normal_view),
-                    byte_offset: Some(USize64::from(first_vertex * 12)),
-                    count: USize64::from(vertex_count),
-                    component_type: Valid(json::accessor::GenericComponentType(
-                        json::accessor::ComponentType::F32,
-                    )),
-                    extensions: Default::default(),
-                    extras: Default::default(),
-                    type_: Valid(json::accessor::Type::Vec3),
-                    min: None,
-                    max: None,
-                    name: None,
-                    normalized: false,
-                    sparse: None,
-                });
+                let normal = root.push(accessor(
+                    normal_view,
+                    first_vertex * 12,
+                    vertex_count,
+                    json::accessor::ComponentType::F32,
+                    json::accessor::Type::Vec3,
+                    None,
+                ));
                 attributes.insert(Valid(json::mesh::Semantic::Normals), normal);
             }
             let primitive = json::mesh::Primitive {
@@ -294,6 +270,36 @@ pub fn meshes_to_glb<'m>(
         bin: (!bin.is_empty()).then_some(Cow::Owned(bin)),
     };
     glb.to_vec().map_err(|e| GlbError::Encode(e.to_string()))
+}
+
+/// An accessor of `count` elements of `type_` from `byte_offset` in `view` (`min_max`: the
+/// per-component bounds glTF requires on positions).
+fn accessor(
+    view: json::Index<json::buffer::View>,
+    byte_offset: usize,
+    count: usize,
+    component: json::accessor::ComponentType,
+    type_: json::accessor::Type,
+    min_max: Option<(Vec<f32>, Vec<f32>)>,
+) -> json::Accessor {
+    let (min, max) = match min_max {
+        Some((lo, hi)) => (Some(json::Value::from(lo)), Some(json::Value::from(hi))),
+        None => (None, None),
+    };
+    json::Accessor {
+        buffer_view: Some(view),
+        byte_offset: Some(USize64::from(byte_offset)),
+        count: USize64::from(count),
+        component_type: Valid(json::accessor::GenericComponentType(component)),
+        extensions: Default::default(),
+        extras: Default::default(),
+        type_: Valid(type_),
+        min,
+        max,
+        name: None,
+        normalized: false,
+        sparse: None,
+    }
 }
 
 #[cfg(test)]
