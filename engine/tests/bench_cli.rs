@@ -5,7 +5,7 @@
 //! Without a GPU adapter (software ones count) the run is skipped with a message, except under
 //! CI (env `CI` set), where it fails — the rule of `citywalk_tests::gpu::gpu_or_skip`.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 
 use citywalk_engine::bench::Mode;
@@ -14,16 +14,10 @@ use citywalk_engine::gpu::GpuContext;
 
 #[path = "support/grid_scene.rs"]
 mod grid_scene;
+#[path = "support/scratch.rs"]
+mod scratch;
 use grid_scene::write_scene;
-
-fn temp_dir(name: &str) -> PathBuf {
-    let dir =
-        std::env::temp_dir().join(format!("citywalk-bench-cli-{name}-{}", std::process::id()));
-    // A leftover from an earlier run with the same id would hide missing outputs.
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("temp dir");
-    dir
-}
+use scratch::temp_dir;
 
 fn bench(scene: &Path, out: &Path, extra: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_citywalk"))
@@ -55,7 +49,7 @@ fn bench_writes_its_files_and_plots() {
     if !gpu_available("bench_cli") {
         return;
     }
-    let dir = temp_dir("run");
+    let dir = temp_dir("bench-cli-run");
     let scene = dir.join("tiny.geojson");
     write_scene(&scene);
     let out = dir.join("out");
@@ -113,7 +107,7 @@ fn bench_writes_its_files_and_plots() {
 
 #[test]
 fn unknown_and_unbuilt_modes_are_refused() {
-    let dir = temp_dir("refuse");
+    let dir = temp_dir("bench-cli-refuse");
     let scene = dir.join("tiny.geojson");
     write_scene(&scene);
     let out = dir.join("out");

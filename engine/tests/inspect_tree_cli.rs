@@ -5,22 +5,15 @@
 //! inputs say that the tree was rebuilt. CPU only.
 
 use std::ffi::OsStr;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
 use citywalk_scenes::extrude::building_mesh;
 use citywalk_scenes::package::ScenePackage;
 
-fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!(
-        "citywalk-inspect-tree-{name}-{}",
-        std::process::id()
-    ));
-    // A leftover from an earlier run with the same id would hide missing outputs.
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("temp dir");
-    dir
-}
+#[path = "support/scratch.rs"]
+mod scratch;
+use scratch::temp_dir;
 
 /// Runs the binary; panics with its output unless it succeeds; returns its stdout.
 fn citywalk<S: AsRef<OsStr>>(args: &[S]) -> String {
@@ -44,7 +37,7 @@ fn path_str(p: &Path) -> &str {
 
 #[test]
 fn inspect_tree_draws_and_exports_the_packages_tree() {
-    let dir = temp_dir("package");
+    let dir = temp_dir("inspect-tree-package");
     let geojson = dir.join("city.geojson");
     let package = dir.join("city.cwk");
     citywalk(&[

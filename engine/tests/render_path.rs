@@ -4,12 +4,16 @@
 //! Without a GPU adapter (software ones count: lavapipe, llvmpipe) the rendering test is skipped
 //! with a message, except under CI (env `CI` set), where it fails.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
 use citywalk_engine::gpu::GpuContext;
 use citywalk_scenes::camera_path::{CameraPath, CameraPose};
 use glam::Vec3;
+
+#[path = "support/scratch.rs"]
+mod scratch;
+use scratch::temp_dir;
 
 const WIDTH: u32 = 96;
 const HEIGHT: u32 = 64;
@@ -44,12 +48,6 @@ fn write_scene(path: &Path) {
         "features": features
     });
     std::fs::write(path, scene.to_string()).expect("write the test scene");
-}
-
-fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("citywalk-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("create a temporary directory");
-    dir
 }
 
 fn citywalk(args: &[&std::ffi::OsStr]) -> std::process::Output {
