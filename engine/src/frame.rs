@@ -8,7 +8,8 @@
 //! early_pass    → colour + depth: the ground and last frame's visible building candidates
 //! occluder_pass → (occluders on) copy of that depth + nearby virtual occluders, depth only
 //! build_pyramid → HiZ pyramid from that depth
-//! cull          → every candidate's box against the pyramid (status, indirect commands, count)
+//! cull          → every candidate's box, then its parts, against the pyramid (status,
+//!                 indirect commands, count)
 //! late_pass     → colour + depth: the candidates the cull kept that the early pass did not draw
 //! read_status   → status to the CPU: statistics and next frame's visible set
 //! final_cull    → (option) pyramid of the final depth, the candidates culled again: the next
@@ -119,14 +120,14 @@ pub use visibility::Visibility;
 /// Default projected-size threshold of the occluder selection: an occluder is drawn when its
 /// bounding sphere's projected diameter exceeds this many pixels (a "near" occluder: Germs &
 /// Jansen §4 select occluders by their screen size; the value is ours, measured on the
-/// generated 100k city's street walk: 48 px left the far end of the street open and the cull
+/// generated 100k city's street walk, with axis-aligned boxes before cull parts: 48 px left the far end of the street open and the cull
 /// kept 10.9 × the visible set, 24 px keeps 3.7 × at the same frame time, 12 px 2.4 × but
 /// costs ~20 % more frame time on lavapipe).
 pub const DEFAULT_OCCLUDER_MIN_PX: f32 = 24.0;
 
 /// Default of [`CullingOptions::visibility_from_final_depth`]: off, by measurement (release
-/// build, lavapipe, 1280 × 720, 16-frame street walks, mode `occluders`). On the generated 100k
-/// city it lowers the buildings drawn per frame from 226 to 193 (61.6 visible), on the 10k city
+/// build, lavapipe, 1280 × 720, 16-frame street walks, mode `occluders`, with axis-aligned
+/// boxes before cull parts). On the generated 100k city it lowers the buildings drawn per frame from 226 to 193 (61.6 visible), on the 10k city
 /// not at all (95.1, 48.8 visible): what a frame draws is mostly what the first cull keeps,
 /// which the early set hardly changes. The second pyramid and cull cost 7–10 ms per frame on
 /// lavapipe (30 → 39 ms on 10k, 39–45 → 49–56 ms on 100k), more than the fewer draws save;
@@ -421,11 +422,11 @@ impl CullingRenderer {
             None => Vec::new(),
         };
         self.build_pyramid(&mut encoder, !occluders_drawn.is_empty());
-        self.cull(gpu, &mut encoder, &candidates, view_proj)?;
+        self.cull(gpu, &mut encoder, scene, &candidates, view_proj)?;
         self.late_pass(&mut encoder, scene, n as u32, colour);
         self.read_status(&mut encoder, n, 0);
         if final_cull {
-            self.final_depth_cull(gpu, &mut encoder, n, view_proj)?;
+            self.final_depth_cull(gpu, &mut encoder, scene, n, view_proj)?;
         }
         self.timer.resolve(&mut encoder);
 
@@ -561,11 +562,13 @@ impl CullingRenderer {
         targets.pyramid.build_timed(encoder, depth, timestamps);
     }
 
-    /// Culls every candidate against the pyramid; early candidates get empty commands.
+    /// Culls every candidate against the pyramid (by the parts of `scene` its record names);
+    /// early candidates get empty commands.
     fn cull(
         &mut self,
         gpu: &GpuContext,
         encoder: &mut wgpu::CommandEncoder,
+        scene: &SceneGpu,
         candidates: &Candidates<'_>,
         view_proj: Mat4,
     ) -> Result<(), FrameError> {
@@ -592,7 +595,7 @@ impl CullingRenderer {
         self.cull.encode_timed(
             gpu,
             encoder,
-            &self.late_records.buffer,
+            (&self.late_records.buffer, Some(&scene.parts_buffer)),
             n as u32,
             (&targets.pyramid, view_proj),
             self.timer.compute_pass_writes("cull"),
@@ -668,6 +671,7 @@ impl CullingRenderer {
         &mut self,
         gpu: &GpuContext,
         encoder: &mut wgpu::CommandEncoder,
+        scene: &SceneGpu,
         n: usize,
         view_proj: Mat4,
     ) -> Result<(), FrameError> {
@@ -676,7 +680,7 @@ impl CullingRenderer {
         self.cull.encode(
             gpu,
             encoder,
-            &self.late_records.buffer,
+            (&self.late_records.buffer, Some(&scene.parts_buffer)),
             n as u32,
             &targets.pyramid,
             view_proj,

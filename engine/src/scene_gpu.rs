@@ -3,17 +3,23 @@
 //! buffer, laid out so that a culling pass can emit one `DrawIndexedIndirect` per building
 //! ([`BuildingRecord::draw_args`]).
 //!
+//! Each record also names the building's tight cull bounds, oriented prisms around the pieces
+//! of its mesh ([`cull_parts`]), kept in a second storage buffer.
+//!
 //! Vertices carry position and building id only; the scene shader computes flat normals from
 //! screen-space derivatives, so vertices are shared between triangles.
 
+use bytemuck::Zeroable;
 use citywalk_scenes::extrude::building_mesh;
 use citywalk_scenes::frustum::{Containment, Frustum};
 use citywalk_scenes::{City, TriangleMesh};
-use citywalk_shaders::{BuildingRecord, DrawIndexedIndirectArgs, GROUND_ID, SceneVertex};
+use citywalk_shaders::{BuildingRecord, CullPart, DrawIndexedIndirectArgs, GROUND_ID, SceneVertex};
 use glam::Vec3;
 use wgpu::util::DeviceExt;
 
 use crate::gpu::GpuContext;
+
+pub mod cull_parts;
 
 /// The vertex buffer layout of [`SceneVertex`]: `Float32x3` position at location 0, `Uint32`
 /// building id at location 1.
@@ -32,6 +38,8 @@ pub struct SceneGeometry {
     pub indices: Vec<u32>,
     /// One record per building, indexed by building id.
     pub records: Vec<BuildingRecord>,
+    /// The buildings' cull parts, building after building (each record names its range).
+    pub parts: Vec<CullPart>,
     /// The ground plane's draw (a quad well beyond the city, at the lowest base height).
     pub ground: DrawIndexedIndirectArgs,
     /// Bounds of all buildings `(min, max)`; a 1 m cube at the origin for an empty scene.
@@ -73,6 +81,11 @@ impl SceneGeometry {
                     g.indices.extend_from_slice(t);
                 }
             }
+            let first_part = g.parts.len() as u32;
+            g.parts.extend(cull_parts::cull_parts(
+                &mesh.positions,
+                &g.indices[first_index as usize..],
+            ));
             g.records.push(BuildingRecord {
                 bounds_min_m: bmin.to_array(),
                 first_index,
@@ -80,8 +93,8 @@ impl SceneGeometry {
                 index_count: g.indices.len() as u32 - first_index,
                 base_vertex: g.vertices.len() as i32,
                 vertex_count: n,
-                _pad0: 0,
-                _pad1: 0,
+                first_part,
+                part_count: g.parts.len() as u32 - first_part,
             });
             g.vertices
                 .extend(mesh.positions.iter().map(|p| SceneVertex {
@@ -185,11 +198,15 @@ pub struct SceneGpu {
     /// [`BuildingRecord`] array (storage, read-only in shaders); at least one record long even
     /// for an empty scene, so it can always be bound.
     pub records_buffer: wgpu::Buffer,
+    /// [`CullPart`] array the records name (storage, read-only); at least one part long.
+    pub parts_buffer: wgpu::Buffer,
     /// One [`DrawIndexedIndirectArgs`] per building in id order, then the ground's: the
     /// brute-force draw list (`INDIRECT | STORAGE | COPY_SRC`).
     pub all_draws_buffer: wgpu::Buffer,
     /// CPU copy of the records, indexed by building id.
     pub records: Vec<BuildingRecord>,
+    /// CPU copy of the cull parts.
+    pub parts: Vec<CullPart>,
     /// The ground plane's draw.
     pub ground: DrawIndexedIndirectArgs,
     /// Bounds of all buildings.
@@ -219,7 +236,7 @@ impl SceneGpu {
         });
         let padded;
         let records: &[BuildingRecord] = if geometry.records.is_empty() {
-            padded = [bytemuck::Zeroable::zeroed()];
+            padded = [BuildingRecord::zeroed()];
             &padded
         } else {
             &geometry.records
@@ -228,6 +245,16 @@ impl SceneGpu {
             label: Some("building records"),
             contents: bytemuck::cast_slice(records),
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        });
+        let no_parts = [CullPart::zeroed()];
+        let parts_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("building cull parts"),
+            contents: bytemuck::cast_slice(if geometry.parts.is_empty() {
+                &no_parts
+            } else {
+                &geometry.parts
+            }),
+            usage: wgpu::BufferUsages::STORAGE,
         });
         let all_draws: Vec<DrawIndexedIndirectArgs> = geometry
             .records
@@ -246,8 +273,10 @@ impl SceneGpu {
             vertex_buffer,
             index_buffer,
             records_buffer,
+            parts_buffer,
             all_draws_buffer,
             records: geometry.records.clone(),
+            parts: geometry.parts.clone(),
             ground: geometry.ground,
             bounds: geometry.bounds,
             triangle_count: geometry.building_triangle_count(),

@@ -189,10 +189,11 @@ impl CameraPath {
     }
 }
 
-/// The default paths of a city, in the order street, flyover, dive.
+/// The default paths of a city, in the order street, walk, flyover, dive.
 pub fn default_paths(city: &City, frames: usize) -> Vec<CameraPath> {
     vec![
         street_walk(city, frames),
+        walkthrough(city, frames),
         flyover(city, frames),
         dive(city, frames),
     ]
@@ -365,30 +366,62 @@ impl Obstacles {
 /// (the median base of the buildings around, for mesh cities on sloping terrain), looking along
 /// the walk.
 pub fn street_walk(city: &City, frames: usize) -> CameraPath {
+    let frames = frames.max(2);
+    along_street(city, "street", |length| {
+        (0..frames)
+            .map(|i| i as f64 / (frames - 1) as f64 * length)
+            .collect()
+    })
+}
+
+/// Metres the eye moves between two frames of the [`walkthrough`]: 3 m, so 180 m/s at 60 frames
+/// per second, many times a walker's speed (what a frame inherits from the one before is, if
+/// anything, understated).
+pub const WALKTHROUGH_STEP_M: f64 = 3.0;
+
+/// An interactive walkthrough: the [`street_walk`]'s route at [`WALKTHROUGH_STEP_M`] per frame,
+/// centred on the middle of the route (the city's centre), `frames` poses, fewer when the route
+/// is shorter. Where the street walk spreads its frames over the whole route (hundreds of metres
+/// apart in a large city, each frame nearly a cold start for the two-phase cull, which carries
+/// last frame's visible set), this is the walk a user makes in the viewer.
+pub fn walkthrough(city: &City, frames: usize) -> CameraPath {
+    let frames = frames.max(2);
+    along_street(city, "walk", |length| {
+        let span = WALKTHROUGH_STEP_M * (frames - 1) as f64;
+        let start = ((length - span) * 0.5).max(0.0);
+        (0..frames)
+            .map(|i| start + i as f64 * WALKTHROUGH_STEP_M)
+            .take_while(|&d| d <= length)
+            .collect()
+    })
+}
+
+/// Poses at street level along the city's street route (or free line), at the distances along
+/// it that `distances` gives for the route's length, named `name`.
+fn along_street(city: &City, name: &str, distances: impl Fn(f64) -> Vec<f64>) -> CameraPath {
     let obstacles = Obstacles::new(city);
     let line = street_route(city).unwrap_or_else(|| free_line(city, &obstacles));
     let length = Euclidean.length(&line);
-    let frames = frames.max(2);
-    let mut poses = Vec::with_capacity(frames);
-    for i in 0..frames {
-        let t = i as f64 / (frames - 1) as f64;
-        let (p, dir) = point_along(&line, t * length);
-        // Look slightly ahead, smoothing corners.
-        let (_, ahead) = point_along(&line, (t * length + 8.0).min(length));
-        let d = dir + ahead;
-        let yaw = d.y.atan2(d.x).to_degrees() as f32;
-        poses.push(CameraPose {
-            position: Vec3::new(
-                p.x as f32,
-                p.y as f32,
-                obstacles.ground_m(city, p) + EYE_HEIGHT_M,
-            ),
-            yaw_deg: yaw,
-            pitch_deg: 0.0,
-        });
-    }
+    let poses = distances(length)
+        .into_iter()
+        .map(|d| {
+            let (p, dir) = point_along(&line, d);
+            // Look slightly ahead, smoothing corners.
+            let (_, ahead) = point_along(&line, (d + 8.0).min(length));
+            let look = dir + ahead;
+            CameraPose {
+                position: Vec3::new(
+                    p.x as f32,
+                    p.y as f32,
+                    obstacles.ground_m(city, p) + EYE_HEIGHT_M,
+                ),
+                yaw_deg: look.y.atan2(look.x).to_degrees() as f32,
+                pitch_deg: 0.0,
+            }
+        })
+        .collect();
     CameraPath {
-        name: "street".into(),
+        name: name.into(),
         fov_y_deg: DEFAULT_FOV_Y_DEG,
         poses,
     }
@@ -750,6 +783,34 @@ mod tests {
         let first = p.poses[0].position;
         let last = p.poses[19].position;
         assert!((first - last).length() > 100.0, "{first} {last}");
+    }
+
+    #[test]
+    fn walkthrough_steps_along_the_street_from_its_middle() {
+        let c = city(true);
+        let street = street_walk(&c, 20);
+        let walk = walkthrough(&c, 10);
+        assert_eq!(walk.name, "walk");
+        assert_eq!(walk.poses.len(), 10);
+        for pair in walk.poses.windows(2) {
+            let step = (pair[1].position - pair[0].position).length();
+            assert!(
+                (f64::from(step) - WALKTHROUGH_STEP_M).abs() < 1e-3,
+                "{step}"
+            );
+            assert_eq!(pair[0].yaw_deg, street.poses[0].yaw_deg, "straight street");
+        }
+        // Centred: as far from the street walk's first pose as its last from the street's end.
+        let (first, last) = (walk.poses[0].position, walk.poses[9].position);
+        let (start, end) = (street.poses[0].position, street.poses[19].position);
+        assert!(((first - start).length() - (end - last).length()).abs() < 1e-2);
+        // A route shorter than the walk: it stops at the route's end.
+        let long = walkthrough(&c, 1000);
+        assert!(
+            long.poses.len() < 1000 && long.poses.len() > 30,
+            "{}",
+            long.poses.len()
+        );
     }
 
     #[test]

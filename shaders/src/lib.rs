@@ -16,7 +16,7 @@ mod types;
 pub use constants::{GROUND_ID, ID_BACKGROUND, ID_OFFSET};
 pub use debug::PyramidViewParams;
 pub use hzb::HzbCullParams;
-pub use types::{BuildingRecord, DrawIndexedIndirectArgs, SceneVertex, ViewUniforms};
+pub use types::{BuildingRecord, CullPart, DrawIndexedIndirectArgs, SceneVertex, ViewUniforms};
 
 /// Flat-shaded scene pass (`wgsl/scene.wgsl`): entry points `vs_main`, `fs_main`; group 0
 /// binding 0 is the [`ViewUniforms`] uniform; vertex buffer of [`SceneVertex`].
@@ -35,7 +35,8 @@ pub const HZB_BUILD_WGSL: &str = include_str!(concat!(env!("OUT_DIR"), "/hzb_bui
 /// Hierarchical-Z occlusion cull (`wgsl/hzb_cull.wgsl`): entry point `cull`; group 0: binding 0
 /// the [`HzbCullParams`] uniform, 1 the [`BuildingRecord`]s, 2 the pyramid (unfilterable
 /// `texture_2d<f32>`, all levels), 3 the per-box status (`u32`), 4 the appended
-/// [`DrawIndexedIndirectArgs`], 5 their count (atomic `u32`).
+/// [`DrawIndexedIndirectArgs`], 5 their count (atomic `u32`), 6 the [`CullPart`]s the records
+/// name.
 pub const HZB_CULL_WGSL: &str = include_str!(concat!(env!("OUT_DIR"), "/hzb_cull.wgsl"));
 
 /// Depth copy (`wgsl/depth_copy.wgsl`): entry points `vs_main` (fullscreen triangle, 3 vertices,

@@ -43,8 +43,11 @@ pub struct BuildingRecord {
     pub index_count: u32,
     pub base_vertex: i32,
     pub vertex_count: u32,
-    pub _pad0: u32,
-    pub _pad1: u32,
+    /// The building's tight cull bounds: parts `first_part..first_part + part_count` of the
+    /// scene's [`CullPart`] buffer, which together contain every triangle of the building.
+    /// `part_count` 0: the bounds above are all there is (cluster records, hand-made records).
+    pub first_part: u32,
+    pub part_count: u32,
 }
 
 impl BuildingRecord {
@@ -57,6 +60,35 @@ impl BuildingRecord {
             base_vertex: self.base_vertex,
             first_instance: 0,
         }
+    }
+}
+
+/// One part of a building's cull bounds: a prism whose floor is the convex quadrilateral
+/// `corners_xy` (four x, y pairs in order around it, an oriented rectangle) and which reaches
+/// from `z_min_m` to `z_max_m`. WGSL twin: `CullPart` in `wgsl/shared/scene.wgsl`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct CullPart {
+    pub corners_xy: [[f32; 4]; 2],
+    pub z_min_m: f32,
+    pub z_max_m: f32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+}
+
+impl CullPart {
+    /// The eight corners of the prism: the floor's four, then the roof's.
+    pub fn corners(&self) -> [[f32; 3]; 8] {
+        // Corner k is the first or the second pair of `corners_xy[k / 2]`.
+        let xy = |k: usize| {
+            let v = self.corners_xy[k / 2];
+            let first = 2 * (k & 1);
+            [v[first], v[first + 1]]
+        };
+        std::array::from_fn(|i| {
+            let [x, y] = xy(i % 4);
+            [x, y, if i < 4 { self.z_min_m } else { self.z_max_m }]
+        })
     }
 }
 
@@ -152,8 +184,23 @@ mod tests {
                 ("index_count", offset_of!(BuildingRecord, index_count)),
                 ("base_vertex", offset_of!(BuildingRecord, base_vertex)),
                 ("vertex_count", offset_of!(BuildingRecord, vertex_count)),
-                ("_pad0", offset_of!(BuildingRecord, _pad0)),
-                ("_pad1", offset_of!(BuildingRecord, _pad1)),
+                ("first_part", offset_of!(BuildingRecord, first_part)),
+                ("part_count", offset_of!(BuildingRecord, part_count)),
+            ],
+        );
+    }
+
+    #[test]
+    fn cull_part_matches_wgsl() {
+        check(
+            "CullPart",
+            size_of::<CullPart>(),
+            &[
+                ("corners_xy", offset_of!(CullPart, corners_xy)),
+                ("z_min_m", offset_of!(CullPart, z_min_m)),
+                ("z_max_m", offset_of!(CullPart, z_max_m)),
+                ("_pad0", offset_of!(CullPart, _pad0)),
+                ("_pad1", offset_of!(CullPart, _pad1)),
             ],
         );
     }

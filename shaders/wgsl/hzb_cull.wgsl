@@ -1,7 +1,9 @@
 // Hierarchical-Z occlusion cull (engine `hzb::cull`), the GPU twin of `hzb::reference`'s
 // `project_box` (frustum planes by corner outcodes, screen rectangle, nearest depth) and
 // `DepthPyramid::is_occluded` (a 2x2 read at the coarse level as a shortcut, then at most
-// HZB_FINE_SPAN x HZB_FINE_SPAN texels at the fine level), one invocation per box.
+// HZB_FINE_SPAN x HZB_FINE_SPAN texels at the fine level), one invocation per box; a box that
+// may be visible is tested again part by part, by the prisms its record names
+// (reference `DepthPyramid::cull_record`).
 //
 // Each box is a `BuildingRecord` (bounds and index range). Its status is written as CULL_VISIBLE,
 // CULL_FRUSTUM_OUTSIDE or CULL_OCCLUDED; every visible box appends its DrawIndexedIndirectArgs
@@ -36,6 +38,7 @@ struct HzbCullParams {
 @group(0) @binding(3) var<storage, read_write> status: array<u32>;
 @group(0) @binding(4) var<storage, read_write> commands: array<DrawIndexedIndirectArgs>;
 @group(0) @binding(5) var<storage, read_write> draw_count: atomic<u32>;
+@group(0) @binding(6) var<storage, read> parts: array<CullPart>;
 
 // Where a box lands: status CULL_VISIBLE with `rect` valid only when `has_rect`.
 struct Projection {
@@ -46,7 +49,38 @@ struct Projection {
     nearest_depth: f32,
 }
 
-fn project(lo: vec3<f32>, hi: vec3<f32>) -> Projection {
+// The eight corners of the box [lo, hi] (bit 0: x, 1: y, 2: z at hi).
+fn box_corners(lo: vec3<f32>, hi: vec3<f32>) -> array<vec3<f32>, 8> {
+    var corners: array<vec3<f32>, 8>;
+    for (var i = 0u; i < 8u; i++) {
+        corners[i] = vec3<f32>(
+            select(lo.x, hi.x, (i & 1u) != 0u),
+            select(lo.y, hi.y, (i & 2u) != 0u),
+            select(lo.z, hi.z, (i & 4u) != 0u),
+        );
+    }
+    return corners;
+}
+
+// The eight corners of a cull part (reference `CullPart::corners`): floor, then roof.
+fn part_corners(part: CullPart) -> array<vec3<f32>, 8> {
+    let xy = array<vec2<f32>, 4>(
+        part.corners_xy[0].xy,
+        part.corners_xy[0].zw,
+        part.corners_xy[1].xy,
+        part.corners_xy[1].zw,
+    );
+    var corners: array<vec3<f32>, 8>;
+    for (var i = 0u; i < 4u; i++) {
+        corners[i] = vec3<f32>(xy[i], part.z_min_m);
+        corners[i + 4u] = vec3<f32>(xy[i], part.z_max_m);
+    }
+    return corners;
+}
+
+// Where the convex hull of `corners_in` lands (reference `project_corners`).
+fn project(corners_in: array<vec3<f32>, 8>) -> Projection {
+    var corners = corners_in;
     var out: Projection;
     out.status = CULL_VISIBLE;
     out.has_rect = false;
@@ -61,11 +95,7 @@ fn project(lo: vec3<f32>, hi: vec3<f32>) -> Projection {
     // bottom, near; each test is widened by the rounding of both coordinates it compares.
     var beyond_all = 31u;
     for (var i = 0u; i < 8u; i++) {
-        let corner = vec3<f32>(
-            select(lo.x, hi.x, (i & 1u) != 0u),
-            select(lo.y, hi.y, (i & 2u) != 0u),
-            select(lo.z, hi.z, (i & 4u) != 0u),
-        );
+        let corner = corners[i];
         let clip = m * vec4<f32>(corner, 1.0);
         let err = (m_abs * vec4<f32>(abs(corner), 1.0)) * HZB_ROUNDING_REL;
         let beyond = select(0u, 1u, clip.x > clip.w + (err.x + err.w))
@@ -129,20 +159,24 @@ fn level_spanning(rect: vec4<u32>, span: u32) -> u32 {
     return level;
 }
 
-@compute @workgroup_size(HZB_CULL_WORKGROUP, 1, 1)
-fn cull(@builtin(global_invocation_id) id: vec3<u32>) {
-    let index = id.x;
-    let in_range = index < params.box_count;
-    let record = records[min(index, max(params.box_count, 1u) - 1u)];
-    var p = project(record.bounds_min_m, record.bounds_max_m);
+// Outcome of `test_hull` besides CULL_VISIBLE (a rectangle the pyramid does not hide),
+// CULL_FRUSTUM_OUTSIDE and CULL_OCCLUDED: the hull reaches the near plane (no safe rectangle;
+// visible).
+const HULL_CROSSES_NEAR: u32 = 3u;
+
+// The convex hull of `corners` against the frustum and the pyramid (reference
+// `DepthPyramid::test_hull`); with `reads` false nothing is read (an invocation past the box
+// count still runs the uniform level loop).
+fn test_hull(corners: array<vec3<f32>, 8>, reads: bool) -> u32 {
+    let p = project(corners);
     var coarse = -1;
     var fine = -1;
-    if in_range && p.has_rect {
+    if reads && p.has_rect {
         coarse = i32(min(level_spanning(p.rect, 2u), params.level_count - 1u));
         fine = i32(min(level_spanning(p.rect, HZB_FINE_SPAN), params.level_count - 1u));
     }
     // Uniform loop over levels, coarse to fine; each invocation reads only at the counter's
-    // level (trap 1). The coarse 2x2 read culls most hidden boxes; a box it keeps is decided by
+    // level (trap 1; in the loop over parts the active invocations still share the counter). The coarse 2x2 read culls most hidden boxes; a box it keeps is decided by
     // the fine read, which skips the fine texels under coarse texels that hide the box and stops
     // at the first texel not in front of it (visible). Texels are nested (a texel is the
     // minimum of its descendants), so the answer is the fine level's alone: the reference's
@@ -186,14 +220,45 @@ fn cull(@builtin(global_invocation_id) id: vec3<u32>) {
             decided = true;
         }
     }
+    if p.status != CULL_VISIBLE {
+        return p.status;
+    }
+    if !p.has_rect {
+        return HULL_CROSSES_NEAR;
+    }
+    return select(CULL_VISIBLE, CULL_OCCLUDED, occluded);
+}
+
+// One record: its box, then, when the box may be visible, its parts (reference
+// `DepthPyramid::cull_record`): outside when every part is, hidden when none is visible.
+@compute @workgroup_size(HZB_CULL_WORKGROUP, 1, 1)
+fn cull(@builtin(global_invocation_id) id: vec3<u32>) {
+    let index = id.x;
+    let in_range = index < params.box_count;
+    let record = records[min(index, max(params.box_count, 1u) - 1u)];
+    var outcome = test_hull(box_corners(record.bounds_min_m, record.bounds_max_m), in_range);
     if !in_range {
         return;
     }
-    if p.has_rect && occluded {
-        p.status = CULL_OCCLUDED;
+    let part_count = record.part_count;
+    // Parts past the buffer (a malformed record) are not read: the box decides.
+    let parts_valid = record.first_part < arrayLength(&parts)
+        && part_count <= arrayLength(&parts) - record.first_part;
+    if outcome != CULL_FRUSTUM_OUTSIDE && outcome != CULL_OCCLUDED && part_count > 0u && parts_valid {
+        var all_outside = true;
+        var any_visible = false;
+        for (var k = 0u; k < part_count && !any_visible; k++) {
+            let s = test_hull(part_corners(parts[record.first_part + k]), true);
+            any_visible = s == CULL_VISIBLE || s == HULL_CROSSES_NEAR;
+            all_outside = all_outside && s == CULL_FRUSTUM_OUTSIDE;
+        }
+        outcome = select(select(CULL_OCCLUDED, CULL_FRUSTUM_OUTSIDE, all_outside), CULL_VISIBLE, any_visible);
     }
-    status[index] = p.status;
-    if p.status == CULL_VISIBLE {
+    if outcome == HULL_CROSSES_NEAR {
+        outcome = CULL_VISIBLE;
+    }
+    status[index] = outcome;
+    if outcome == CULL_VISIBLE {
         let slot = atomicAdd(&draw_count, 1u);
         commands[slot] = DrawIndexedIndirectArgs(record.index_count, 1u, record.first_index, record.base_vertex, 0u);
     }

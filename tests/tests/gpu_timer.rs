@@ -59,7 +59,7 @@ fn timed_frame(gpu: &GpuContext, timer: &mut GpuTimer, scene: &SceneGpu) -> (Gpu
     cull.encode_timed(
         gpu,
         &mut encoder,
-        &scene.records_buffer,
+        (&scene.records_buffer, Some(&scene.parts_buffer)),
         n,
         (&pyramid, view_proj),
         timer.compute_pass_writes("cull"),

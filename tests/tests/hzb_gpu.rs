@@ -8,10 +8,12 @@
 use citywalk_engine::camera::Camera;
 use citywalk_engine::gpu::GpuContext;
 use citywalk_engine::hzb::cull::{CULL_FRUSTUM_OUTSIDE, CULL_OCCLUDED, CULL_VISIBLE};
-use citywalk_engine::hzb::reference::{BoxProjection, DepthPyramid, project_box, select_level};
+use citywalk_engine::hzb::reference::{
+    BoxProjection, DepthPyramid, HullTest, RecordCull, box_corners, project_box, select_level,
+};
 use citywalk_engine::hzb::{CullResults, HzbCull, HzbPyramid};
 use citywalk_engine::render::{fragment_float_texture_entry, fullscreen_pipeline};
-use citywalk_shaders::{BuildingRecord, DrawIndexedIndirectArgs};
+use citywalk_shaders::{BuildingRecord, CullPart, DrawIndexedIndirectArgs};
 use citywalk_tests::gpu::gpu_or_skip;
 use citywalk_tests::rng::Rng;
 use glam::{Mat4, Vec3};
@@ -352,47 +354,91 @@ fn random_boxes(rng: &mut Rng, camera: &Camera, aspect: f32, n: usize) -> Vec<(V
         .collect()
 }
 
-/// Status of one box by the CPU reference.
-fn cpu_status(pyramid: &DepthPyramid, vp: Mat4, lo: Vec3, hi: Vec3, w: u32, h: u32) -> u32 {
-    match project_box(vp, lo, hi, w, h) {
-        BoxProjection::Outside => CULL_FRUSTUM_OUTSIDE,
-        BoxProjection::CrossesNear => CULL_VISIBLE,
-        BoxProjection::Rect {
-            rect,
-            nearest_depth,
-        } => {
-            if pyramid.is_occluded(rect, nearest_depth) {
-                CULL_OCCLUDED
-            } else {
-                CULL_VISIBLE
-            }
-        }
+/// Status of one record by the CPU reference (its box, then its parts).
+fn cpu_status(
+    pyramid: &DepthPyramid,
+    vp: Mat4,
+    record: &BuildingRecord,
+    parts: &[CullPart],
+) -> u32 {
+    match pyramid.cull_record(vp, record, parts) {
+        RecordCull::Outside => CULL_FRUSTUM_OUTSIDE,
+        RecordCull::Occluded => CULL_OCCLUDED,
+        RecordCull::Visible => CULL_VISIBLE,
     }
 }
 
-/// Records with unique draw ranges, so that each command names its box.
-fn records_for(boxes: &[(Vec3, Vec3)]) -> Vec<BuildingRecord> {
-    boxes
+/// A prism over the plan quadrilateral `xy` (counter-clockwise) from `z0` to `z1`.
+fn prism(xy: [(f32, f32); 4], z0: f32, z1: f32) -> CullPart {
+    CullPart {
+        corners_xy: [
+            [xy[0].0, xy[0].1, xy[1].0, xy[1].1],
+            [xy[2].0, xy[2].1, xy[3].0, xy[3].1],
+        ],
+        z_min_m: z0,
+        z_max_m: z1,
+        _pad0: 0,
+        _pad1: 0,
+    }
+}
+
+/// Parts inside each box, as a building's are inside its box: none for every third box, a
+/// diamond (the box's plan rotated by 45° and inscribed) for the next, and a low diamond with a
+/// square tower in the middle for the last.
+fn parts_for(boxes: &[(Vec3, Vec3)]) -> (Vec<CullPart>, Vec<(u32, u32)>) {
+    let mut parts = Vec::new();
+    let mut ranges = Vec::new();
+    for (i, (lo, hi)) in boxes.iter().enumerate() {
+        let first = parts.len() as u32;
+        let c = (*lo + *hi) * 0.5;
+        let diamond = [(c.x, lo.y), (hi.x, c.y), (c.x, hi.y), (lo.x, c.y)];
+        match i % 3 {
+            1 => parts.push(prism(diamond, lo.z, hi.z)),
+            2 => {
+                parts.push(prism(diamond, lo.z, lo.z + 0.4 * (hi.z - lo.z)));
+                let q = (*hi - *lo) * 0.125;
+                let tower = [
+                    (c.x - q.x, c.y - q.y),
+                    (c.x + q.x, c.y - q.y),
+                    (c.x + q.x, c.y + q.y),
+                    (c.x - q.x, c.y + q.y),
+                ];
+                parts.push(prism(tower, lo.z, hi.z));
+            }
+            _ => {}
+        }
+        ranges.push((first, parts.len() as u32 - first));
+    }
+    (parts, ranges)
+}
+
+/// Records with unique draw ranges, so that each command names its box, and the parts of
+/// [`parts_for`].
+fn records_for(boxes: &[(Vec3, Vec3)]) -> (Vec<BuildingRecord>, Vec<CullPart>) {
+    let (parts, ranges) = parts_for(boxes);
+    let records = boxes
         .iter()
+        .zip(ranges)
         .enumerate()
-        .map(|(i, (lo, hi))| BuildingRecord {
+        .map(|(i, ((lo, hi), (first_part, part_count)))| BuildingRecord {
             bounds_min_m: lo.to_array(),
             first_index: i as u32 * 7,
             bounds_max_m: hi.to_array(),
             index_count: 3 * (i as u32 % 50 + 1),
             base_vertex: i as i32 * 3 - 1000,
             vertex_count: 4,
-            _pad0: 0,
-            _pad1: 0,
+            first_part,
+            part_count,
         })
-        .collect()
+        .collect();
+    (records, parts)
 }
 
 /// Uploads `records`, culls them against `pyramid` seen through `vp` and reads the results back.
 fn cull_records(
     gpu: &GpuContext,
     cull: &mut HzbCull,
-    records: &[BuildingRecord],
+    (records, parts): (&[BuildingRecord], &[CullPart]),
     pyramid: &HzbPyramid,
     vp: Mat4,
 ) -> CullResults {
@@ -403,13 +449,21 @@ fn cull_records(
             contents: bytemuck::cast_slice(records),
             usage: wgpu::BufferUsages::STORAGE,
         });
+    let parts_buffer = (!parts.is_empty()).then(|| {
+        gpu.device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("test parts"),
+                contents: bytemuck::cast_slice(parts),
+                usage: wgpu::BufferUsages::STORAGE,
+            })
+    });
     let mut encoder = gpu
         .device
         .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
     cull.encode(
         gpu,
         &mut encoder,
-        &records_buffer,
+        (&records_buffer, parts_buffer.as_ref()),
         records.len() as u32,
         pyramid,
         vp,
@@ -455,6 +509,9 @@ fn gpu_cull_matches_reference_and_never_culls_more() {
     // Boxes a 2x2 test at the coarse level alone would keep and the fine test culls, and how
     // many of them the GPU culls too.
     let (mut fine_only, mut fine_only_gpu) = (0usize, 0usize);
+    // Records whose box the test keeps and whose parts it culls, and how many of them the GPU
+    // culls too.
+    let (mut parts_only, mut parts_only_gpu) = (0usize, 0usize);
     for (c, camera) in cameras.iter().enumerate() {
         let (w, h) = if c == 1 { (1001, 777) } else { (1280, 720) };
         let depth = walls_depth(&mut rng, camera, w, h);
@@ -466,11 +523,11 @@ fn gpu_cull_matches_reference_and_never_culls_more() {
         );
         let vp = camera.view_proj(w as f32 / h as f32);
         let boxes = random_boxes(&mut rng, camera, w as f32 / h as f32, 4000);
-        let records = records_for(&boxes);
-        let results = cull_records(&gpu, &mut cull, &records, &pyramid, vp);
+        let (records, parts) = records_for(&boxes);
+        let results = cull_records(&gpu, &mut cull, (&records, &parts), &pyramid, vp);
         assert_eq!(results.status.len(), boxes.len());
         for (i, ((lo, hi), &g)) in boxes.iter().zip(&results.status).enumerate() {
-            let cpu = cpu_status(&cpu_pyramid, vp, *lo, *hi, w, h);
+            let cpu = cpu_status(&cpu_pyramid, vp, &records[i], &parts);
             cpu_counts[cpu as usize] += 1;
             assert!(
                 g == cpu || g == CULL_VISIBLE,
@@ -483,11 +540,16 @@ fn gpu_cull_matches_reference_and_never_culls_more() {
                 rect,
                 nearest_depth,
             } = project_box(vp, *lo, *hi, w, h)
-                && cpu == CULL_OCCLUDED
+                && cpu_pyramid.is_occluded(rect, nearest_depth)
                 && nearest_depth >= cpu_pyramid.farthest_in(rect, select_level(rect))
             {
                 fine_only += 1;
                 fine_only_gpu += usize::from(g == CULL_OCCLUDED);
+            }
+            let box_test = cpu_pyramid.test_hull(vp, &box_corners(*lo, *hi));
+            if cpu != CULL_VISIBLE && matches!(box_test, HullTest::Kept | HullTest::CrossesNear) {
+                parts_only += 1;
+                parts_only_gpu += usize::from(g == cpu);
             }
         }
         // The commands are exactly the GPU-visible boxes' draws.
@@ -504,8 +566,15 @@ fn gpu_cull_matches_reference_and_never_culls_more() {
     }
     eprintln!(
         "{agree} of {total} boxes agree; CPU: {} visible, {} outside, {} occluded \
-         ({fine_only} only by the fine level, {fine_only_gpu} of them culled by the GPU)",
+         ({fine_only} only by the fine level, {fine_only_gpu} of them culled by the GPU; \
+         {parts_only} only by their parts, {parts_only_gpu} of them culled by the GPU)",
         cpu_counts[0], cpu_counts[1], cpu_counts[2]
+    );
+    // The parts are exercised, and the GPU culls what they hide.
+    assert!(parts_only * 50 > total, "only {parts_only} culls by parts");
+    assert!(
+        parts_only_gpu as f64 >= 0.99 * parts_only as f64,
+        "the GPU culls only {parts_only_gpu} of the {parts_only} records only their parts hide"
     );
     // The fine level is exercised, and the GPU really reads it (not only the coarse texels).
     assert!(fine_only * 100 > total, "only {fine_only} fine-level culls");
@@ -564,13 +633,13 @@ fn gpu_culls_boxes_crossing_the_eye_plane_outside_the_view() {
             (lo, a.max(b) + z)
         })
         .collect();
-    let records = records_for(&boxes);
+    let (records, parts) = records_for(&boxes);
     let mut cull = HzbCull::new(&gpu, 64);
-    let results = cull_records(&gpu, &mut cull, &records, &pyramid, vp);
+    let results = cull_records(&gpu, &mut cull, (&records, &parts), &pyramid, vp);
     let (mut crossing, mut outside, mut outside_gpu, mut kept) = (0, 0, 0, 0);
     for (i, ((lo, hi), &g)) in boxes.iter().zip(&results.status).enumerate() {
         let projection = project_box(vp, *lo, *hi, w, h);
-        let cpu = cpu_status(&cpu_pyramid, vp, *lo, *hi, w, h);
+        let cpu = cpu_status(&cpu_pyramid, vp, &records[i], &parts);
         assert!(
             g == cpu || g == CULL_VISIBLE,
             "box {i} [{lo}, {hi}]: GPU {g}, CPU {cpu} ({projection:?})"
@@ -655,7 +724,14 @@ fn hzb_gpu_timings() {
     let vp = camera.view_proj(w as f32 / h as f32);
     for n in [10_000usize, 100_000] {
         let boxes = random_boxes(&mut rng, &camera, w as f32 / h as f32, n);
-        let records = records_for(&boxes);
+        let (records, parts) = records_for(&boxes);
+        let parts_buffer = gpu
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("timing parts"),
+                contents: bytemuck::cast_slice(&parts),
+                usage: wgpu::BufferUsages::STORAGE,
+            });
         let records_buffer = gpu
             .device
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -666,7 +742,14 @@ fn hzb_gpu_timings() {
         let cull = std::cell::RefCell::new(HzbCull::new(&gpu, n as u32));
         let (median, best) = time(&|e| {
             cull.borrow_mut()
-                .encode(&gpu, e, &records_buffer, n as u32, &pyramid, vp)
+                .encode(
+                    &gpu,
+                    e,
+                    (&records_buffer, Some(&parts_buffer)),
+                    n as u32,
+                    &pyramid,
+                    vp,
+                )
                 .expect("cull");
         });
         eprintln!("cull {n} boxes: median {median:.2} ms, best {best:.2} ms");
@@ -739,8 +822,15 @@ fn gpu_cull_of_a_rendered_city_never_hides_a_visible_building() {
             &target.depth,
         );
         pyramid.build(&mut encoder, &target.depth.view);
-        cull.encode(&gpu, &mut encoder, &scene.records_buffer, n, &pyramid, vp)
-            .expect("cull");
+        cull.encode(
+            &gpu,
+            &mut encoder,
+            (&scene.records_buffer, Some(&scene.parts_buffer)),
+            n,
+            &pyramid,
+            vp,
+        )
+        .expect("cull");
         gpu.queue.submit([encoder.finish()]);
         let results = cull.read_back(&gpu, n).expect("cull readback");
         let gpu_levels = pyramid.read_back(&gpu).expect("pyramid readback");
@@ -755,8 +845,7 @@ fn gpu_cull_of_a_rendered_city_never_hides_a_visible_building() {
             .expect("oracle");
         assert!(!seen.is_empty(), "camera {k} sees no building");
         for (i, r) in scene.records.iter().enumerate() {
-            let (lo, hi) = (Vec3::from(r.bounds_min_m), Vec3::from(r.bounds_max_m));
-            let cpu = cpu_status(&cpu_pyramid, vp, lo, hi, w, h);
+            let cpu = cpu_status(&cpu_pyramid, vp, r, &scene.parts);
             let g = results.status[i];
             assert!(
                 g == cpu || g == CULL_VISIBLE,

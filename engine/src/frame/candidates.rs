@@ -350,8 +350,8 @@ mod tests {
             index_count: 36,
             base_vertex: 0,
             vertex_count: 8,
-            _pad0: 0,
-            _pad1: 0,
+            first_part: 0,
+            part_count: 0,
         }
     }
 

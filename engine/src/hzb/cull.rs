@@ -20,8 +20,11 @@ use citywalk_shaders::constants::HZB_CULL_WORKGROUP;
 pub use citywalk_shaders::constants::{
     CULL_FRUSTUM_OUTSIDE, CULL_OCCLUDED, CULL_VISIBLE, HZB_FINE_SPAN, HZB_ROUNDING_REL,
 };
-use citywalk_shaders::{BuildingRecord, DrawIndexedIndirectArgs, HZB_CULL_WGSL, HzbCullParams};
+use citywalk_shaders::{
+    BuildingRecord, CullPart, DrawIndexedIndirectArgs, HZB_CULL_WGSL, HzbCullParams,
+};
 use glam::Mat4;
+use wgpu::util::DeviceExt;
 
 use super::build::HzbPyramid;
 use crate::gpu::GpuContext;
@@ -56,6 +59,8 @@ pub struct HzbCull {
     status: wgpu::Buffer,
     commands: wgpu::Buffer,
     count: wgpu::Buffer,
+    /// One zeroed part, bound when the records name none.
+    no_parts: wgpu::Buffer,
     capacity: u32,
 }
 
@@ -107,6 +112,11 @@ impl HzbCull {
                 buffer_entry(3, rw, STATUS_BYTES),
                 buffer_entry(4, rw, COMMAND_BYTES),
                 buffer_entry(5, rw, 4),
+                buffer_entry(
+                    6,
+                    wgpu::BufferBindingType::Storage { read_only: true },
+                    size_of::<CullPart>() as u64,
+                ),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -137,6 +147,11 @@ impl HzbCull {
                 | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
+        let no_parts = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("hzb cull: no parts"),
+            contents: bytemuck::bytes_of(&<CullPart as bytemuck::Zeroable>::zeroed()),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
         let capacity = capacity.max(1);
         let (status, commands) = Self::outputs(device, capacity);
         HzbCull {
@@ -147,6 +162,7 @@ impl HzbCull {
             status,
             commands,
             count,
+            no_parts,
             capacity,
         }
     }
@@ -179,7 +195,9 @@ impl HzbCull {
     }
 
     /// Records the cull of the first `box_count` records of `records` (a storage buffer of
-    /// [`BuildingRecord`], e.g. [`crate::scene_gpu::SceneGpu::records_buffer`]) against
+    /// [`BuildingRecord`], e.g. [`crate::scene_gpu::SceneGpu::records_buffer`], whose part ranges
+    /// index `parts`, e.g. [`crate::scene_gpu::SceneGpu::parts_buffer`]; `None` when no record
+    /// names parts) against
     /// `pyramid` (built from this frame's depth, seen with `view_proj`). Clears the commands and
     /// the count first. The uniforms are written through the queue: submit this encoder before
     /// recording another cull with this pass.
@@ -187,12 +205,19 @@ impl HzbCull {
         &mut self,
         gpu: &GpuContext,
         encoder: &mut wgpu::CommandEncoder,
-        records: &wgpu::Buffer,
+        (records, parts): (&wgpu::Buffer, Option<&wgpu::Buffer>),
         box_count: u32,
         pyramid: &HzbPyramid,
         view_proj: Mat4,
     ) -> Result<(), CullError> {
-        self.encode_timed(gpu, encoder, records, box_count, (pyramid, view_proj), None)
+        self.encode_timed(
+            gpu,
+            encoder,
+            (records, parts),
+            box_count,
+            (pyramid, view_proj),
+            None,
+        )
     }
 
     /// As [`HzbCull::encode`], with the compute pass timed by `timestamp_writes`
@@ -202,7 +227,7 @@ impl HzbCull {
         &mut self,
         gpu: &GpuContext,
         encoder: &mut wgpu::CommandEncoder,
-        records: &wgpu::Buffer,
+        (records, parts): (&wgpu::Buffer, Option<&wgpu::Buffer>),
         box_count: u32,
         (pyramid, view_proj): (&HzbPyramid, Mat4),
         timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
@@ -273,6 +298,10 @@ impl HzbCull {
                 wgpu::BindGroupEntry {
                     binding: 5,
                     resource: self.count.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 6,
+                    resource: parts.unwrap_or(&self.no_parts).as_entire_binding(),
                 },
             ],
         });

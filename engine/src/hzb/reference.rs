@@ -20,12 +20,18 @@
 //! sky); at street level it keeps about half as many boxes. Its answer alone defines the
 //! result; the coarse read is only a shortcut.
 //!
+//! Records: a building's record is tested by its axis-aligned box first; when that may be
+//! visible, by the oriented prisms of its [`CullPart`]s, which hug rotated footprints and
+//! separate a tower from its podium ([`crate::scene_gpu::cull_parts`]): the building is
+//! visible when a part is ([`DepthPyramid::cull_record`]).
+//!
 //! Frustum: a box is outside when all eight corners lie beyond one plane of the frustum (the four
 //! sides, or the near plane) in clip space. Corners behind the eye are fine for these half-space
 //! tests, so a box that crosses the near plane (a building beside and behind a pedestrian) is
 //! still culled when it is outside the view, instead of being kept as "unbounded".
 
 use citywalk_shaders::constants::{HZB_BEHIND_W, HZB_FINE_SPAN};
+use citywalk_shaders::{BuildingRecord, CullPart};
 use glam::{Mat4, Vec3, Vec4};
 
 /// One level of the pyramid.
@@ -116,6 +122,84 @@ impl DepthPyramid {
     }
 }
 
+/// What the cull decides for one record ([`DepthPyramid::cull_record`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RecordCull {
+    /// The box, or every part, is outside the view frustum.
+    Outside,
+    /// Hidden behind the pyramid: the box, or every part not outside.
+    Occluded,
+    /// May be visible.
+    Visible,
+}
+
+/// What the test of one convex hull (a box or a part) finds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum HullTest {
+    Outside,
+    Occluded,
+    /// Its rectangle is not hidden.
+    Kept,
+    /// It reaches the near plane: no safe rectangle, visible.
+    CrossesNear,
+}
+
+impl DepthPyramid {
+    /// The convex hull of `corners` seen through the reversed-Z `view_proj` against this
+    /// pyramid (level 0 is the viewport), by [`project_corners`] and
+    /// [`DepthPyramid::is_occluded`].
+    pub fn test_hull(&self, view_proj: Mat4, corners: &[Vec3; 8]) -> HullTest {
+        let (width, height) = (self.levels[0].width, self.levels[0].height);
+        match project_corners(view_proj, corners, width, height) {
+            BoxProjection::Outside => HullTest::Outside,
+            BoxProjection::CrossesNear => HullTest::CrossesNear,
+            BoxProjection::Rect {
+                rect,
+                nearest_depth,
+            } if self.is_occluded(rect, nearest_depth) => HullTest::Occluded,
+            BoxProjection::Rect { .. } => HullTest::Kept,
+        }
+    }
+
+    /// The record's box, then, when the box may be visible, its parts `parts[first_part..]`
+    /// (a range past `parts` is ignored: the box decides): outside when every part is, hidden
+    /// when no part is visible. What the GPU cull computes (`shaders/wgsl/hzb_cull.wgsl`).
+    pub fn cull_record(
+        &self,
+        view_proj: Mat4,
+        record: &BuildingRecord,
+        parts: &[CullPart],
+    ) -> RecordCull {
+        let lo = Vec3::from_array(record.bounds_min_m);
+        let hi = Vec3::from_array(record.bounds_max_m);
+        match self.test_hull(view_proj, &box_corners(lo, hi)) {
+            HullTest::Outside => return RecordCull::Outside,
+            HullTest::Occluded => return RecordCull::Occluded,
+            HullTest::Kept | HullTest::CrossesNear => {}
+        }
+        let first = record.first_part as usize;
+        let Some(parts) = parts.get(first..first + record.part_count as usize) else {
+            return RecordCull::Visible;
+        };
+        if parts.is_empty() {
+            return RecordCull::Visible;
+        }
+        let mut all_outside = true;
+        for part in parts {
+            match self.test_hull(view_proj, &part.corners().map(Vec3::from_array)) {
+                HullTest::Kept | HullTest::CrossesNear => return RecordCull::Visible,
+                HullTest::Occluded => all_outside = false,
+                HullTest::Outside => {}
+            }
+        }
+        if all_outside {
+            RecordCull::Outside
+        } else {
+            RecordCull::Occluded
+        }
+    }
+}
+
 /// Minimum of the up to 2×2 texels of `prev` under texel `(x, y)` of the next level.
 pub fn reduce_texel(prev: &PyramidLevel, x: u32, y: u32) -> f32 {
     let mut m = f32::INFINITY;
@@ -192,18 +276,35 @@ pub fn outcode(clip: Vec4) -> u32 {
 /// The rectangle is conservative: it contains every pixel whose centre the box's rasterisation
 /// could cover.
 pub fn project_box(view_proj: Mat4, lo: Vec3, hi: Vec3, width: u32, height: u32) -> BoxProjection {
+    project_corners(view_proj, &box_corners(lo, hi), width, height)
+}
+
+/// The eight corners of the box `[lo, hi]` (bit 0 of the index: x at `hi`, bit 1: y, bit 2: z).
+pub fn box_corners(lo: Vec3, hi: Vec3) -> [Vec3; 8] {
+    std::array::from_fn(|i| {
+        Vec3::new(
+            if i & 1 == 0 { lo.x } else { hi.x },
+            if i & 2 == 0 { lo.y } else { hi.y },
+            if i & 4 == 0 { lo.z } else { hi.z },
+        )
+    })
+}
+
+/// As [`project_box`], for the convex hull of eight `corners` (a box, or a [`CullPart`]'s
+/// prism).
+pub fn project_corners(
+    view_proj: Mat4,
+    corners: &[Vec3; 8],
+    width: u32,
+    height: u32,
+) -> BoxProjection {
     let mut ndc_min = glam::Vec2::splat(f32::INFINITY);
     let mut ndc_max = glam::Vec2::splat(f32::NEG_INFINITY);
     let mut nearest_depth = 0.0f32;
     let (mut behind, mut inside_near) = (0, 0);
     // Planes every corner so far lies beyond.
     let mut beyond_all = 0b1_1111;
-    for i in 0..8 {
-        let corner = Vec3::new(
-            if i & 1 == 0 { lo.x } else { hi.x },
-            if i & 2 == 0 { lo.y } else { hi.y },
-            if i & 4 == 0 { lo.z } else { hi.z },
-        );
+    for corner in corners {
         let clip: Vec4 = view_proj * corner.extend(1.0);
         beyond_all &= outcode(clip);
         // The same threshold as the GPU cull (`shaders/wgsl/hzb_cull.wgsl`).

@@ -106,7 +106,7 @@ pub fn lod_geometry(city: &City, tree: &ClusterTree) -> SceneGeometry {
 /// The occlusion cull's record of every draw id, from `geometry_records` (the records of
 /// [`lod_geometry`] of `tree`, whose first `building_count` are the buildings): the same records,
 /// each cluster's bounds grown to the union of its mesh's, its node's and the records of the
-/// buildings under it.
+/// buildings under it, and culled by those bounds alone (no parts).
 pub fn cull_records(
     geometry_records: &[BuildingRecord],
     building_count: u32,
@@ -135,6 +135,8 @@ pub fn cull_records(
         }
         record.bounds_min_m = lo.to_array();
         record.bounds_max_m = hi.to_array();
+        // The parts of the cluster mesh alone do not hold its buildings: the box only.
+        record.part_count = 0;
     }
     out
 }

@@ -17,6 +17,18 @@ struct BuildingRecord {
     index_count: u32,
     base_vertex: i32,
     vertex_count: u32,
+    // Parts first_part.. of the CullPart buffer (0 parts: the bounds alone).
+    first_part: u32,
+    part_count: u32,
+}
+
+// One part of a building's cull bounds: a prism over the convex quadrilateral of four (x, y)
+// corners (corners_xy[0].xy, [0].zw, [1].xy, [1].zw), from z_min_m to z_max_m.
+// Rust twin: citywalk_shaders::CullPart.
+struct CullPart {
+    corners_xy: array<vec4<f32>, 2>,
+    z_min_m: f32,
+    z_max_m: f32,
     _pad0: u32,
     _pad1: u32,
 }

@@ -19,6 +19,7 @@ use citywalk_engine::lod::scene::LodScene;
 use citywalk_engine::scene_gpu::{SceneGeometry, SceneGpu};
 use citywalk_scenes::camera_path::{self, CameraPath};
 
+use crate::path_arg::GENERATED;
 use crate::scene_input::load_scene;
 
 /// Arguments of `citywalk bench`.
@@ -33,8 +34,10 @@ pub struct Args {
     /// Print the modes this build implements, comma-separated, and exit.
     #[arg(long)]
     pub list_modes: bool,
-    /// Camera paths generated per scene: street, flyover, dive.
-    #[arg(long, default_value = "street,flyover,dive")]
+    /// Camera paths generated per scene: street (the whole street route, frames spread over
+    /// it), walk (an interactive walkthrough: 3 m per frame from the route's middle), flyover,
+    /// dive.
+    #[arg(long, default_value = "street,walk,flyover,dive")]
     pub paths: String,
     /// Path files to replay in addition to (or, with --paths "", instead of) generated ones.
     #[arg(long = "path-file")]
@@ -133,8 +136,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 pub fn parse_path_kinds(list: &str) -> anyhow::Result<Vec<String>> {
     let mut kinds = Vec::new();
     for word in list.split(',').map(str::trim).filter(|w| !w.is_empty()) {
-        if !["street", "flyover", "dive"].contains(&word) {
-            anyhow::bail!("unknown path '{word}' (paths: street, flyover, dive)");
+        if !GENERATED.contains(&word) {
+            anyhow::bail!("unknown path '{word}' (paths: {})", GENERATED.join(", "));
         }
         kinds.push(word.to_string());
     }
@@ -197,6 +200,7 @@ pub fn run_benchmark_with(
             .iter()
             .map(|kind| match kind.as_str() {
                 "street" => camera_path::street_walk(&city, frames),
+                "walk" => camera_path::walkthrough(&city, frames),
                 "flyover" => camera_path::flyover(&city, frames),
                 _ => camera_path::dive(&city, frames),
             })

@@ -1,5 +1,5 @@
 //! `--path` / `--play` arguments: a camera path file, or the name of a default path generated
-//! for the scene (`street`, `flyover`, `dive`; [`citywalk_scenes::camera_path`]).
+//! for the scene (`street`, `walk`, `flyover`, `dive`; [`citywalk_scenes::camera_path`]).
 
 use std::path::Path;
 
@@ -8,7 +8,7 @@ use citywalk_scenes::City;
 use citywalk_scenes::camera_path::{self, CameraPath};
 
 /// The names of the generated paths.
-pub const GENERATED: [&str; 3] = ["street", "flyover", "dive"];
+pub const GENERATED: [&str; 4] = ["street", "walk", "flyover", "dive"];
 
 /// What a path argument names.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -30,6 +30,7 @@ impl PathSource<'_> {
     pub fn load(&self, city: &City, frames: usize) -> anyhow::Result<CameraPath> {
         let path = match self {
             PathSource::Generated("street") => camera_path::street_walk(city, frames),
+            PathSource::Generated("walk") => camera_path::walkthrough(city, frames),
             PathSource::Generated("flyover") => camera_path::flyover(city, frames),
             PathSource::Generated(_) => camera_path::dive(city, frames),
             PathSource::File(file) => CameraPath::read(file)

@@ -127,7 +127,7 @@ impl PathFrames<'_> {
         let source = PathSource::of(path_arg);
         if let (PathSource::File(file), Some(_)) = (&source, frames) {
             anyhow::bail!(
-                "--frames sets the length of a generated path (street, flyover, dive), not of \
+                "--frames sets the length of a generated path (street, walk, flyover, dive), not of \
                  the path file {}",
                 file.display()
             );
