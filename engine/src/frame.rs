@@ -120,16 +120,16 @@ pub use visibility::Visibility;
 /// Default projected-size threshold of the occluder selection: an occluder is drawn when its
 /// bounding sphere's projected diameter exceeds this many pixels (a "near" occluder: Germs &
 /// Jansen §4 select occluders by their screen size; the value is ours, measured on the
-/// generated 100k city's street walk, with axis-aligned boxes before cull parts: 48 px left the far end of the street open and the cull
-/// kept 10.9 × the visible set, 24 px keeps 3.7 × at the same frame time, 12 px 2.4 × but
-/// costs ~20 % more frame time on lavapipe).
+/// generated 100k city's street walk, with axis-aligned boxes before cull parts: 48 px left the
+/// far end of the street open and the cull kept 10.9 × the visible set, 24 px keeps 3.7 × at
+/// the same frame time, 12 px 2.4 × but costs ~20 % more frame time on lavapipe).
 pub const DEFAULT_OCCLUDER_MIN_PX: f32 = 24.0;
 
 /// Default of [`CullingOptions::visibility_from_final_depth`]: off, by measurement (release
 /// build, lavapipe, 1280 × 720, 16-frame street walks, mode `occluders`, with axis-aligned
-/// boxes before cull parts). On the generated 100k city it lowers the buildings drawn per frame from 226 to 193 (61.6 visible), on the 10k city
-/// not at all (95.1, 48.8 visible): what a frame draws is mostly what the first cull keeps,
-/// which the early set hardly changes. The second pyramid and cull cost 7–10 ms per frame on
+/// boxes before cull parts). On the generated 100k city it lowers the buildings drawn per
+/// frame from 226 to 193 (61.6 visible), on the 10k city not at all (95.1, 48.8 visible): what
+/// a frame draws is mostly what the first cull keeps, which the early set hardly changes. The second pyramid and cull cost 7–10 ms per frame on
 /// lavapipe (30 → 39 ms on 10k, 39–45 → 49–56 ms on 100k), more than the fewer draws save;
 /// on a real GPU both sides are a fraction of a millisecond.
 pub const DEFAULT_VISIBILITY_FROM_FINAL_DEPTH: bool = false;

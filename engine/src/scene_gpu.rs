@@ -57,6 +57,17 @@ impl SceneGeometry {
     /// One building per mesh, with id = position. `fallback_bounds[i]` is used for a building
     /// whose mesh is empty (it then draws nothing).
     pub fn from_meshes(meshes: &[TriangleMesh], fallback_bounds: &[(Vec3, Vec3)]) -> SceneGeometry {
+        Self::from_meshes_with_parts(meshes, fallback_bounds, meshes.len())
+    }
+
+    /// As [`SceneGeometry::from_meshes`], with cull parts for the first `with_parts` meshes only
+    /// (the others are culled by their boxes, as cluster meshes are:
+    /// [`crate::lod::scene::cull_records`]).
+    pub fn from_meshes_with_parts(
+        meshes: &[TriangleMesh],
+        fallback_bounds: &[(Vec3, Vec3)],
+        with_parts: usize,
+    ) -> SceneGeometry {
         let mut g = SceneGeometry {
             vertices: Vec::with_capacity(
                 meshes.iter().map(|m| m.positions.len()).sum::<usize>() + 4,
@@ -82,10 +93,12 @@ impl SceneGeometry {
                 }
             }
             let first_part = g.parts.len() as u32;
-            g.parts.extend(cull_parts::cull_parts(
-                &mesh.positions,
-                &g.indices[first_index as usize..],
-            ));
+            if i < with_parts {
+                g.parts.extend(cull_parts::cull_parts(
+                    &mesh.positions,
+                    &g.indices[first_index as usize..],
+                ));
+            }
             g.records.push(BuildingRecord {
                 bounds_min_m: bmin.to_array(),
                 first_index,

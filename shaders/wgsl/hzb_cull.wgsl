@@ -176,7 +176,8 @@ fn test_hull(corners: array<vec3<f32>, 8>, reads: bool) -> u32 {
         fine = i32(min(level_spanning(p.rect, HZB_FINE_SPAN), params.level_count - 1u));
     }
     // Uniform loop over levels, coarse to fine; each invocation reads only at the counter's
-    // level (trap 1; in the loop over parts the active invocations still share the counter). The coarse 2x2 read culls most hidden boxes; a box it keeps is decided by
+    // level (trap 1; in the loop over parts the active invocations still share the counter).
+    // The coarse 2x2 read culls most hidden boxes; a box it keeps is decided by
     // the fine read, which skips the fine texels under coarse texels that hide the box and stops
     // at the first texel not in front of it (visible). Texels are nested (a texel is the
     // minimum of its descendants), so the answer is the fine level's alone: the reference's
@@ -244,7 +245,8 @@ fn cull(@builtin(global_invocation_id) id: vec3<u32>) {
     // Parts past the buffer (a malformed record) are not read: the box decides.
     let parts_valid = record.first_part < arrayLength(&parts)
         && part_count <= arrayLength(&parts) - record.first_part;
-    if outcome != CULL_FRUSTUM_OUTSIDE && outcome != CULL_OCCLUDED && part_count > 0u && parts_valid {
+    let box_may_show = outcome == CULL_VISIBLE || outcome == HULL_CROSSES_NEAR;
+    if box_may_show && part_count > 0u && parts_valid {
         var all_outside = true;
         var any_visible = false;
         for (var k = 0u; k < part_count && !any_visible; k++) {
@@ -252,7 +254,8 @@ fn cull(@builtin(global_invocation_id) id: vec3<u32>) {
             any_visible = s == CULL_VISIBLE || s == HULL_CROSSES_NEAR;
             all_outside = all_outside && s == CULL_FRUSTUM_OUTSIDE;
         }
-        outcome = select(select(CULL_OCCLUDED, CULL_FRUSTUM_OUTSIDE, all_outside), CULL_VISIBLE, any_visible);
+        let hidden = select(CULL_OCCLUDED, CULL_FRUSTUM_OUTSIDE, all_outside);
+        outcome = select(hidden, CULL_VISIBLE, any_visible);
     }
     if outcome == HULL_CROSSES_NEAR {
         outcome = CULL_VISIBLE;

@@ -100,7 +100,8 @@ pub fn lod_geometry(city: &City, tree: &ClusterTree) -> SceneGeometry {
             Vec3::from_array(node.bounds_max),
         ));
     }
-    SceneGeometry::from_meshes(&meshes, &fallback)
+    // Cluster meshes are culled by the box of everything under them (`cull_records`): no parts.
+    SceneGeometry::from_meshes_with_parts(&meshes, &fallback, city.buildings.len())
 }
 
 /// The occlusion cull's record of every draw id, from `geometry_records` (the records of

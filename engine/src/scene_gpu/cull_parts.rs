@@ -17,6 +17,7 @@
 use citywalk_shaders::CullPart;
 use geo::{MinimumRotatedRect, MultiPoint, Point};
 use glam::Vec3;
+use petgraph::unionfind::UnionFind;
 
 /// More pieces than this and the building gets one prism around all of them: an unwelded
 /// mesh (one piece per face, as some CityJSON and glTF files are) would otherwise cost a part
@@ -28,7 +29,7 @@ pub const MAX_PARTS_PER_BUILDING: usize = 8;
 /// building is then culled by its axis-aligned box alone).
 pub fn cull_parts(positions: &[Vec3], indices: &[u32]) -> Vec<CullPart> {
     let n = positions.len();
-    let mut pieces = UnionFind::new(n);
+    let mut pieces = UnionFind::<usize>::new(n);
     let mut used = vec![false; n];
     for t in indices.chunks_exact(3) {
         if t.iter().any(|&v| v as usize >= n) {
@@ -44,7 +45,7 @@ pub fn cull_parts(positions: &[Vec3], indices: &[u32]) -> Vec<CullPart> {
     let mut piece_of_root = vec![usize::MAX; n];
     let mut groups: Vec<Vec<Vec3>> = Vec::new();
     for v in (0..n).filter(|&v| used[v]) {
-        let root = pieces.find(v);
+        let root = pieces.find_mut(v);
         if piece_of_root[root] == usize::MAX {
             piece_of_root[root] = groups.len();
             groups.push(Vec::new());
@@ -115,41 +116,6 @@ fn enclosing_prism(points: &[Vec3]) -> Option<CullPart> {
         _pad0: 0,
         _pad1: 0,
     })
-}
-
-/// Disjoint sets of vertex indices (path halving, union by size).
-struct UnionFind {
-    parent: Vec<usize>,
-    size: Vec<u32>,
-}
-
-impl UnionFind {
-    fn new(n: usize) -> UnionFind {
-        UnionFind {
-            parent: (0..n).collect(),
-            size: vec![1; n],
-        }
-    }
-
-    fn find(&mut self, mut v: usize) -> usize {
-        while self.parent[v] != v {
-            self.parent[v] = self.parent[self.parent[v]];
-            v = self.parent[v];
-        }
-        v
-    }
-
-    fn union(&mut self, a: usize, b: usize) {
-        let (mut a, mut b) = (self.find(a), self.find(b));
-        if a == b {
-            return;
-        }
-        if self.size[a] < self.size[b] {
-            std::mem::swap(&mut a, &mut b);
-        }
-        self.parent[b] = a;
-        self.size[a] += self.size[b];
-    }
 }
 
 /// Whether `p` lies in `part` (in plan: on the inner side of all four sides, computed in
