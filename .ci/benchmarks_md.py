@@ -167,9 +167,10 @@ best = next((m for m in ("all", "occluders") if m in modes), None)
 if best:
     print(f"**Targets of the runtime, mode `{best}`** (street level: culled ≥ 99 %, drawn ≤ 1.5 × visible;")
     print("speed-up ≥ 20× street and ≥ 10× flyover, judged on a real GPU only). `walk` is the")
-    print("walkthrough (3 m per frame): the two-phase cull draws last frame's visible set first, and")
-    print("`street` spreads its frames over the whole route, hundreds of metres apart in the large")
-    print("cities, so that each of its frames is nearly a cold start:\n")
+    print("walkthrough (3 m per frame): the two-phase cull draws last frame's visible set first (the")
+    print("part of it the occluders' own pyramid does not hide: the occluder gate), and `street`")
+    print("spreads its frames over the whole route, hundreds of metres apart in the large cities, so")
+    print("that each of its frames is nearly a cold start:\n")
     print("| scene | path | culled | drawn ÷ visible | speed-up | flyover speed-up | dive speed-up |")
     print("|---|---|---:|---:|---:|---:|---:|")
 

@@ -5,8 +5,12 @@
 //!
 //! ```text
 //! (lod_cut      → caller: B-Quadtree + frustum + LOD cut, LodScene::select: the candidates)
+//! occluder_gate → (occluders on, gate on) the ground and nearby virtual occluders into the
+//!                 culling depth, their pyramid, last frame's visible candidates culled against it
 //! early_pass    → colour + depth: the ground and last frame's visible building candidates
+//!                 (with the gate: those it kept)
 //! occluder_pass → (occluders on) copy of that depth + nearby virtual occluders, depth only
+//!                 (with the gate: that depth merged into the occluders' depth, nearest wins)
 //! build_pyramid → HiZ pyramid from that depth
 //! cull          → every candidate's box, then its parts, against the pyramid (status,
 //!                 indirect commands, count)
@@ -34,9 +38,24 @@
 //! every building under it, so a building visible in the full-detail scene keeps the candidate
 //! that covers it (`frame/candidates.rs`).
 //!
+//! **The occluder gate.** Last frame's visible set is a guess: after a jump or a fast move much
+//! of it is hidden, and drawing it early costs draws the cull would have saved. With occluders
+//! and [`CullingOptions::occluder_gate`], the ground and the occluders go first, alone, into the
+//! culling depth; the early candidates are culled against their pyramid (the cull's `gate`
+//! entry point), and the early pass draws only those kept, through the gate's indirect
+//! commands. The early depth is then merged into the culling depth (the nearer wins) and the
+//! main pyramid built from the merge, so it holds the same kinds of depth as without the gate
+//! (real geometry and occluders contained in their buildings): conservative for the same reason. An early candidate the gate keeps out is
+//! culled with every other candidate and drawn late when visible, in the same frame; the main
+//! cull reads the gate's per-candidate flags and issues no draw for one the gate drew. The frame
+//! then draws a subset of what a frame with no early set at all would draw: the gate's pyramid
+//! is that frame's pyramid (the ground and the same occluders), and the main pyramid holds at
+//! least that depth, so the main cull keeps no more either. A building the final image shows is
+//! never kept out by the gate (nothing real, hence no occluder, is in front of it).
+//!
 //! **Late draws.** The cull reads a copy of the candidates' records whose index count is zero
-//! for every candidate the early pass drew, so the late pass issues an empty command for those
-//! and draws each candidate at most once per frame. [`FrameStats::draw_calls`] counts non-empty
+//! for every candidate the early pass drew (with the gate: its flags), so the late pass issues
+//! an empty command for those and draws each candidate at most once per frame. [`FrameStats::draw_calls`] counts non-empty
 //! draws only; [`FrameStats::late_commands`] is every command the late pass walked.
 //!
 //! **Visibility.** The next frame's early set is this frame's cull status `CULL_VISIBLE`, read
@@ -102,7 +121,7 @@ use glam::Mat4;
 use crate::camera::Camera;
 use crate::gpu::GpuContext;
 use crate::gpu_timer::{FRAME_PHASES, GpuTimer, GpuTimes};
-use crate::hzb::cull::CullError;
+use crate::hzb::cull::{CullError, EarlyDraws};
 use crate::hzb::{HzbCull, HzbPyramid};
 use crate::lod::scene::{LodFrame, LodScene};
 use crate::render::targets::ReadbackError;
@@ -120,10 +139,19 @@ pub use visibility::Visibility;
 /// Default projected-size threshold of the occluder selection: an occluder is drawn when its
 /// bounding sphere's projected diameter exceeds this many pixels (a "near" occluder: Germs &
 /// Jansen §4 select occluders by their screen size; the value is ours, measured on the
-/// generated 100k city's street walk, with axis-aligned boxes before cull parts: 48 px left the
-/// far end of the street open and the cull kept 10.9 × the visible set, 24 px keeps 3.7 × at
-/// the same frame time, 12 px 2.4 × but costs ~20 % more frame time on lavapipe).
-pub const DEFAULT_OCCLUDER_MIN_PX: f32 = 24.0;
+/// generated 100k city's street walk). With axis-aligned boxes, before cull parts: 48 px left
+/// the far end of the street open and the cull kept 10.9 × the visible set, 24 px 3.7 × at the
+/// same frame time, 12 px 2.4 × for ~20 % more frame time on lavapipe. With cull parts and
+/// nothing drawn early (mode `all`, 20 frames ~500 m apart): 24 px keeps 2.22 × the visible
+/// set, 16 px 1.54 ×, 12 px 1.38 ×, 6 px 1.35 ×; 12 px draws about 3 × as many occluders as
+/// 24 px (5,900 a frame, one multi-draw), +10–35 % frame time on lavapipe.
+pub const DEFAULT_OCCLUDER_MIN_PX: f32 = 12.0;
+
+/// Default of [`CullingOptions::occluder_gate`]: on. Measured on the generated 100k city,
+/// mode `all`, 12 px occluders (see [`DEFAULT_OCCLUDER_MIN_PX`]): last frame's set drawn
+/// unculled makes the street walk (frames ~500 m apart) draw 1.58 × the visible set, with
+/// nothing drawn early 1.38 ×; the gate's bound is the latter.
+pub const DEFAULT_OCCLUDER_GATE: bool = true;
 
 /// Default of [`CullingOptions::visibility_from_final_depth`]: off, by measurement (release
 /// build, lavapipe, 1280 × 720, 16-frame street walks, mode `occluders`, with axis-aligned
@@ -154,6 +182,11 @@ pub struct CullingOptions {
     pub occluders: bool,
     /// Occluders whose bounding sphere projects to more than this many pixels are drawn.
     pub occluder_min_px: f32,
+    /// With occluders drawn: cull last frame's visible candidates against the occluders' own
+    /// pyramid first, and draw early only those it keeps (the others go to the main cull). Costs
+    /// one more pyramid build and a cull of the early set per frame; see the module
+    /// documentation and [`DEFAULT_OCCLUDER_GATE`].
+    pub occluder_gate: bool,
     /// After the late pass, build the pyramid again from the final depth (ground, early and
     /// late draws; never occluders) and cull the candidates once more: the next frame's early
     /// set is what that second cull keeps, not what the first (against the coarser early depth)
@@ -167,6 +200,7 @@ impl Default for CullingOptions {
         CullingOptions {
             occluders: false,
             occluder_min_px: DEFAULT_OCCLUDER_MIN_PX,
+            occluder_gate: DEFAULT_OCCLUDER_GATE,
             visibility_from_final_depth: DEFAULT_VISIBILITY_FROM_FINAL_DEPTH,
         }
     }
@@ -178,8 +212,12 @@ pub struct FrameStats {
     pub building_count: u32,
     /// Boxes the cull tested: every building, or the LOD cut's buildings and clusters.
     pub candidates: u32,
-    /// Candidates drawn by the early pass (last frame's visible buildings, in the frustum).
+    /// Candidates drawn by the early pass (last frame's visible buildings, in the frustum; with
+    /// the occluder gate, those it kept).
     pub early_drawn: u32,
+    /// Last frame's visible candidates in the frustum that the occluder gate kept out of the
+    /// early pass (culled with the others; 0 without the gate).
+    pub gate_culled: u32,
     /// Virtual occluders drawn into the pyramid's depth.
     pub occluders_drawn: u32,
     pub occluder_triangles: u64,
@@ -205,7 +243,8 @@ pub struct FrameStats {
     pub late_commands: u32,
     /// CPU wall time from the start of recording to the GPU's completion, status read (ms).
     pub cpu_ms: f64,
-    /// GPU time of each pass ([`FRAME_PHASES`]: early, occluders, pyramid, cull, late) from
+    /// GPU time of each pass ([`FRAME_PHASES`]: gate pyramid, gate, early, occluders (or the
+    /// gate's depth merge), pyramid, cull, late) from
     /// timestamp queries; every phase `None` when the adapter has none, a phase `None` when
     /// its pass did not run this frame.
     pub gpu: GpuTimes,
@@ -222,6 +261,9 @@ pub struct FrameOutput {
     pub status: Vec<u32>,
     /// Cluster tree nodes whose mesh was drawn, ascending (LOD cut only).
     pub clusters: Vec<u32>,
+    /// The virtual occluders drawn into the pyramid's depth (indices into
+    /// [`OccluderMeshes::occluders`]), ascending.
+    pub occluders: Vec<usize>,
     pub stats: FrameStats,
 }
 
@@ -231,10 +273,19 @@ pub struct CullingRenderer {
     scene_pipeline: wgpu::RenderPipeline,
     depth_pipeline: wgpu::RenderPipeline,
     copy_pipeline: wgpu::RenderPipeline,
+    /// The depth copy that keeps the nearer of source and destination (the gate's merge).
+    merge_pipeline: wgpu::RenderPipeline,
     copy_layout: wgpu::BindGroupLayout,
     view_buffer: wgpu::Buffer,
     view_group: wgpu::BindGroup,
     cull: HzbCull,
+    /// The occluder gate's cull (its own status, commands and count).
+    gate: HzbCull,
+    /// The gate's records, the candidate each stands for, and the per-candidate flags of
+    /// those it drew early.
+    gate_records: GrowBuffer,
+    gate_targets: GrowBuffer,
+    drawn_early: GrowBuffer,
     early_draws: GrowBuffer,
     occluder_draws: GrowBuffer,
     late_records: GrowBuffer,
@@ -275,23 +326,27 @@ impl CullingRenderer {
         );
         let depth_pipeline =
             crate::render::scene_pipeline(device, "occluder depth", SCENE_WGSL, &layout, None);
-        let (copy_pipeline, copy_layout) = depth_copy_pipeline(device);
+        let (copy_pipeline, copy_layout) =
+            depth_copy_pipeline(device, wgpu::CompareFunction::Always);
+        let (merge_pipeline, _) = depth_copy_pipeline(device, wgpu::CompareFunction::Greater);
         let indirect = wgpu::BufferUsages::INDIRECT | wgpu::BufferUsages::COPY_DST;
+        let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
         CullingRenderer {
             scene_pipeline,
             depth_pipeline,
             copy_pipeline,
+            merge_pipeline,
             copy_layout,
             view_buffer,
             view_group,
             cull: HzbCull::new(gpu, 1024),
+            gate: HzbCull::new(gpu, 1024),
+            gate_records: GrowBuffer::new(device, "gate records", storage),
+            gate_targets: GrowBuffer::new(device, "gate targets", storage),
+            drawn_early: GrowBuffer::new(device, "drawn early", storage),
             early_draws: GrowBuffer::new(device, "early draws", indirect),
             occluder_draws: GrowBuffer::new(device, "occluder draws", indirect),
-            late_records: GrowBuffer::new(
-                device,
-                "late cull records",
-                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-            ),
+            late_records: GrowBuffer::new(device, "late cull records", storage),
             status_readback: StatusReadback::new(device),
             targets: None,
             late_records_cpu: Vec::new(),
@@ -391,12 +446,33 @@ impl CullingRenderer {
         start: Instant,
     ) -> Result<FrameOutput, FrameError> {
         self.fit_targets(gpu, width, height)?;
+        let mut candidates = candidates;
         let n = candidates.len();
-        let final_cull = options.visibility_from_final_depth && n > 0;
-        self.status_readback
-            .reserve(gpu, n, if final_cull { 2 } else { 1 });
         let view_proj = Self::view_proj(camera, (width, height));
         let frustum = Frustum::from_view_proj(view_proj);
+        let early_count = candidates.early_draw_count as usize - 1;
+        // With the gate, every occluder counts (its pyramid has no early depth); without, not
+        // those of buildings drawn early (their real geometry is in the depth).
+        let gated = options.occluder_gate && occluders.is_some() && early_count > 0;
+        let occluders_drawn = match occluders {
+            Some(meshes) => meshes.select(
+                camera,
+                &frustum,
+                height,
+                options.occluder_min_px,
+                if gated {
+                    &[]
+                } else {
+                    &candidates.early_buildings
+                },
+            ),
+            None => Vec::new(),
+        };
+        let gated = gated && !occluders_drawn.is_empty();
+        candidates.gated = gated;
+        let final_cull = options.visibility_from_final_depth && n > 0;
+        let slots = 1 + usize::from(final_cull) + usize::from(gated);
+        self.status_readback.reserve(gpu, n, slots);
         let uniforms = view_uniforms(camera, width, height, &self.style);
         gpu.queue
             .write_buffer(&self.view_buffer, 0, bytemuck::bytes_of(&uniforms));
@@ -407,39 +483,55 @@ impl CullingRenderer {
             });
         self.timer.begin_frame();
 
-        self.early_pass(gpu, &mut encoder, scene, &candidates, colour);
-        let occluders_drawn = match occluders {
-            Some(meshes) => self.occluder_pass(
+        let occluder_meshes = occluders.filter(|_| !occluders_drawn.is_empty());
+        if let (true, Some(meshes)) = (gated, occluder_meshes) {
+            self.occluder_gate(
                 gpu,
                 &mut encoder,
                 meshes,
-                camera,
-                &frustum,
-                height,
-                options.occluder_min_px,
-                &candidates.early_buildings,
-            ),
-            None => Vec::new(),
-        };
-        self.build_pyramid(&mut encoder, !occluders_drawn.is_empty());
+                &occluders_drawn,
+                (scene, &candidates),
+                view_proj,
+            )?;
+        }
+        self.early_pass(gpu, &mut encoder, scene, &candidates, colour);
+        if let Some(meshes) = occluder_meshes {
+            self.occluder_pass(gpu, &mut encoder, meshes, &occluders_drawn, gated);
+        }
+        self.build_pyramid(&mut encoder, occluder_meshes.is_some());
         self.cull(gpu, &mut encoder, scene, &candidates, view_proj)?;
         self.late_pass(&mut encoder, scene, n as u32, colour);
         self.read_status(&mut encoder, n, 0);
         if final_cull {
             self.final_depth_cull(gpu, &mut encoder, scene, n, view_proj)?;
         }
+        if gated {
+            self.status_readback.copy_from(
+                &mut encoder,
+                self.gate.status_buffer(),
+                early_count,
+                n,
+                slots - 1,
+            );
+        }
         self.timer.resolve(&mut encoder);
 
         gpu.queue.submit([encoder.finish()]);
-        let mut status = self
-            .status_readback
-            .read(gpu, if final_cull { 2 * n } else { n })?;
-        let final_status = status.split_off(n);
+        let mut status = self.status_readback.read(gpu, slots * n)?;
+        let mut later = status.split_off(n);
+        let gate_culled = if gated {
+            let gate_status = later.split_off(later.len() - n);
+            candidates.apply_gate(&gate_status[..early_count])
+        } else {
+            0
+        };
+        let final_status = later;
         // A drawn cluster mesh may reach outside its buildings and hide, in the final depth,
         // buildings the full-detail scene shows: such a frame keeps the first cull's set.
         let from_final = final_cull && !candidates.cluster_kept(&status);
         candidates.update_visibility(visibility, if from_final { &final_status } else { &status });
         let mut output = candidates.statistics(status, !self.multi_draw_count);
+        output.stats.gate_culled = gate_culled;
         if let Some(meshes) = occluders {
             output.stats.occluders_drawn = occluders_drawn.len() as u32;
             output.stats.occluder_triangles = occluders_drawn
@@ -448,13 +540,80 @@ impl CullingRenderer {
                 .sum();
             output.stats.draw_calls += occluders_drawn.len() as u32;
         }
+        output.occluders = occluders_drawn;
         output.stats.cpu_ms = start.elapsed().as_secs_f64() * 1e3;
         output.stats.gpu = self.timer.read(gpu)?;
         Ok(output)
     }
 
+    /// The occluder gate: the ground and the selected occluders alone into the culling depth,
+    /// their pyramid, and the early candidates culled against it (the cull's `gate` entry point), which writes
+    /// the early pass's commands and marks the candidates it keeps in `drawn_early`.
+    fn occluder_gate(
+        &mut self,
+        gpu: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        meshes: &OccluderMeshes,
+        selected: &[usize],
+        (scene, candidates): (&SceneGpu, &Candidates<'_>),
+        view_proj: Mat4,
+    ) -> Result<(), FrameError> {
+        let (records, targets) = candidates.gate_records();
+        let device = &gpu.device;
+        self.gate_records
+            .reserve(device, (records.len() * size_of::<BuildingRecord>()) as u64);
+        gpu.queue
+            .write_buffer(&self.gate_records.buffer, 0, bytemuck::cast_slice(&records));
+        self.gate_targets
+            .reserve(device, (targets.len() * 4) as u64);
+        gpu.queue
+            .write_buffer(&self.gate_targets.buffer, 0, bytemuck::cast_slice(&targets));
+        let flag_bytes = (candidates.len().max(1) * 4) as u64;
+        self.drawn_early.reserve(device, flag_bytes);
+        encoder.clear_buffer(&self.drawn_early.buffer, 0, Some(flag_bytes));
+        self.upload_occluder_draws(gpu, meshes, selected);
+        {
+            let clear = wgpu::LoadOp::Clear(Camera::DEPTH_CLEAR);
+            let mut pass = self.depth_only_pass(encoder, "occluder_gate", clear, "gate_occluders");
+            // The ground first, so that the gate's pyramid is the one a frame with no early
+            // set would cull everything against (the ground and the occluders).
+            pass.set_pipeline(&self.depth_pipeline);
+            pass.set_bind_group(0, &self.view_group, &[]);
+            scene.bind(&mut pass);
+            let g = scene.ground;
+            pass.draw_indexed(
+                g.first_index..g.first_index + g.index_count,
+                g.base_vertex,
+                0..g.instance_count,
+            );
+            self.draw_occluders(&mut pass, meshes, selected.len());
+        }
+        let targets_view = self.targets.as_ref().expect("fit_targets ran");
+        targets_view.pyramid.build_timed(
+            encoder,
+            &targets_view.cull_depth_view,
+            self.timer.compute_pass_writes("gate_pyramid"),
+        );
+        self.gate.encode_with_early(
+            gpu,
+            encoder,
+            (
+                &self.gate_records.buffer,
+                Some(&scene.parts_buffer),
+                EarlyDraws::Mark {
+                    drawn: &self.drawn_early.buffer,
+                    targets: &self.gate_targets.buffer,
+                },
+            ),
+            records.len() as u32,
+            (&targets_view.pyramid, view_proj),
+            self.timer.compute_pass_writes("gate"),
+        )?;
+        Ok(())
+    }
+
     /// Clears colour and depth, draws the ground and the candidates to draw early (last frame's
-    /// visible buildings that lie in the frustum).
+    /// visible buildings that lie in the frustum; with the gate, the gate's commands).
     fn early_pass(
         &mut self,
         gpu: &GpuContext,
@@ -464,14 +623,16 @@ impl CullingRenderer {
         colour: &wgpu::TextureView,
     ) {
         let mut draws = vec![scene.ground];
-        draws.extend(
-            candidates
-                .records
-                .iter()
-                .zip(&candidates.early)
-                .filter(|(_, e)| **e)
-                .map(|(r, _)| r.draw_args()),
-        );
+        if !candidates.gated {
+            draws.extend(
+                candidates
+                    .records
+                    .iter()
+                    .zip(&candidates.early)
+                    .filter(|(_, e)| **e)
+                    .map(|(r, _)| r.draw_args()),
+            );
+        }
         let bytes: &[u8] = bytemuck::cast_slice(&draws);
         self.early_draws.reserve(&gpu.device, bytes.len() as u64);
         gpu.queue.write_buffer(&self.early_draws.buffer, 0, bytes);
@@ -496,58 +657,119 @@ impl CullingRenderer {
         pass.set_bind_group(0, &self.view_group, &[]);
         scene.bind(&mut pass);
         pass.multi_draw_indexed_indirect(&self.early_draws.buffer, 0, draws.len() as u32);
+        if candidates.gated {
+            let max = candidates.early_draw_count - 1;
+            self.indirect_draws(&mut pass, &self.gate, max);
+        }
     }
 
-    /// Copies the early depth into the pyramid's depth and draws the selected occluders into
-    /// it, depth only. Returns the indices of the occluders drawn.
-    #[expect(clippy::too_many_arguments, reason = "one pass, all inputs explicit")]
-    fn occluder_pass(
+    /// Draws the commands `cull` wrote (at most `max`): through its count where the adapter
+    /// has `multi_draw_indexed_indirect_count`, else all `max` slots (those past the count are
+    /// zero: empty draws).
+    fn indirect_draws(&self, pass: &mut wgpu::RenderPass<'_>, cull: &HzbCull, max: u32) {
+        if self.multi_draw_count {
+            pass.multi_draw_indexed_indirect_count(
+                cull.commands_buffer(),
+                0,
+                cull.count_buffer(),
+                0,
+                max,
+            );
+        } else {
+            pass.multi_draw_indexed_indirect(cull.commands_buffer(), 0, max);
+        }
+    }
+
+    /// Writes the draws of the `selected` occluders to the occluder draw buffer.
+    fn upload_occluder_draws(
         &mut self,
         gpu: &GpuContext,
-        encoder: &mut wgpu::CommandEncoder,
         meshes: &OccluderMeshes,
-        camera: &Camera,
-        frustum: &Frustum,
-        height: u32,
-        min_px: f32,
-        drawn_early: &[bool],
-    ) -> Vec<usize> {
-        let selected = meshes.select(camera, frustum, height, min_px, drawn_early);
-        if selected.is_empty() {
-            return selected;
-        }
+        selected: &[usize],
+    ) {
         let draws: Vec<DrawIndexedIndirectArgs> =
             selected.iter().map(|&i| meshes.occluders[i].draw).collect();
         let bytes: &[u8] = bytemuck::cast_slice(&draws);
         self.occluder_draws.reserve(&gpu.device, bytes.len() as u64);
         gpu.queue
             .write_buffer(&self.occluder_draws.buffer, 0, bytes);
+    }
+
+    /// A depth-only pass into the culling depth, timed as `phase`.
+    fn depth_only_pass<'e>(
+        &self,
+        encoder: &'e mut wgpu::CommandEncoder,
+        label: &str,
+        load: wgpu::LoadOp<f32>,
+        phase: &str,
+    ) -> wgpu::RenderPass<'e> {
         let targets = self.targets.as_ref().expect("fit_targets ran");
-        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("occluder_pass"),
-            color_attachments: &[],
-            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                view: &targets.cull_depth_view,
-                depth_ops: Some(wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(Camera::DEPTH_CLEAR),
-                    store: wgpu::StoreOp::Store,
+        encoder
+            .begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some(label),
+                color_attachments: &[],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &targets.cull_depth_view,
+                    depth_ops: Some(wgpu::Operations {
+                        load,
+                        store: wgpu::StoreOp::Store,
+                    }),
+                    stencil_ops: None,
                 }),
-                stencil_ops: None,
-            }),
-            timestamp_writes: self.timer.render_pass_writes("occluders"),
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
-        // The early depth, texel for texel (a shader copy: see `wgsl/depth_copy.wgsl`).
-        pass.set_pipeline(&self.copy_pipeline);
-        pass.set_bind_group(0, &targets.copy_group, &[]);
-        pass.draw(0..3, 0..1);
+                timestamp_writes: self.timer.render_pass_writes(phase),
+                occlusion_query_set: None,
+                multiview_mask: None,
+            })
+            .forget_lifetime()
+    }
+
+    /// Draws the first `count` occluder draws of `draws`, depth only.
+    fn draw_occluders(
+        &self,
+        pass: &mut wgpu::RenderPass<'_>,
+        meshes: &OccluderMeshes,
+        count: usize,
+    ) {
         pass.set_pipeline(&self.depth_pipeline);
         pass.set_bind_group(0, &self.view_group, &[]);
         pass.set_vertex_buffer(0, meshes.vertex_buffer.slice(..));
         pass.set_index_buffer(meshes.index_buffer.slice(..), wgpu::IndexFormat::Uint32);
-        pass.multi_draw_indexed_indirect(&self.occluder_draws.buffer, 0, draws.len() as u32);
-        selected
+        pass.multi_draw_indexed_indirect(&self.occluder_draws.buffer, 0, count as u32);
+    }
+
+    /// The culling depth for the pyramid: without the gate, the early depth copied and the
+    /// `selected` occluders drawn into it; with the gate (the occluders are there already),
+    /// the early depth merged in, the nearer depth kept.
+    fn occluder_pass(
+        &mut self,
+        gpu: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        meshes: &OccluderMeshes,
+        selected: &[usize],
+        gated: bool,
+    ) {
+        if !gated {
+            self.upload_occluder_draws(gpu, meshes, selected);
+        }
+        let load = if gated {
+            wgpu::LoadOp::Load
+        } else {
+            wgpu::LoadOp::Clear(Camera::DEPTH_CLEAR)
+        };
+        let mut pass = self.depth_only_pass(encoder, "occluder_pass", load, "occluders");
+        let targets = self.targets.as_ref().expect("fit_targets ran");
+        // The early depth, texel for texel (a shader copy: see `wgsl/depth_copy.wgsl`), or
+        // with the gate the nearer of it and the occluders'.
+        pass.set_pipeline(if gated {
+            &self.merge_pipeline
+        } else {
+            &self.copy_pipeline
+        });
+        pass.set_bind_group(0, &targets.copy_group, &[]);
+        pass.draw(0..3, 0..1);
+        if !gated {
+            self.draw_occluders(&mut pass, meshes, selected.len());
+        }
     }
 
     /// Builds the pyramid from the early depth, or from its copy holding the occluders.
@@ -592,10 +814,15 @@ impl CullingRenderer {
             );
         }
         let targets = self.targets.as_ref().expect("fit_targets ran");
-        self.cull.encode_timed(
+        let early = if candidates.gated {
+            EarlyDraws::Skip(&self.drawn_early.buffer)
+        } else {
+            EarlyDraws::None
+        };
+        self.cull.encode_with_early(
             gpu,
             encoder,
-            (&self.late_records.buffer, Some(&scene.parts_buffer)),
+            (&self.late_records.buffer, Some(&scene.parts_buffer), early),
             n as u32,
             (&targets.pyramid, view_proj),
             self.timer.compute_pass_writes("cull"),
@@ -641,24 +868,13 @@ impl CullingRenderer {
         pass.set_pipeline(&self.scene_pipeline);
         pass.set_bind_group(0, &self.view_group, &[]);
         scene.bind(&mut pass);
-        if self.multi_draw_count {
-            pass.multi_draw_indexed_indirect_count(
-                self.cull.commands_buffer(),
-                0,
-                self.cull.count_buffer(),
-                0,
-                n,
-            );
-        } else {
-            // The commands past the count are zero (cleared by the cull): empty draws.
-            pass.multi_draw_indexed_indirect(self.cull.commands_buffer(), 0, n);
-        }
+        self.indirect_draws(&mut pass, &self.cull, n);
     }
 
     /// Copies the cull status into slot `slot` of the readback buffer.
     fn read_status(&mut self, encoder: &mut wgpu::CommandEncoder, n: usize, slot: usize) {
         self.status_readback
-            .copy_from(encoder, self.cull.status_buffer(), n, slot);
+            .copy_from(encoder, self.cull.status_buffer(), n, n, slot);
     }
 
     /// The next frame's visible set from this frame's final depth: the pyramid again, from the

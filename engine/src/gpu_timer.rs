@@ -26,10 +26,20 @@ use crate::gpu::GpuContext;
 use crate::render::targets::{ReadbackError, map_read};
 
 /// The phases of the two-phase culling frame ([`crate::frame::CullingRenderer`]), one pass each,
-/// in frame order: the early pass, the occluder pre-pass, the pyramid build, the cull and the
-/// late pass. A phase whose pass does not run in a frame (no occluders, no late draws) is
-/// `None` in that frame's times.
-pub const FRAME_PHASES: &[&str] = &["early", "occluders", "pyramid", "cull", "late"];
+/// in frame order: the occluder gate's occluders, pyramid and cull, the early pass, the occluder
+/// pre-pass (with the gate: the merge of the early depth into the occluders'), the pyramid
+/// build, the cull and the late pass. A phase whose pass does not run in a frame (no occluders,
+/// no gate, no late draws) is `None` in that frame's times.
+pub const FRAME_PHASES: &[&str] = &[
+    "gate_occluders",
+    "gate_pyramid",
+    "gate",
+    "early",
+    "occluders",
+    "pyramid",
+    "cull",
+    "late",
+];
 
 /// Bytes between two phases' results in the resolve buffer: each phase is resolved on its own
 /// (only written queries may be resolved) and a resolve's destination offset must be aligned.

@@ -9,6 +9,13 @@
 // CULL_FRUSTUM_OUTSIDE or CULL_OCCLUDED; every visible box appends its DrawIndexedIndirectArgs
 // through an atomic counter.
 //
+// Two entry points (engine `frame`, the occluder-gated early pass):
+// - `gate` culls last frame's visible candidates against the occluders' pyramid: box j stands
+//   for candidate gate_targets[j]; a visible one appends its draw (the early pass draws those)
+//   and marks drawn_early[gate_targets[j]].
+// - `cull` culls every candidate; a visible box appends its draw unless drawn_early marks it
+//   (drawn already; a one-word buffer of zero when nothing was gated).
+//
 // Float rounding: the GPU's matrix product and division may round differently from the CPU's
 // (FMA, reciprocal). Every comparison is widened in the visible direction by a bound on that
 // difference (HZB_ROUNDING_REL times the magnitude of the terms), so the GPU never culls a box
@@ -39,6 +46,8 @@ struct HzbCullParams {
 @group(0) @binding(4) var<storage, read_write> commands: array<DrawIndexedIndirectArgs>;
 @group(0) @binding(5) var<storage, read_write> draw_count: atomic<u32>;
 @group(0) @binding(6) var<storage, read> parts: array<CullPart>;
+@group(0) @binding(7) var<storage, read_write> drawn_early: array<u32>;
+@group(0) @binding(8) var<storage, read> gate_targets: array<u32>;
 
 // Where a box lands: status CULL_VISIBLE with `rect` valid only when `has_rect`.
 struct Projection {
@@ -231,15 +240,13 @@ fn test_hull(corners: array<vec3<f32>, 8>, reads: bool) -> u32 {
 }
 
 // One record: its box, then, when the box may be visible, its parts (reference
-// `DepthPyramid::cull_record`): outside when every part is, hidden when none is visible.
-@compute @workgroup_size(HZB_CULL_WORKGROUP, 1, 1)
-fn cull(@builtin(global_invocation_id) id: vec3<u32>) {
-    let index = id.x;
-    let in_range = index < params.box_count;
-    let record = records[min(index, max(params.box_count, 1u) - 1u)];
+// `DepthPyramid::cull_record`): outside when every part is, hidden when none is visible. Every
+// invocation calls it (the uniform level loop of `test_hull`); past the box count
+// (`in_range` false) nothing is read and the answer is meaningless.
+fn record_outcome(record: BuildingRecord, in_range: bool) -> u32 {
     var outcome = test_hull(box_corners(record.bounds_min_m, record.bounds_max_m), in_range);
     if !in_range {
-        return;
+        return CULL_FRUSTUM_OUTSIDE;
     }
     let part_count = record.part_count;
     // Parts past the buffer (a malformed record) are not read: the box decides.
@@ -260,10 +267,53 @@ fn cull(@builtin(global_invocation_id) id: vec3<u32>) {
     if outcome == HULL_CROSSES_NEAR {
         outcome = CULL_VISIBLE;
     }
+    return outcome;
+}
+
+// Appends the draw of `record`.
+fn append_draw(record: BuildingRecord) {
+    let slot = atomicAdd(&draw_count, 1u);
+    commands[slot] = DrawIndexedIndirectArgs(record.index_count, 1u, record.first_index, record.base_vertex, 0u);
+}
+
+// The cull of every candidate: status, and the draw of each visible one not drawn early.
+@compute @workgroup_size(HZB_CULL_WORKGROUP, 1, 1)
+fn cull(@builtin(global_invocation_id) id: vec3<u32>) {
+    let index = id.x;
+    let in_range = index < params.box_count;
+    let record = records[min(index, max(params.box_count, 1u) - 1u)];
+    let outcome = record_outcome(record, in_range);
+    if !in_range {
+        return;
+    }
+    status[index] = outcome;
+    let drawn = index < arrayLength(&drawn_early) && drawn_early[index] != 0u;
+    if outcome == CULL_VISIBLE && !drawn {
+        append_draw(record);
+    }
+}
+
+// The gate of the early pass: status and draw of each of last frame's visible candidates, and
+// the mark of each visible one in drawn_early (an index or target past its buffer marks
+// nothing).
+@compute @workgroup_size(HZB_CULL_WORKGROUP, 1, 1)
+fn gate(@builtin(global_invocation_id) id: vec3<u32>) {
+    let index = id.x;
+    let in_range = index < params.box_count;
+    let record = records[min(index, max(params.box_count, 1u) - 1u)];
+    let outcome = record_outcome(record, in_range);
+    if !in_range {
+        return;
+    }
     status[index] = outcome;
     if outcome == CULL_VISIBLE {
-        let slot = atomicAdd(&draw_count, 1u);
-        commands[slot] = DrawIndexedIndirectArgs(record.index_count, 1u, record.first_index, record.base_vertex, 0u);
+        append_draw(record);
+        if index < arrayLength(&gate_targets) {
+            let candidate = gate_targets[index];
+            if candidate < arrayLength(&drawn_early) {
+                drawn_early[candidate] = 1u;
+            }
+        }
     }
 }
 

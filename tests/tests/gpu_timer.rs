@@ -3,12 +3,13 @@
 //! device without `TIMESTAMP_QUERY`.
 
 use citywalk_engine::camera::Camera;
-use citywalk_engine::frame::{CullingOptions, CullingRenderer, Visibility};
+use citywalk_engine::frame::{CullingOptions, CullingRenderer, OccluderMeshes, Visibility};
 use citywalk_engine::gpu::{GpuContext, WANTED_FEATURES};
 use citywalk_engine::gpu_timer::{FRAME_PHASES, GpuTimer, GpuTimes};
 use citywalk_engine::hzb::{HzbCull, HzbPyramid};
 use citywalk_engine::render::{BruteRenderer, OffscreenTarget};
 use citywalk_engine::scene_gpu::SceneGpu;
+use citywalk_preprocess::occluders::{OccluderParams, build_occluders};
 use citywalk_tests::gpu::gpu_or_skip;
 use glam::Vec3;
 
@@ -204,5 +205,86 @@ fn the_two_phase_frame_times_its_passes() {
             assert!(pair[1].begin_ms >= pair[0].end_ms, "{pair:?}");
         }
         assert!(times.total_ms().expect("total") > 0.0);
+    }
+}
+
+/// With occluders and the occluder gate (the default), a frame that has last frame's visible
+/// set times all eight passes in frame order: the gate's occluders, pyramid and cull, the early
+/// pass, the merge of its depth ("occluders"), the pyramid, the cull and the late pass. The
+/// first frame (nothing visible before) runs no gate.
+#[test]
+fn the_gated_frame_times_every_phase_in_order() {
+    let Some(gpu) = gpu_or_skip("the_gated_frame_times_every_phase_in_order") else {
+        return;
+    };
+    let mut specs = Vec::new();
+    for i in 0..4 {
+        for j in 0..4 {
+            let (x, y) = (f64::from(i) * 30.0, f64::from(j) * 30.0);
+            specs.push((x, y, x + 18.0, y + 18.0, 10.0 + 6.0 * (i + j) as f32));
+        }
+    }
+    let city = citywalk_tests::city_builder::boxes(&specs);
+    let scene = SceneGpu::upload_city(&gpu, &city);
+    let occluders =
+        OccluderMeshes::upload(&gpu, &build_occluders(&city, &OccluderParams::default()));
+    let target = OffscreenTarget::new(&gpu, W, H, BruteRenderer::PNG_FORMAT).expect("target");
+    let mut renderer = CullingRenderer::new(&gpu, BruteRenderer::PNG_FORMAT);
+    let mut visibility = Visibility::default();
+    let camera = Camera::new(Vec3::new(-10.0, -10.0, 1.7), 0.8, 0.05);
+    let options = CullingOptions {
+        occluders: true,
+        ..CullingOptions::default()
+    };
+    assert!(options.occluder_gate, "the gate is on by default");
+    for frame in 0..2 {
+        let out = renderer
+            .render(
+                &gpu,
+                &scene,
+                Some(&occluders),
+                &options,
+                &mut visibility,
+                &camera,
+                &target.colour_view,
+                (W, H),
+            )
+            .expect("frame");
+        assert!(
+            out.stats.occluders_drawn > 0,
+            "frame {frame}: no occluder drawn"
+        );
+        if frame == 1 {
+            assert!(
+                out.stats.early_drawn + out.stats.gate_culled > 0,
+                "frame 1 has no early candidate"
+            );
+        }
+        let times = &out.stats.gpu;
+        if !gpu.has(wgpu::Features::TIMESTAMP_QUERY) {
+            assert_eq!(times.total_ms(), None);
+            continue;
+        }
+        eprintln!("gated frame {frame}: {times:?}");
+        let gate_phases = ["gate_occluders", "gate_pyramid", "gate"];
+        if frame == 0 {
+            for name in gate_phases {
+                assert_eq!(times.phase_ms(name), None, "frame 0 timed {name}");
+            }
+            continue;
+        }
+        let spans: Vec<_> = FRAME_PHASES
+            .iter()
+            .filter(|&&name| name != "late" || out.stats.late_drawn > 0)
+            .map(|&name| {
+                let p = times.phases.iter().find(|p| p.name == name).expect("phase");
+                p.span
+                    .unwrap_or_else(|| panic!("gated frame: {name} was not timed"))
+            })
+            .collect();
+        assert!(spans.len() >= 7, "{spans:?}");
+        for pair in spans.windows(2) {
+            assert!(pair[1].begin_ms >= pair[0].end_ms, "{pair:?}");
+        }
     }
 }

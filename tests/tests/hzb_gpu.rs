@@ -7,11 +7,12 @@
 
 use citywalk_engine::camera::Camera;
 use citywalk_engine::gpu::GpuContext;
-use citywalk_engine::hzb::cull::{CULL_FRUSTUM_OUTSIDE, CULL_OCCLUDED, CULL_VISIBLE};
+use citywalk_engine::hzb::cull::{CULL_FRUSTUM_OUTSIDE, CULL_OCCLUDED, CULL_VISIBLE, EarlyDraws};
 use citywalk_engine::hzb::reference::{
     BoxProjection, DepthPyramid, HullTest, RecordCull, box_corners, project_box, select_level,
 };
 use citywalk_engine::hzb::{CullResults, HzbCull, HzbPyramid};
+use citywalk_engine::render::targets::map_read;
 use citywalk_engine::render::{fragment_float_texture_entry, fullscreen_pipeline};
 use citywalk_shaders::{BuildingRecord, CullPart, DrawIndexedIndirectArgs};
 use citywalk_tests::gpu::gpu_or_skip;
@@ -589,6 +590,161 @@ fn gpu_cull_matches_reference_and_never_culls_more() {
     assert!(
         agree as f64 >= 0.999 * total as f64,
         "only {agree} of {total} boxes agree"
+    );
+}
+
+fn storage_buffer(gpu: &GpuContext, label: &str, contents: &[u8]) -> wgpu::Buffer {
+    gpu.device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(label),
+            contents,
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_SRC
+                | wgpu::BufferUsages::COPY_DST,
+        })
+}
+
+/// The occluder gate's two entry points (`engine::frame`): the gate culls a subset of the
+/// records (every third one, as last frame's visible set), appends the draws of those it keeps
+/// and marks them in the per-record flags; the main cull of every record, reading those flags,
+/// writes the same status as a plain cull and appends the draws of the visible records the gate
+/// did not mark, and only those. The gate's status of a record equals the plain cull's (same
+/// record, same pyramid). Two cameras, 1280 × 720 and 1001 × 777.
+#[test]
+fn gate_marks_the_records_it_keeps_and_the_cull_skips_them() {
+    let Some(gpu) = gpu_or_skip("gate_marks_the_records_it_keeps_and_the_cull_skips_them") else {
+        return;
+    };
+    let mut rng = Rng(0x0c11_6a7e);
+    let cameras = [
+        Camera::new(Vec3::new(0.0, 0.0, 1.7), 0.3, 0.05),
+        Camera::new(Vec3::new(120.0, -40.0, 35.0), 2.2, -0.35),
+    ];
+    let (mut plain, mut gate, mut main) = (
+        HzbCull::new(&gpu, 64),
+        HzbCull::new(&gpu, 64),
+        HzbCull::new(&gpu, 64),
+    );
+    let (mut marked_total, mut skipped_total) = (0usize, 0usize);
+    for (c, camera) in cameras.iter().enumerate() {
+        let (w, h) = if c == 1 { (1001, 777) } else { (1280, 720) };
+        let depth = walls_depth(&mut rng, camera, w, h);
+        let (pyramid, _) = gpu_pyramid(&gpu, w, h, &depth);
+        let vp = camera.view_proj(w as f32 / h as f32);
+        let boxes = random_boxes(&mut rng, camera, w as f32 / h as f32, 3000);
+        let (records, parts) = records_for(&boxes);
+        let reference = cull_records(&gpu, &mut plain, (&records, &parts), &pyramid, vp);
+        let targets: Vec<u32> = (0..records.len() as u32).step_by(3).collect();
+        let gate_records: Vec<BuildingRecord> =
+            targets.iter().map(|&i| records[i as usize]).collect();
+        let records_buffer = storage_buffer(&gpu, "records", bytemuck::cast_slice(&records));
+        let gate_buffer = storage_buffer(&gpu, "gate records", bytemuck::cast_slice(&gate_records));
+        let parts_buffer = storage_buffer(&gpu, "parts", bytemuck::cast_slice(&parts));
+        let targets_buffer = storage_buffer(&gpu, "targets", bytemuck::cast_slice(&targets));
+        // Flags start at 1 for every record: the gate's caller clears them.
+        let flags = storage_buffer(&gpu, "flags", &vec![1u8; records.len() * 4]);
+        let mut encoder = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+        encoder.clear_buffer(&flags, 0, None);
+        gate.encode_with_early(
+            &gpu,
+            &mut encoder,
+            (
+                &gate_buffer,
+                Some(&parts_buffer),
+                EarlyDraws::Mark {
+                    drawn: &flags,
+                    targets: &targets_buffer,
+                },
+            ),
+            gate_records.len() as u32,
+            (&pyramid, vp),
+            None,
+        )
+        .expect("gate");
+        main.encode_with_early(
+            &gpu,
+            &mut encoder,
+            (
+                &records_buffer,
+                Some(&parts_buffer),
+                EarlyDraws::Skip(&flags),
+            ),
+            records.len() as u32,
+            (&pyramid, vp),
+            None,
+        )
+        .expect("main cull");
+        gpu.queue.submit([encoder.finish()]);
+        let gated = gate
+            .read_back(&gpu, gate_records.len() as u32)
+            .expect("gate readback");
+        let culled = main
+            .read_back(&gpu, records.len() as u32)
+            .expect("cull readback");
+        let flag_bytes = {
+            let read = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("flags readback"),
+                size: flags.size(),
+                usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+                mapped_at_creation: false,
+            });
+            let mut encoder = gpu
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+            encoder.copy_buffer_to_buffer(&flags, 0, &read, 0, flags.size());
+            gpu.queue.submit([encoder.finish()]);
+            map_read(&gpu, &read).expect("flags")
+        };
+        let marked: Vec<bool> = bytemuck::pod_collect_to_vec::<u8, u32>(&flag_bytes)
+            .iter()
+            .map(|&f| f != 0)
+            .collect();
+        // The gate: the plain cull's status for each of its records, and their draws.
+        for (j, &i) in targets.iter().enumerate() {
+            assert_eq!(
+                gated.status[j], reference.status[i as usize],
+                "camera {c}: gate record {j} (record {i})"
+            );
+        }
+        let mut expected: Vec<_> = targets
+            .iter()
+            .filter(|&&i| reference.status[i as usize] == CULL_VISIBLE)
+            .map(|&i| key(&records[i as usize].draw_args()))
+            .collect();
+        let mut written: Vec<_> = gated.commands.iter().map(key).collect();
+        expected.sort_unstable();
+        written.sort_unstable();
+        assert_eq!(written, expected, "camera {c}: the gate's commands");
+        // The marks: exactly the gate's visible records.
+        for (i, &m) in marked.iter().enumerate() {
+            let want = i % 3 == 0 && reference.status[i] == CULL_VISIBLE;
+            assert_eq!(m, want, "camera {c}: record {i} marked {m}");
+        }
+        // The main cull: the plain status, draws of the visible unmarked records only.
+        assert_eq!(
+            culled.status, reference.status,
+            "camera {c}: main cull status"
+        );
+        let mut expected: Vec<_> = records
+            .iter()
+            .enumerate()
+            .filter(|&(i, _)| reference.status[i] == CULL_VISIBLE && !marked[i])
+            .map(|(_, r)| key(&r.draw_args()))
+            .collect();
+        let mut written: Vec<_> = culled.commands.iter().map(key).collect();
+        expected.sort_unstable();
+        written.sort_unstable();
+        assert_eq!(written, expected, "camera {c}: the main cull's commands");
+        marked_total += marked.iter().filter(|&&m| m).count();
+        skipped_total += targets.len() - gated.commands.len();
+    }
+    eprintln!("gate: {marked_total} records marked, {skipped_total} kept out");
+    // Both outcomes of the gate are exercised.
+    assert!(
+        marked_total > 50 && skipped_total > 50,
+        "{marked_total} marked, {skipped_total} kept out"
     );
 }
 

@@ -177,8 +177,9 @@ fn short_move(rng: &mut Rng, scene: &TestScene, street: bool) -> (Camera, Camera
     (before, camera)
 }
 
-/// The configurations under test: the default, occluders, and occluders with the next frame's
-/// visible set from the final depth.
+/// The configurations under test: the default, occluders (with the occluder gate, the
+/// default), and occluders without the gate and with the next frame's visible set from the
+/// final depth.
 fn configurations() -> [(&'static str, CullingOptions); 3] {
     [
         ("hzb", CullingOptions::default()),
@@ -186,14 +187,16 @@ fn configurations() -> [(&'static str, CullingOptions); 3] {
             "occluders",
             CullingOptions {
                 occluders: true,
+                occluder_gate: true,
                 visibility_from_final_depth: false,
                 ..CullingOptions::default()
             },
         ),
         (
-            "occluders, visibility from the final depth",
+            "occluders ungated, visibility from the final depth",
             CullingOptions {
                 occluders: true,
+                occluder_gate: false,
                 visibility_from_final_depth: true,
                 ..CullingOptions::default()
             },
@@ -1030,6 +1033,118 @@ fn final_depth_visibility_is_smaller_and_keeps_every_visible_building() {
         from_final < from_early,
         "the final depth never culled more than the early depth"
     );
+}
+
+/// The occluder gate (`CullingOptions::occluder_gate`) after a jump between two random street
+/// cameras, so that most of last frame's visible set is stale: the frame draws every building
+/// the oracle sees and the image of brute force; it draws a subset of what the same frame with
+/// nothing visible before draws (the gate culls against that frame's pyramid, the main cull
+/// against more depth); the gate's kept and kept-out candidates add up to last frame's visible
+/// buildings in the frustum; and over the jumps the gate keeps some out and draws some early.
+/// Generated city and Den Haag, 320 × 200 and 1001 × 777.
+#[test]
+fn occluder_gate_after_a_jump_draws_a_subset_of_a_cold_frame() {
+    let Some((mut h, generated_city)) = harness("two_phase occluder gate", generated) else {
+        return;
+    };
+    let den_haag = den_haag(&h.gpu);
+    let gated = CullingOptions {
+        occluders: true,
+        occluder_gate: true,
+        ..CullingOptions::default()
+    };
+    let ungated = CullingOptions {
+        occluder_gate: false,
+        ..gated
+    };
+    let mut rng = Rng(0x5eed_6a7e);
+    let (mut kept_out, mut early, mut drawn_gated, mut drawn_ungated, mut drawn_cold) =
+        (0u32, 0u32, 0usize, 0usize, 0usize);
+    for scene in [&generated_city, &den_haag] {
+        for jump in 0..8 {
+            let size = if jump % 4 == 3 {
+                (1001, 777)
+            } else {
+                (320, 200)
+            };
+            let before = street_camera(&mut rng, &scene.city);
+            let camera = street_camera(&mut rng, &scene.city);
+            let mut visibility = Visibility::default();
+            h.check(scene, ("gated", &gated), &mut visibility, &before, size);
+            let mut ungated_visibility = visibility.clone();
+            // Last frame's visible buildings in this frame's frustum: the gate's candidates.
+            let frustum = citywalk_scenes::frustum::Frustum::from_view_proj(
+                camera.view_proj(size.0 as f32 / size.1 as f32),
+            );
+            let candidates = visibility
+                .visible_ids()
+                .into_iter()
+                .filter(|&b| {
+                    let r = &scene.scene.records[b as usize];
+                    frustum.classify_aabb(
+                        Vec3::from_array(r.bounds_min_m),
+                        Vec3::from_array(r.bounds_max_m),
+                    ) != citywalk_scenes::frustum::Containment::Outside
+                })
+                .count() as u32;
+            let (out, _) = h.check(scene, ("gated", &gated), &mut visibility, &camera, size);
+            let error = h.error_vs_brute(scene, &camera, size);
+            assert!(
+                error < 0.002,
+                "{}, gated, {size:?}: {:.3} % of pixels differ from brute force",
+                scene.name,
+                100.0 * error
+            );
+            let s = &out.stats;
+            assert_eq!(
+                s.early_drawn + s.gate_culled,
+                candidates,
+                "{}, camera {}: early {} + kept out {} != candidates {candidates}",
+                scene.name,
+                camera.to_arg_string(),
+                s.early_drawn,
+                s.gate_culled
+            );
+            let (cold, _) = h.check(
+                scene,
+                ("cold", &gated),
+                &mut Visibility::default(),
+                &camera,
+                size,
+            );
+            let extra: Vec<u32> = out
+                .drawn
+                .iter()
+                .copied()
+                .filter(|b| cold.drawn.binary_search(b).is_err())
+                .collect();
+            assert!(
+                extra.is_empty(),
+                "{}, camera {} after {}: gated frame drew {extra:?} a cold frame did not",
+                scene.name,
+                camera.to_arg_string(),
+                before.to_arg_string()
+            );
+            let (plain, _) = h.check(
+                scene,
+                ("ungated", &ungated),
+                &mut ungated_visibility,
+                &camera,
+                size,
+            );
+            kept_out += s.gate_culled;
+            early += s.early_drawn;
+            drawn_gated += out.drawn.len();
+            drawn_cold += cold.drawn.len();
+            drawn_ungated += plain.drawn.len();
+        }
+    }
+    eprintln!(
+        "occluder gate after jumps: {early} drawn early, {kept_out} kept out; drawn: gated \
+         {drawn_gated}, ungated {drawn_ungated}, nothing visible before {drawn_cold}"
+    );
+    assert!(kept_out > 0, "the gate never kept a stale candidate out");
+    assert!(early > 0, "the gate never let a candidate through");
 }
 
 /// Paths lavapipe would otherwise never take in CI. (1) A frame with no candidate at all: the

@@ -59,6 +59,10 @@ pub(super) struct Candidates<'a> {
     pub early_buildings: Vec<bool>,
     /// Draws issued by the early pass, the ground included.
     pub early_draw_count: u32,
+    /// The early candidates go through the occluder gate ([`Candidates::gate_records`]): their
+    /// cull records keep their index counts (the cull skips those the gate drew) and `early`
+    /// holds what the gate kept once [`Candidates::apply_gate`] has run.
+    pub gated: bool,
     /// The LOD scene and the draw id of each candidate, for a LOD cut; `None`: candidate `i` is
     /// building `i`.
     lod: Option<(LodSource<'a>, Cow<'a, [u32]>)>,
@@ -89,6 +93,7 @@ impl<'a> Candidates<'a> {
             records: Cow::Borrowed(&scene.records),
             early_buildings: early.clone(),
             early_draw_count: 1 + early.iter().filter(|&&e| e).count() as u32,
+            gated: false,
             early,
             lod: None,
             building_count: scene.building_count(),
@@ -133,6 +138,7 @@ impl<'a> Candidates<'a> {
         Candidates {
             records: Cow::Owned(records),
             early_draw_count: 1 + early.iter().filter(|&&e| e).count() as u32,
+            gated: false,
             early,
             early_buildings,
             lod: Some((lod, lod_ids)),
@@ -142,6 +148,47 @@ impl<'a> Candidates<'a> {
 
     pub fn len(&self) -> usize {
         self.records.len()
+    }
+
+    /// The early candidates for the occluder gate: their records (real index counts) and the
+    /// candidate index each stands for, in candidate order.
+    pub fn gate_records(&self) -> (Vec<BuildingRecord>, Vec<u32>) {
+        self.early
+            .iter()
+            .enumerate()
+            .filter(|&(_, &e)| e)
+            .map(|(i, _)| (self.records[i], i as u32))
+            .unzip()
+    }
+
+    /// Takes the gate's `status` (one per entry of [`Candidates::gate_records`], in its order):
+    /// an early candidate stays early (drawn by the early pass) only when the gate kept it;
+    /// the others go to the cull like any candidate. Returns how many the gate kept out.
+    pub fn apply_gate(&mut self, status: &[u32]) -> u32 {
+        let mut kept_out = 0;
+        let mut next = status.iter();
+        for i in 0..self.early.len() {
+            if self.early[i] && next.next() != Some(&CULL_VISIBLE) {
+                self.early[i] = false;
+                kept_out += 1;
+                if let Some(b) = self.building_of(i) {
+                    self.early_buildings[b] = false;
+                }
+            }
+        }
+        self.early_draw_count -= kept_out;
+        kept_out
+    }
+
+    /// The building candidate `i` is, when it is one (not a cluster).
+    fn building_of(&self, i: usize) -> Option<usize> {
+        match &self.lod {
+            None => Some(i),
+            Some((lod, ids)) => ids
+                .get(i)
+                .filter(|&&id| id < lod.building_count)
+                .map(|&id| id as usize),
+        }
     }
 
     /// Calls `f` with every building candidate `i` covers.
@@ -269,6 +316,7 @@ impl<'a> Candidates<'a> {
         clusters.sort_unstable();
         FrameOutput {
             drawn,
+            occluders: Vec::new(),
             status: if self.lod.is_none() {
                 status
             } else {
@@ -280,11 +328,12 @@ impl<'a> Candidates<'a> {
     }
 
     /// The cull record of candidate `i` as the cull reads it: a zero index count when the
-    /// candidate is early (the cull then emits an empty command for it and the late pass draws
-    /// each candidate at most once).
+    /// candidate is early and not gated (the cull then emits an empty command for it and the
+    /// late pass draws each candidate at most once; with the gate, the cull skips the drawn
+    /// ones by the gate's flags instead).
     fn late_record(&self, i: usize) -> BuildingRecord {
         let mut r = self.records[i];
-        if self.early[i] {
+        if self.early[i] && !self.gated {
             r.index_count = 0;
         }
         r
@@ -469,6 +518,54 @@ mod tests {
         assert_eq!(c.early_buildings, vec![false, true, false]);
     }
 
+    /// The occluder gate's bookkeeping over a LOD cut: the gate's records are the early
+    /// candidates in order, with the candidate each stands for; gated late records keep their
+    /// index counts (the cull skips by the gate's flags); the gate's status leaves early only
+    /// those it kept, and the statistics count the kept-out ones as late draws when the cull
+    /// keeps them.
+    #[test]
+    fn the_gate_keeps_early_only_what_it_kept() {
+        let (tree, records, frustum) = scene();
+        let lod = LodSource {
+            building_count: 3,
+            cull_records: &records,
+            tree: &tree,
+        };
+        let mut visibility = Visibility::default();
+        visibility.fit(3);
+        visibility.set(vec![true, true, true]);
+        // Cut: building 2, cluster 2 (never early), building 0, building 1.
+        let cut = [2, 3 + 2, 0, 1];
+        let mut c = Candidates::lod(lod, &cut, &visibility, &frustum);
+        assert_eq!(c.early, vec![true, false, true, true]);
+        let (gate, targets) = c.gate_records();
+        assert_eq!(targets, vec![0, 2, 3]);
+        assert_eq!(gate, vec![records[2], records[0], records[1]]);
+        c.gated = true;
+        let late: Vec<u32> = c.late_records().iter().map(|r| r.index_count).collect();
+        assert_eq!(
+            late,
+            vec![36, 36, 36, 36],
+            "gated late records keep their draws"
+        );
+        // The gate keeps building 2 and building 1, keeps building 0 out.
+        let kept_out = c.apply_gate(&[CULL_VISIBLE, CULL_OCCLUDED, CULL_VISIBLE]);
+        assert_eq!(kept_out, 1);
+        assert_eq!(c.early, vec![true, false, false, true]);
+        assert_eq!(c.early_buildings, vec![false, true, true]);
+        assert_eq!(c.early_draw_count, 3);
+        // The cull keeps building 0 (drawn late) and hides the cluster and building 1 (drawn
+        // early all the same).
+        let out = c.statistics(
+            vec![CULL_VISIBLE, CULL_OCCLUDED, CULL_VISIBLE, CULL_OCCLUDED],
+            false,
+        );
+        let s = &out.stats;
+        assert_eq!((s.early_drawn, s.late_drawn, s.drawn), (2, 1, 3));
+        assert_eq!(out.drawn, vec![0, 1, 2]);
+        assert_eq!(s.draw_calls, 3 + 1, "ground, two early, one late");
+    }
+
     #[test]
     fn late_records_are_updated_in_place_with_the_changed_runs() {
         let (tree, records, frustum) = scene();
@@ -524,6 +621,7 @@ mod tests {
             records: Cow::Owned(scene_records),
             early_buildings: early.clone(),
             early_draw_count: 3,
+            gated: false,
             early,
             lod: None,
             building_count: 3,

@@ -200,7 +200,9 @@ mod tests {
         let px_per_rad = height_px as f32 / (camera.fov_y_rad * 0.5).tan();
         let frustum = Frustum::from_view_proj(camera.view_proj(16.0 / 9.0));
         // A 10 m cube (radius ≈ 8.66 m) straight ahead at distance d projects to
-        // 8.66 / d · 1247 px: more than 24 px up to d ≈ 450 m.
+        // 8.66 / d · 1247 px: more than 24 px up to d ≈ 450 m, more than the default 12 px up
+        // to d ≈ 900 m.
+        let min_px = 24.0;
         let cube = |centre: Vec3| OccluderDraw {
             building: 0,
             draw: DrawIndexedIndirectArgs {
@@ -222,7 +224,7 @@ mod tests {
                 camera.position,
                 &frustum,
                 px_per_rad,
-                DEFAULT_OCCLUDER_MIN_PX,
+                min_px,
             )
         };
         assert!(wanted(Vec3::new(50.0, 0.0, 0.0)));

@@ -27,23 +27,25 @@ impl StatusReadback {
             .reserve(&gpu.device, (n.max(1) * slots.max(1) * 4) as u64);
     }
 
-    /// Records the copy of the first `n` entries of `status` into slot `slot` (entries
-    /// `slot·n .. (slot+1)·n`), so that several culls of one encoder can be read in one map.
+    /// Records the copy of the first `count` entries of `status` into slot `slot` of slots of
+    /// `stride` entries (entries `slot·stride ..`; `count` ≤ `stride`), so that several culls of
+    /// one encoder can be read in one map.
     pub fn copy_from(
         &self,
         encoder: &mut wgpu::CommandEncoder,
         status: &wgpu::Buffer,
-        n: usize,
+        count: usize,
+        stride: usize,
         slot: usize,
     ) {
-        if n > 0 {
-            let bytes = (n * 4) as u64;
+        debug_assert!(count <= stride, "{count} entries in a slot of {stride}");
+        if count > 0 {
             encoder.copy_buffer_to_buffer(
                 status,
                 0,
                 &self.buffer.buffer,
-                slot as u64 * bytes,
-                bytes,
+                (slot * stride * 4) as u64,
+                (count * 4) as u64,
             );
         }
     }

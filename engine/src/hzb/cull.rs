@@ -11,6 +11,13 @@
 //! difference between the GPU's and the CPU's float rounding ([`HZB_ROUNDING_REL`]), so the GPU
 //! never culls a box the CPU reference keeps; it may keep a few more.
 //!
+//! **Early draws.** The same pass serves the occluder-gated early pass of [`crate::frame`]
+//! ([`EarlyDraws`]): as a *gate* (entry point `gate`) it culls last frame's visible candidates
+//! against the occluders' pyramid, appends the draws of those it keeps (the early pass draws
+//! them) and marks them in a per-candidate flag buffer; as the main cull (entry point `cull`) it
+//! reads those flags and appends no draw for a candidate drawn early, while still writing its
+//! status.
+//!
 //! The command buffer is cleared before each cull, so it can be drawn either with
 //! `multi_draw_indexed_indirect_count` (count from [`HzbCull::count_buffer`], when
 //! `MULTI_DRAW_INDIRECT_COUNT` is available) or with `multi_draw_indexed_indirect` of
@@ -37,6 +44,28 @@ pub enum CullError {
     TooManyBoxes { box_count: u32, max: u32 },
     #[error("the records buffer holds {records} records, fewer than the {box_count} boxes to cull")]
     RecordsTooSmall { records: u64, box_count: u32 },
+    #[error(
+        "the gate's target buffer holds {targets} entries, fewer than the {box_count} boxes to cull"
+    )]
+    GateTargetsTooSmall { targets: u64, box_count: u32 },
+}
+
+/// What the cull knows of draws made before it (see the module documentation).
+#[derive(Debug, Clone, Copy, Default)]
+pub enum EarlyDraws<'a> {
+    /// Nothing drawn early (or drawn-early records carry a zero index count): every visible box
+    /// appends its draw.
+    #[default]
+    None,
+    /// Main cull: box `i` was drawn early when word `i` of this `u32` buffer is not zero; it
+    /// then gets its status but no draw.
+    Skip(&'a wgpu::Buffer),
+    /// Gate: box `j` stands for candidate `targets[j]` (a `u32` buffer of at least `box_count`
+    /// words); when visible, word `targets[j]` of `drawn` is set to 1.
+    Mark {
+        drawn: &'a wgpu::Buffer,
+        targets: &'a wgpu::Buffer,
+    },
 }
 
 /// What one cull wrote, read back to the CPU (tests, statistics).
@@ -53,7 +82,10 @@ pub struct CullResults {
 #[derive(Debug)]
 pub struct HzbCull {
     device: wgpu::Device,
-    pipeline: wgpu::ComputePipeline,
+    module: wgpu::ShaderModule,
+    pipeline_layout: wgpu::PipelineLayout,
+    /// The `cull` and `gate` pipelines, made when first used.
+    pipelines: [Option<wgpu::ComputePipeline>; 2],
     layout: wgpu::BindGroupLayout,
     params: wgpu::Buffer,
     status: wgpu::Buffer,
@@ -61,6 +93,10 @@ pub struct HzbCull {
     count: wgpu::Buffer,
     /// One zeroed part, bound when the records name none.
     no_parts: wgpu::Buffer,
+    /// One zero word each: the drawn-early flags and the gate targets when there are none (two
+    /// buffers: one binding is written, the other read).
+    no_flags: wgpu::Buffer,
+    no_targets: wgpu::Buffer,
     capacity: u32,
 }
 
@@ -117,20 +153,14 @@ impl HzbCull {
                     wgpu::BufferBindingType::Storage { read_only: true },
                     size_of::<CullPart>() as u64,
                 ),
+                buffer_entry(7, rw, 4),
+                buffer_entry(8, wgpu::BufferBindingType::Storage { read_only: true }, 4),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("hzb cull"),
             bind_group_layouts: &[Some(&layout)],
             immediate_size: 0,
-        });
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("hzb cull"),
-            layout: Some(&pipeline_layout),
-            module: &module,
-            entry_point: Some("cull"),
-            compilation_options: Default::default(),
-            cache: None,
         });
         let params = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("hzb cull params"),
@@ -152,19 +182,48 @@ impl HzbCull {
             contents: bytemuck::bytes_of(&<CullPart as bytemuck::Zeroable>::zeroed()),
             usage: wgpu::BufferUsages::STORAGE,
         });
+        let zero_word = |label| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: &[0; 4],
+                usage: wgpu::BufferUsages::STORAGE,
+            })
+        };
+        let no_flags = zero_word("hzb cull: no early draws");
+        let no_targets = zero_word("hzb cull: no gate targets");
         let capacity = capacity.max(1);
         let (status, commands) = Self::outputs(device, capacity);
         HzbCull {
             device: device.clone(),
-            pipeline,
+            module,
+            pipeline_layout,
+            pipelines: [None, None],
             layout,
             params,
             status,
             commands,
             count,
             no_parts,
+            no_flags,
+            no_targets,
             capacity,
         }
+    }
+
+    /// The pipeline of entry point `cull` (`gate` false) or `gate`, made on first use.
+    fn pipeline(&mut self, gate: bool) -> &wgpu::ComputePipeline {
+        let (slot, entry) = if gate { (1, "gate") } else { (0, "cull") };
+        self.pipelines[slot].get_or_insert_with(|| {
+            self.device
+                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some(if gate { "hzb cull: gate" } else { "hzb cull" }),
+                    layout: Some(&self.pipeline_layout),
+                    module: &self.module,
+                    entry_point: Some(entry),
+                    compilation_options: Default::default(),
+                    cache: None,
+                })
+        })
     }
 
     fn outputs(device: &wgpu::Device, capacity: u32) -> (wgpu::Buffer, wgpu::Buffer) {
@@ -232,6 +291,28 @@ impl HzbCull {
         (pyramid, view_proj): (&HzbPyramid, Mat4),
         timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
     ) -> Result<(), CullError> {
+        self.encode_with_early(
+            gpu,
+            encoder,
+            (records, parts, EarlyDraws::None),
+            box_count,
+            (pyramid, view_proj),
+            timestamp_writes,
+        )
+    }
+
+    /// As [`HzbCull::encode_timed`], knowing the frame's early draws: `early` makes this the
+    /// main cull that skips drawn-early boxes ([`EarlyDraws::Skip`]) or the gate that marks
+    /// them ([`EarlyDraws::Mark`]). The flags buffer is the caller's to clear before the gate.
+    pub fn encode_with_early(
+        &mut self,
+        gpu: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        (records, parts, early): (&wgpu::Buffer, Option<&wgpu::Buffer>, EarlyDraws<'_>),
+        box_count: u32,
+        (pyramid, view_proj): (&HzbPyramid, Mat4),
+        timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
+    ) -> Result<(), CullError> {
         let max = Self::max_boxes(gpu);
         if box_count > max {
             return Err(CullError::TooManyBoxes { box_count, max });
@@ -240,6 +321,17 @@ impl HzbCull {
         if record_capacity < u64::from(box_count) {
             return Err(CullError::RecordsTooSmall {
                 records: record_capacity,
+                box_count,
+            });
+        }
+        let (flags, targets, gate) = match early {
+            EarlyDraws::None => (&self.no_flags, &self.no_targets, false),
+            EarlyDraws::Skip(drawn) => (drawn, &self.no_targets, false),
+            EarlyDraws::Mark { drawn, targets } => (drawn, targets, true),
+        };
+        if gate && targets.size() / 4 < u64::from(box_count) {
+            return Err(CullError::GateTargetsTooSmall {
+                targets: targets.size() / 4,
                 box_count,
             });
         }
@@ -303,13 +395,22 @@ impl HzbCull {
                     binding: 6,
                     resource: parts.unwrap_or(&self.no_parts).as_entire_binding(),
                 },
+                wgpu::BindGroupEntry {
+                    binding: 7,
+                    resource: flags.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 8,
+                    resource: targets.as_entire_binding(),
+                },
             ],
         });
+        let pipeline = self.pipeline(gate).clone();
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("hzb cull"),
+            label: Some(if gate { "hzb cull: gate" } else { "hzb cull" }),
             timestamp_writes,
         });
-        pass.set_pipeline(&self.pipeline);
+        pass.set_pipeline(&pipeline);
         pass.set_bind_group(0, &group, &[]);
         pass.dispatch_workgroups(box_count.div_ceil(HZB_CULL_WORKGROUP), 1, 1);
         Ok(())

@@ -4,10 +4,9 @@
 
 use citywalk_scenes::blocks::UrbanBlocks;
 use citywalk_scenes::cluster_tree::ClusterTree;
-use citywalk_scenes::frustum::{Containment, Frustum};
+use citywalk_scenes::frustum::Frustum;
 use citywalk_scenes::occluder::OccluderSet;
 use citywalk_scenes::quadtree::BQuadtree;
-use glam::Vec3;
 
 use super::overlay::StageCounts;
 use super::settings::{DebugView, DrawPath, RenderSettings, SceneFeatures};
@@ -236,7 +235,6 @@ impl FrameDrawer {
                     settings,
                     path,
                     occluders,
-                    &frustum,
                 );
             }
         }
@@ -266,7 +264,6 @@ impl FrameDrawer {
         settings: &RenderSettings,
         path: DrawPath,
         with_occluders: bool,
-        frustum: &Frustum,
     ) -> Result<Drawn, FrameError> {
         let options = CullingOptions {
             occluders: with_occluders,
@@ -298,24 +295,6 @@ impl FrameDrawer {
             }
             _ => None,
         };
-        let all: Vec<u32>;
-        let (candidate_scene, candidates) = match &lod_frame {
-            Some((lod, cut)) => (&lod.gpu_scene, &cut.cut.buildings[..]),
-            None => {
-                all = (0..self.scene.building_count() as u32).collect();
-                (&self.scene, &all[..])
-            }
-        };
-        drawn.selected_occluders = selected_occluders(
-            occluders,
-            candidate_scene,
-            candidates,
-            &self.visibility,
-            camera,
-            frustum,
-            size.1,
-            &options,
-        );
         drawn.hzb = true;
         let output = match lod_frame {
             Some((lod, cut)) => {
@@ -370,9 +349,7 @@ impl FrameDrawer {
         counts.occluders_drawn = occluders.map(|_| s.occluders_drawn);
         counts.cpu_ms = s.cpu_ms;
         counts.gpu_ms = s.gpu.timed().map(|(p, ms)| (p.to_string(), ms)).collect();
-        if !with_occluders {
-            drawn.selected_occluders.clear();
-        }
+        drawn.selected_occluders = output.occluders;
         Ok(drawn)
     }
 
@@ -490,38 +467,4 @@ fn lod_cut(
         .filter(|_| quadtree)
         .map(|(b, tree)| visible_blocks(tree, b.blocks.len(), camera, width, height));
     lod.select(camera, width, height, criterion, visible.as_deref())
-}
-
-/// The occluders the frame's pre-pass selects: the rule of [`OccluderMeshes::select`] with the
-/// early set the frame computes (a candidate building of `candidates` visible last frame and in
-/// the frustum).
-#[expect(clippy::too_many_arguments, reason = "all inputs explicit")]
-fn selected_occluders(
-    meshes: Option<&OccluderMeshes>,
-    scene: &SceneGpu,
-    candidates: &[u32],
-    visibility: &Visibility,
-    camera: &Camera,
-    frustum: &Frustum,
-    height_px: u32,
-    options: &CullingOptions,
-) -> Vec<usize> {
-    let Some(meshes) = meshes else {
-        return Vec::new();
-    };
-    let mut early = vec![false; scene.building_count()];
-    for &b in candidates {
-        let Some(r) = scene.records.get(b as usize) else {
-            continue;
-        };
-        if visibility.is_visible(b)
-            && frustum.classify_aabb(
-                Vec3::from_array(r.bounds_min_m),
-                Vec3::from_array(r.bounds_max_m),
-            ) != Containment::Outside
-        {
-            early[b as usize] = true;
-        }
-    }
-    meshes.select(camera, frustum, height_px, options.occluder_min_px, &early)
 }
