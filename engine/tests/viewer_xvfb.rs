@@ -347,26 +347,24 @@ fn viewer_switches_stages_lod_and_debug_views() {
         [0, 1, 2].map(|c| b[c] - (1.0 - alpha) * a[c])
     };
     const ROUNDING: f32 = 0.01;
+    // Channels ordered as the blue tint's (blue, green, red) or the orange tint's (red, green,
+    // blue).
+    let ordered = |g: [f32; 3], [hi, mid, lo]: [usize; 3]| {
+        g[hi] + ROUNDING >= g[mid] && g[mid] + ROUNDING >= g[lo]
+    };
     let bluer = tinted
         .iter()
-        .filter(|pair| {
-            let g = gained(pair);
-            g[2] + ROUNDING >= g[1] && g[1] + ROUNDING >= g[0]
-        })
+        .filter(|pair| ordered(gained(pair), [2, 1, 0]))
         .count();
     let oranger = tinted
         .iter()
-        .filter(|pair| {
-            let g = gained(pair);
-            g[0] + ROUNDING >= g[1] && g[1] + ROUNDING >= g[2]
-        })
+        .filter(|pair| ordered(gained(pair), [0, 1, 2]))
         .count();
     let either = tinted
         .iter()
         .filter(|pair| {
             let g = gained(pair);
-            (g[2] + ROUNDING >= g[1] && g[1] + ROUNDING >= g[0])
-                || (g[0] + ROUNDING >= g[1] && g[1] + ROUNDING >= g[2])
+            ordered(g, [2, 1, 0]) || ordered(g, [0, 1, 2])
         })
         .count();
     assert!(

@@ -242,7 +242,7 @@ fn test_hull(corners: array<vec3<f32>, 8>, reads: bool) -> u32 {
 // One record: its box, then, when the box may be visible, its parts (reference
 // `DepthPyramid::cull_record`): outside when every part is, hidden when none is visible. Every
 // invocation calls it (the uniform level loop of `test_hull`); past the box count
-// (`in_range` false) nothing is read and the answer is meaningless.
+// (`in_range` false) nothing is read and the answer is CULL_FRUSTUM_OUTSIDE.
 fn record_outcome(record: BuildingRecord, in_range: bool) -> u32 {
     var outcome = test_hull(box_corners(record.bounds_min_m, record.bounds_max_m), in_range);
     if !in_range {
@@ -276,20 +276,26 @@ fn append_draw(record: BuildingRecord) {
     commands[slot] = DrawIndexedIndirectArgs(record.index_count, 1u, record.first_index, record.base_vertex, 0u);
 }
 
+// Culls record `index` (every invocation calls it, in range or not: the uniform level loop of
+// `test_hull`) and writes its status; returns the outcome, CULL_FRUSTUM_OUTSIDE past the box
+// count.
+fn cull_record(index: u32) -> u32 {
+    let in_range = index < params.box_count;
+    let record = records[min(index, max(params.box_count, 1u) - 1u)];
+    let outcome = record_outcome(record, in_range);
+    if in_range {
+        status[index] = outcome;
+    }
+    return outcome;
+}
+
 // The cull of every candidate: status, and the draw of each visible one not drawn early.
 @compute @workgroup_size(HZB_CULL_WORKGROUP, 1, 1)
 fn cull(@builtin(global_invocation_id) id: vec3<u32>) {
     let index = id.x;
-    let in_range = index < params.box_count;
-    let record = records[min(index, max(params.box_count, 1u) - 1u)];
-    let outcome = record_outcome(record, in_range);
-    if !in_range {
-        return;
-    }
-    status[index] = outcome;
     let drawn = index < arrayLength(&drawn_early) && drawn_early[index] != 0u;
-    if outcome == CULL_VISIBLE && !drawn {
-        append_draw(record);
+    if cull_record(index) == CULL_VISIBLE && !drawn {
+        append_draw(records[index]);
     }
 }
 
@@ -299,15 +305,8 @@ fn cull(@builtin(global_invocation_id) id: vec3<u32>) {
 @compute @workgroup_size(HZB_CULL_WORKGROUP, 1, 1)
 fn gate(@builtin(global_invocation_id) id: vec3<u32>) {
     let index = id.x;
-    let in_range = index < params.box_count;
-    let record = records[min(index, max(params.box_count, 1u) - 1u)];
-    let outcome = record_outcome(record, in_range);
-    if !in_range {
-        return;
-    }
-    status[index] = outcome;
-    if outcome == CULL_VISIBLE {
-        append_draw(record);
+    if cull_record(index) == CULL_VISIBLE {
+        append_draw(records[index]);
         if index < arrayLength(&gate_targets) {
             let candidate = gate_targets[index];
             if candidate < arrayLength(&drawn_early) {

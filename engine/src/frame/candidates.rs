@@ -455,16 +455,26 @@ mod tests {
         )
     }
 
+    /// The LOD source of [`scene`]'s tree and records, and a visibility of its three buildings
+    /// with nothing visible.
+    fn source<'a>(
+        tree: &'a ClusterTree,
+        records: &'a [BuildingRecord],
+    ) -> (LodSource<'a>, Visibility) {
+        let mut visibility = Visibility::default();
+        visibility.fit(3);
+        let lod = LodSource {
+            building_count: 3,
+            cull_records: records,
+            tree,
+        };
+        (lod, visibility)
+    }
+
     #[test]
     fn visibility_is_kept_per_building_across_cuts() {
         let (tree, records, frustum) = scene();
-        let lod = LodSource {
-            building_count: 3,
-            cull_records: &records,
-            tree: &tree,
-        };
-        let mut visibility = Visibility::default();
-        visibility.fit(3);
+        let (lod, mut visibility) = source(&tree, &records);
 
         // Coarse cut: cluster 2 (buildings 2 and 0) and building 1. Nothing seen yet: nothing
         // early.
@@ -526,13 +536,7 @@ mod tests {
     #[test]
     fn the_gate_keeps_early_only_what_it_kept() {
         let (tree, records, frustum) = scene();
-        let lod = LodSource {
-            building_count: 3,
-            cull_records: &records,
-            tree: &tree,
-        };
-        let mut visibility = Visibility::default();
-        visibility.fit(3);
+        let (lod, mut visibility) = source(&tree, &records);
         visibility.set(vec![true, true, true]);
         // Cut: building 2, cluster 2 (never early), building 0, building 1.
         let cut = [2, 3 + 2, 0, 1];
@@ -569,13 +573,7 @@ mod tests {
     #[test]
     fn late_records_are_updated_in_place_with_the_changed_runs() {
         let (tree, records, frustum) = scene();
-        let lod = LodSource {
-            building_count: 3,
-            cull_records: &records,
-            tree: &tree,
-        };
-        let mut visibility = Visibility::default();
-        visibility.fit(3);
+        let (lod, mut visibility) = source(&tree, &records);
         let fine = [0, 1, 2];
         let mut late = Vec::new();
         // First frame: everything is new.
