@@ -104,7 +104,11 @@ fn every_stage_combination_and_debug_view_renders_and_reports_its_counts() {
         lod: false,
         ..Stages::ALL
     };
-    for stages in [frustum_only, hzb] {
+    let ungated = Stages {
+        occluder_gate: false,
+        ..hzb
+    };
+    for stages in [frustum_only, hzb, ungated] {
         // Twice: the HZB frame starts from last frame's visible set the second time.
         for _ in 0..2 {
             let (drawn, image) = frame(&with(stages), &street);
@@ -124,6 +128,11 @@ fn every_stage_combination_and_debug_view_renders_and_reports_its_counts() {
             );
             assert_eq!(c.occlusion_culled.is_some(), stages.hzb, "{c:?}");
             assert_eq!(c.occluders_drawn.is_some(), stages.hzb, "{c:?}");
+            assert_eq!(
+                c.gate_culled.is_some(),
+                stages.hzb && stages.occluder_gate,
+                "{c:?}"
+            );
             if stages.hzb {
                 assert!(c.occlusion_culled.is_some_and(|k| k > 0), "{c:?}");
             }

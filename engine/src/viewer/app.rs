@@ -225,6 +225,11 @@ impl App {
                     tracing::info!("this scene has no occluders (they come with scene packages)");
                 }
             }
+            Command::ToggleOccluderGate => {
+                let stages = &mut self.settings.stages;
+                stages.occluder_gate = !stages.occluder_gate;
+                tracing::info!(on = stages.occluder_gate, "occluder gate of the early set");
+            }
             Command::ToggleLod => {
                 if self.features.cluster_tree {
                     let stages = &mut self.settings.stages;

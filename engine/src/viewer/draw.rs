@@ -267,6 +267,7 @@ impl FrameDrawer {
     ) -> Result<Drawn, FrameError> {
         let options = CullingOptions {
             occluders: with_occluders,
+            occluder_gate: settings.stages.occluder_gate,
             ..CullingOptions::default()
         };
         let occluders = self.occluders.as_ref().filter(|_| with_occluders);
@@ -347,6 +348,9 @@ impl FrameDrawer {
         counts.triangles = s.triangles;
         counts.draw_calls = s.draw_calls;
         counts.occluders_drawn = occluders.map(|_| s.occluders_drawn);
+        counts.gate_culled = occluders
+            .filter(|_| options.occluder_gate)
+            .map(|_| s.gate_culled);
         counts.cpu_ms = s.cpu_ms;
         counts.gpu_ms = s.gpu.timed().map(|(p, ms)| (p.to_string(), ms)).collect();
         drawn.selected_occluders = output.occluders;

@@ -33,6 +33,8 @@ pub enum Command {
     ToggleCulling,
     /// V: the virtual-occluder pre-pass on / off (scene packages with occluders).
     ToggleOccluders,
+    /// N: the occluder gate of the early set on / off (with the pre-pass).
+    ToggleOccluderGate,
     /// L: the LOD cut on / off (scene packages with a cluster tree).
     ToggleLod,
     /// K: LOD criterion Chang ↔ Yang.
@@ -56,6 +58,7 @@ impl Command {
             KeyCode::KeyH => Some(Command::ToggleOverlay),
             KeyCode::KeyC => Some(Command::ToggleCulling),
             KeyCode::KeyV => Some(Command::ToggleOccluders),
+            KeyCode::KeyN => Some(Command::ToggleOccluderGate),
             KeyCode::KeyB => Some(Command::ToggleFrustum),
             KeyCode::KeyL => Some(Command::ToggleLod),
             KeyCode::KeyK => Some(Command::ToggleCriterion),
@@ -149,7 +152,7 @@ is held (M toggles mouse look, Esc releases it or quits), F / Tab switch walk <-
 fly: E / Space up, Q / Ctrl down, wheel changes speed, O goes to the overview, R starts / stops \
 recording the camera path, H shows / hides the overlay, B / C / V / L switch frustum (B-Quadtree) \
 culling, HZB occlusion culling, the virtual-occluder pre-pass and the LOD cut on / off (all off: \
-brute force), K switches the LOD criterion Chang <-> Yang, G cycles the debug views (pyramid, \
+brute force), N the occluder gate of last frame's visible set, K switches the LOD criterion Chang <-> Yang, G cycles the debug views (pyramid, \
 clusters, occluders), [ and ] pick the pyramid level";
 
 #[cfg(test)]
@@ -205,6 +208,10 @@ mod tests {
         assert_eq!(
             t.key(KeyCode::KeyV, ElementState::Pressed, false),
             Some(Command::ToggleOccluders)
+        );
+        assert_eq!(
+            t.key(KeyCode::KeyN, ElementState::Pressed, false),
+            Some(Command::ToggleOccluderGate)
         );
         for (key, command) in [
             (KeyCode::KeyB, Command::ToggleFrustum),

@@ -61,6 +61,9 @@ pub struct StageCounts {
     pub draw_calls: u32,
     /// Virtual occluders drawn into the pyramid's depth (with the pre-pass).
     pub occluders_drawn: Option<u32>,
+    /// Last frame's visible candidates the occluder gate kept out of the early pass (with the
+    /// gate).
+    pub gate_culled: Option<u32>,
     /// CPU time of the frame: selection, recording, submission, waiting for the GPU (ms).
     pub cpu_ms: f64,
     /// GPU time per phase (ms), where the frame measured it.
@@ -164,6 +167,9 @@ fn stats_grid(ui: &mut egui::Ui, stats: &OverlayStats) {
             if let Some(n) = c.occluders_drawn {
                 row("occluders drawn", n.to_string());
             }
+            if let Some(n) = c.gate_culled {
+                row("kept out by the gate", n.to_string());
+            }
             row("frame cpu", format!("{:.2} ms", c.cpu_ms));
             for (phase, ms) in &c.gpu_ms {
                 row(&format!("gpu {phase}"), format!("{ms:.3} ms"));
@@ -189,6 +195,13 @@ fn stage_toggles(ui: &mut egui::Ui, features: SceneFeatures, settings: &mut Rend
     ui.add_enabled(
         stages.hzb && features.occluders,
         egui::Checkbox::new(&mut stages.occluders, "occluder pre-pass (V)"),
+    );
+    ui.add_enabled(
+        stages.hzb && stages.occluders && features.occluders,
+        egui::Checkbox::new(
+            &mut stages.occluder_gate,
+            "occluder gate of the early set (N)",
+        ),
     );
     ui.add_enabled(
         features.cluster_tree,
@@ -554,6 +567,7 @@ mod tests {
                     triangles: 98_765,
                     draw_calls: 19,
                     occluders_drawn: Some(5),
+                    gate_culled: Some(3),
                     cpu_ms: 1.25,
                     gpu_ms: vec![("late_pass".into(), 0.75)],
                     debug: Some("pyramid level 3 of 11 (160×90)".into()),
@@ -574,12 +588,14 @@ mod tests {
                 "98765",
                 "19",
                 "occluders drawn",
+                "kept out by the gate",
                 "1.25 ms",
                 "gpu late_pass",
                 "0.750 ms",
                 "pyramid level 3 of 11",
                 "frustum / B-Quadtree (B)",
                 "occluder pre-pass (V)",
+                "occluder gate of the early set (N)",
                 "LOD cut (L)",
                 "Chang",
                 "Yang",

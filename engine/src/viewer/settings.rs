@@ -15,6 +15,10 @@ pub struct Stages {
     pub hzb: bool,
     /// The virtual-occluder pre-pass of the HZB frame (needs `hzb` and occluders).
     pub occluders: bool,
+    /// The occluder gate of the pre-pass: last frame's visible set is drawn early only where
+    /// the occluders' own pyramid does not hide it ([`crate::frame::CullingOptions::occluder_gate`];
+    /// needs `occluders`).
+    pub occluder_gate: bool,
     /// The screen-space LOD cut of the cluster tree (Chang et al. 2008 / Yang et al. 2011).
     pub lod: bool,
 }
@@ -25,6 +29,7 @@ impl Stages {
         frustum: true,
         hzb: true,
         occluders: true,
+        occluder_gate: true,
         lod: true,
     };
     /// Every stage off: brute force.
@@ -32,6 +37,7 @@ impl Stages {
         frustum: false,
         hzb: false,
         occluders: false,
+        occluder_gate: false,
         lod: false,
     };
 }

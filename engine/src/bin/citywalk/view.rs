@@ -50,6 +50,10 @@ pub struct Args {
     /// Start drawing brute force, every culling stage off (B, C, V, L switch them on).
     #[arg(long)]
     pub no_culling: bool,
+    /// Start with the occluder gate off: last frame's visible set drawn early unculled (N
+    /// toggles).
+    #[arg(long)]
+    pub no_occluder_gate: bool,
     /// Start with the screen-space LOD cut on (scene packages with a cluster tree; L toggles).
     #[arg(long)]
     pub lod: bool,
@@ -100,6 +104,7 @@ fn start_settings(args: &Args) -> RenderSettings {
         settings.stages = Stages::NONE;
     }
     settings.stages.lod = args.lod;
+    settings.stages.occluder_gate &= !args.no_occluder_gate;
     settings.lod.kind = args.criterion;
     let lod = &mut settings.lod;
     for (value, slot) in [
