@@ -38,25 +38,26 @@
 //! every building under it, so a building visible in the full-detail scene keeps the candidate
 //! that covers it (`frame/candidates.rs`).
 //!
-//! **The occluder gate.** Last frame's visible set is a guess: after a jump or a fast move much
-//! of it is hidden, and drawing it early costs draws the cull would have saved. With occluders
-//! and [`CullingOptions::occluder_gate`], the ground and the occluders go first, alone, into the
-//! culling depth; the early candidates are culled against their pyramid (the cull's `gate`
-//! entry point), and the early pass draws only those kept, through the gate's indirect
-//! commands. The early depth is then merged into the culling depth (the nearer wins) and the
-//! main pyramid built from the merge, so it holds the same kinds of depth as without the gate
-//! (real geometry and occluders contained in their buildings): conservative for the same reason. An early candidate the gate keeps out is
-//! culled with every other candidate and drawn late when visible, in the same frame; the main
-//! cull reads the gate's per-candidate flags and issues no draw for one the gate drew. The frame
-//! then draws a subset of what a frame with no early set at all would draw: the gate's pyramid
-//! is that frame's pyramid (the ground and the same occluders), and the main pyramid holds at
-//! least that depth, so the main cull keeps no more either. A building the final image shows is
-//! never kept out by the gate (nothing real, hence no occluder, is in front of it).
+//! **The occluder gate.** Last frame's visible set is a guess: after a jump or a fast move much of
+//! it is hidden, and drawing it early costs draws the cull would have saved. With occluders and
+//! [`CullingOptions::occluder_gate`], the ground and the occluders go first, alone, into the
+//! culling depth; the early candidates are culled against their pyramid (the cull's `gate` entry
+//! point), and the early pass draws only those kept, through the gate's indirect commands. The
+//! early depth is then merged into the culling depth (the nearer wins) and the main pyramid built
+//! from the merge, so it holds the same kinds of depth as without the gate (real geometry and
+//! occluders contained in their buildings): conservative for the same reason. An early candidate
+//! the gate keeps out is culled with every other candidate and drawn late when visible, in the same
+//! frame; the main cull reads the gate's per-candidate flags and issues no draw for one the gate
+//! drew. The frame then draws a subset of what a frame with no early set at all would draw: the
+//! gate's pyramid is that frame's pyramid (the ground and the same occluders), and the main pyramid
+//! holds at least that depth, so the main cull keeps no more either. A building the final image
+//! shows is never kept out by the gate (nothing real, hence no occluder, is in front of it).
 //!
-//! **Late draws.** The cull reads a copy of the candidates' records whose index count is zero
-//! for every candidate the early pass drew (with the gate: its flags), so the late pass issues
-//! an empty command for those and draws each candidate at most once per frame. [`FrameStats::draw_calls`] counts non-empty
-//! draws only; [`FrameStats::late_commands`] is every command the late pass walked.
+//! **Late draws.** The cull reads a copy of the candidates' records whose index count is zero for
+//! every candidate the early pass drew (with the gate: its flags), so the late pass issues an empty
+//! command for those and draws each candidate at most once per frame. [`FrameStats::draw_calls`]
+//! counts non-empty draws only; [`FrameStats::late_commands`] is every command the late pass
+//! walked.
 //!
 //! **Visibility.** The next frame's early set is this frame's cull status `CULL_VISIBLE`, read
 //! back with the (small) status buffer. With [`CullingOptions::visibility_from_final_depth`] it
@@ -153,13 +154,13 @@ pub const DEFAULT_OCCLUDER_MIN_PX: f32 = 12.0;
 /// nothing drawn early 1.38 ×; the gate's bound is the latter.
 pub const DEFAULT_OCCLUDER_GATE: bool = true;
 
-/// Default of [`CullingOptions::visibility_from_final_depth`]: off, by measurement (release
-/// build, lavapipe, 1280 × 720, 16-frame street walks, mode `occluders`, with axis-aligned
-/// boxes before cull parts). On the generated 100k city it lowers the buildings drawn per
-/// frame from 226 to 193 (61.6 visible), on the 10k city not at all (95.1, 48.8 visible): what
-/// a frame draws is mostly what the first cull keeps, which the early set hardly changes. The second pyramid and cull cost 7–10 ms per frame on
-/// lavapipe (30 → 39 ms on 10k, 39–45 → 49–56 ms on 100k), more than the fewer draws save;
-/// on a real GPU both sides are a fraction of a millisecond.
+/// Default of [`CullingOptions::visibility_from_final_depth`]: off, by measurement (release build,
+/// lavapipe, 1280 × 720, 16-frame street walks, mode `occluders`, with axis-aligned boxes before
+/// cull parts). On the generated 100k city it lowers the buildings drawn per frame from 226 to 193
+/// (61.6 visible), on the 10k city not at all (95.1, 48.8 visible): what a frame draws is mostly
+/// what the first cull keeps, which the early set hardly changes. The second pyramid and cull cost
+/// 7–10 ms per frame on lavapipe (30 → 39 ms on 10k, 39–45 → 49–56 ms on 100k), more than the fewer
+/// draws save; on a real GPU both sides are a fraction of a millisecond.
 pub const DEFAULT_VISIBILITY_FROM_FINAL_DEPTH: bool = false;
 
 /// Changed late records closer than this many entries are uploaded in one write (a write has a
@@ -547,8 +548,9 @@ impl CullingRenderer {
     }
 
     /// The occluder gate: the ground and the selected occluders alone into the culling depth,
-    /// their pyramid, and the early candidates culled against it (the cull's `gate` entry point), which writes
-    /// the early pass's commands and marks the candidates it keeps in `drawn_early`.
+    /// their pyramid, and the early candidates culled against it (the cull's `gate` entry
+    /// point), which writes the early pass's commands and marks the candidates it keeps in
+    /// `drawn_early`.
     fn occluder_gate(
         &mut self,
         gpu: &GpuContext,

@@ -152,8 +152,9 @@ is held (M toggles mouse look, Esc releases it or quits), F / Tab switch walk <-
 fly: E / Space up, Q / Ctrl down, wheel changes speed, O goes to the overview, R starts / stops \
 recording the camera path, H shows / hides the overlay, B / C / V / L switch frustum (B-Quadtree) \
 culling, HZB occlusion culling, the virtual-occluder pre-pass and the LOD cut on / off (all off: \
-brute force), N the occluder gate of last frame's visible set, K switches the LOD criterion Chang <-> Yang, G cycles the debug views (pyramid, \
-clusters, occluders), [ and ] pick the pyramid level";
+brute force), N the occluder gate of last frame's visible set, K switches the LOD criterion \
+Chang <-> Yang, G cycles the debug views (pyramid, clusters, occluders), [ and ] pick the \
+pyramid level";
 
 #[cfg(test)]
 mod tests {

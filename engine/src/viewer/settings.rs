@@ -15,8 +15,8 @@ pub struct Stages {
     pub hzb: bool,
     /// The virtual-occluder pre-pass of the HZB frame (needs `hzb` and occluders).
     pub occluders: bool,
-    /// The occluder gate of the pre-pass: last frame's visible set is drawn early only where
-    /// the occluders' own pyramid does not hide it ([`crate::frame::CullingOptions::occluder_gate`];
+    /// The occluder gate of the pre-pass: last frame's visible set is drawn early only where the
+    /// occluders' own pyramid does not hide it ([`crate::frame::CullingOptions::occluder_gate`];
     /// needs `occluders`).
     pub occluder_gate: bool,
     /// The screen-space LOD cut of the cluster tree (Chang et al. 2008 / Yang et al. 2011).
