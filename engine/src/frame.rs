@@ -437,7 +437,7 @@ impl CullingRenderer {
         &mut self,
         gpu: &GpuContext,
         scene: &SceneGpu,
-        candidates: Candidates<'_>,
+        mut candidates: Candidates<'_>,
         occluders: Option<&OccluderMeshes>,
         options: &CullingOptions,
         visibility: &mut Visibility,
@@ -447,7 +447,6 @@ impl CullingRenderer {
         start: Instant,
     ) -> Result<FrameOutput, FrameError> {
         self.fit_targets(gpu, width, height)?;
-        let mut candidates = candidates;
         let n = candidates.len();
         let view_proj = Self::view_proj(camera, (width, height));
         let frustum = Frustum::from_view_proj(view_proj);
