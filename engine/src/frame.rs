@@ -7,17 +7,15 @@
 //! (lod_cut      → caller: B-Quadtree + frustum + LOD cut, LodScene::select: the candidates)
 //! occluder_gate → (occluders on, gate on) the ground and nearby virtual occluders into the
 //!                 culling depth, their pyramid, last frame's visible candidates culled against it
-//! early_pass    → colour + depth: the ground and last frame's visible building candidates
-//!                 (with the gate: those it kept)
+//! early_cull    → (no gate) last frame's visible candidates inside the frustum
+//! early_pass    → colour + depth: the ground and what the gate or the early cull kept
 //! occluder_pass → (occluders on) copy of that depth + nearby virtual occluders, depth only
 //!                 (with the gate: that depth merged into the occluders' depth, nearest wins)
 //! build_pyramid → HiZ pyramid from that depth
 //! cull          → every candidate's box, then its parts, against the pyramid (status,
-//!                 indirect commands, count)
+//!                 indirect commands, count, visibility stamps for the next frame)
 //! late_pass     → colour + depth: the candidates the cull kept that the early pass did not draw
-//! read_status   → status to the CPU: statistics and next frame's visible set
-//! final_cull    → (option) pyramid of the final depth, the candidates culled again: the next
-//!                 frame's visible set from that status instead
+//! report        → timestamps and statuses copied to a ring slot, read a frame or more late
 //! ```
 //!
 //! Greene, Kass & Miller, *Hierarchical Z-buffer visibility* (SIGGRAPH 1993) for the pyramid;
@@ -53,26 +51,24 @@
 //! holds at least that depth, so the main cull keeps no more either. A building the final image
 //! shows is never kept out by the gate (nothing real, hence no occluder, is in front of it).
 //!
-//! **Late draws.** The cull reads a copy of the candidates' records whose index count is zero for
-//! every candidate the early pass drew (with the gate: its flags), so the late pass issues an empty
-//! command for those and draws each candidate at most once per frame. [`FrameStats::draw_calls`]
-//! counts non-empty draws only; [`FrameStats::late_commands`] is every command the late pass
-//! walked.
+//! **Late draws.** The early entry point marks each candidate it drew in a per-candidate flag
+//! buffer; the cull appends no draw for a marked candidate, so the late pass draws each candidate
+//! at most once per frame. [`FrameStats::draw_calls`] counts non-empty draws only;
+//! [`FrameStats::late_commands`] is every command the late pass walked.
 //!
-//! **Visibility.** The next frame's early set is this frame's cull status `CULL_VISIBLE`, read
-//! back with the (small) status buffer. With [`CullingOptions::visibility_from_final_depth`] it
-//! is the status of a second cull of the same candidates against a pyramid of the *final*
-//! depth (`final_cull` after `read_status` above): the first cull tests against the early depth,
-//! which is coarse where last frame's set was small, and keeps far more than is visible; a
-//! candidate hidden behind the final depth is not visible in this frame's image either. A LOD
-//! frame that drew a cluster mesh keeps the first cull's set: cluster meshes are not contained
-//! in their buildings, so the final depth may hide buildings the full-detail scene shows. The
-//! early set is a hint, not a promise (the late cull still tests every candidate), so this does
-//! not touch conservativeness. The set is kept per building id in [`Visibility`] (a visible
-//! cluster marks every building under it), so it carries over when the LOD cut changes between
-//! frames. A visibility of another building count (a new scene) is reset to empty, which is
-//! still correct: the early pass then draws only the ground and the late pass everything the
-//! cull keeps.
+//! **Visibility lives on the GPU** (niagara's `drawVisibility`, [`Visibility`]): the cull stamps
+//! every kept candidate's draw id with the frame's number, and the next frame's early entry point
+//! takes a building whose draw id, or a cluster's above it, carries last frame's number. The CPU
+//! neither walks nor uploads the set: per frame it records the passes and, for a LOD cut, uploads
+//! the cut's draw ids. The set is a hint, not a promise (the late cull still tests every
+//! candidate), so it does not touch conservativeness; a visibility of another scene shape starts
+//! empty, which is still correct.
+//!
+//! **Statistics come back late.** [`CullingRenderer::submit`] copies the frame's timestamps and
+//! statuses into a slot of a ring of readback buffers and returns; nothing in the frame waits on
+//! the GPU. [`CullingRenderer::poll_report`] (the viewer) takes the newest ready report without
+//! waiting; [`CullingRenderer::render`] and [`CullingRenderer::render_lod`] (the benchmark, the
+//! tests) submit and wait for their own frame's report.
 //!
 //! # Example: the combined frame (B-Quadtree + LOD + HZB + occluders)
 //!
@@ -109,20 +105,22 @@ mod candidates;
 mod depth_copy;
 mod grow_buffer;
 mod occluders;
-mod status_readback;
+mod report_ring;
 mod targets;
 mod visibility;
 
 use std::time::Instant;
 
 use citywalk_scenes::frustum::Frustum;
-use citywalk_shaders::{BuildingRecord, DrawIndexedIndirectArgs, SCENE_WGSL};
+use citywalk_shaders::constants::NO_PARENT;
+use citywalk_shaders::{DrawIndexedIndirectArgs, SCENE_WGSL};
 use glam::Mat4;
+use wgpu::util::DeviceExt;
 
 use crate::camera::Camera;
 use crate::gpu::GpuContext;
-use crate::gpu_timer::{FRAME_PHASES, GpuTimer, GpuTimes};
-use crate::hzb::cull::{CullError, EarlyDraws};
+use crate::gpu_timer::{FRAME_PHASES, GpuTimer, GpuTimes, TimedPhases};
+use crate::hzb::cull::{CullEntry, CullError, CullLinks, CullVisibility};
 use crate::hzb::{HzbCull, HzbPyramid};
 use crate::lod::scene::{LodFrame, LodScene};
 use crate::render::targets::ReadbackError;
@@ -133,7 +131,7 @@ use candidates::{Candidates, LodSource};
 use depth_copy::depth_copy_pipeline;
 use grow_buffer::GrowBuffer;
 pub use occluders::{OccluderDraw, OccluderMeshes};
-use status_readback::StatusReadback;
+use report_ring::{ReadSlot, ReportRing, SlotLayout};
 use targets::Targets;
 pub use visibility::Visibility;
 
@@ -154,19 +152,6 @@ pub const DEFAULT_OCCLUDER_MIN_PX: f32 = 12.0;
 /// nothing drawn early 1.38 ×; the gate's bound is the latter.
 pub const DEFAULT_OCCLUDER_GATE: bool = true;
 
-/// Default of [`CullingOptions::visibility_from_final_depth`]: off, by measurement (release build,
-/// lavapipe, 1280 × 720, 16-frame street walks, mode `occluders`, with axis-aligned boxes before
-/// cull parts). On the generated 100k city it lowers the buildings drawn per frame from 226 to 193
-/// (61.6 visible), on the 10k city not at all (95.1, 48.8 visible): what a frame draws is mostly
-/// what the first cull keeps, which the early set hardly changes. The second pyramid and cull cost
-/// 7–10 ms per frame on lavapipe (30 → 39 ms on 10k, 39–45 → 49–56 ms on 100k), more than the fewer
-/// draws save; on a real GPU both sides are a fraction of a millisecond.
-pub const DEFAULT_VISIBILITY_FROM_FINAL_DEPTH: bool = false;
-
-/// Changed late records closer than this many entries are uploaded in one write (a write has a
-/// fixed cost; 64 records are 3 KiB).
-const LATE_UPLOAD_MERGE_GAP: usize = 64;
-
 /// Why a frame could not be rendered.
 #[derive(Debug, thiserror::Error)]
 pub enum FrameError {
@@ -174,6 +159,10 @@ pub enum FrameError {
     Readback(#[from] ReadbackError),
     #[error(transparent)]
     Cull(#[from] CullError),
+    #[error(
+        "frame {0} recorded no report: every readback slot was still in flight (poll the reports)"
+    )]
+    NoReport(u64),
 }
 
 /// What the frame does besides the two HiZ phases.
@@ -185,15 +174,9 @@ pub struct CullingOptions {
     pub occluder_min_px: f32,
     /// With occluders drawn: cull last frame's visible candidates against the occluders' own
     /// pyramid first, and draw early only those it keeps (the others go to the main cull). Costs
-    /// one more pyramid build and a cull of the early set per frame; see the module
-    /// documentation and [`DEFAULT_OCCLUDER_GATE`].
+    /// one more pyramid build per frame; see the module documentation and
+    /// [`DEFAULT_OCCLUDER_GATE`].
     pub occluder_gate: bool,
-    /// After the late pass, build the pyramid again from the final depth (ground, early and
-    /// late draws; never occluders) and cull the candidates once more: the next frame's early
-    /// set is what that second cull keeps, not what the first (against the coarser early depth)
-    /// kept. This frame's statistics still come from the first cull. Costs one more pyramid
-    /// build and cull per frame (see [`DEFAULT_VISIBILITY_FROM_FINAL_DEPTH`]).
-    pub visibility_from_final_depth: bool,
 }
 
 impl Default for CullingOptions {
@@ -202,7 +185,6 @@ impl Default for CullingOptions {
             occluders: false,
             occluder_min_px: DEFAULT_OCCLUDER_MIN_PX,
             occluder_gate: DEFAULT_OCCLUDER_GATE,
-            visibility_from_final_depth: DEFAULT_VISIBILITY_FROM_FINAL_DEPTH,
         }
     }
 }
@@ -216,8 +198,8 @@ pub struct FrameStats {
     /// Candidates drawn by the early pass (last frame's visible buildings, in the frustum; with
     /// the occluder gate, those it kept).
     pub early_drawn: u32,
-    /// Last frame's visible candidates in the frustum that the occluder gate kept out of the
-    /// early pass (culled with the others; 0 without the gate).
+    /// Last frame's visible candidates that the occluder gate kept out of the early pass
+    /// (culled with the others; 0 without the gate).
     pub gate_culled: u32,
     /// Virtual occluders drawn into the pyramid's depth.
     pub occluders_drawn: u32,
@@ -242,12 +224,14 @@ pub struct FrameStats {
     pub draw_calls: u32,
     /// Commands the late pass walked (including the empty ones of early candidates).
     pub late_commands: u32,
-    /// CPU wall time from the start of recording to the GPU's completion, status read (ms).
+    /// CPU time of the frame's own work, recording and submission, without any wait (ms).
     pub cpu_ms: f64,
-    /// GPU time of each pass ([`FRAME_PHASES`]: gate pyramid, gate, early, occluders (or the
-    /// gate's depth merge), pyramid, cull, late) from
-    /// timestamp queries; every phase `None` when the adapter has none, a phase `None` when
-    /// its pass did not run this frame.
+    /// Wall time from the start of recording until the report was read (ms): for a frame
+    /// rendered with [`CullingRenderer::render`] (which waits for it), the frame's time to GPU
+    /// completion.
+    pub frame_ms: f64,
+    /// GPU time of each pass ([`FRAME_PHASES`]) from timestamp queries; every phase `None` when
+    /// the adapter has none, a phase `None` when its pass did not run this frame.
     pub gpu: GpuTimes,
 }
 
@@ -262,10 +246,44 @@ pub struct FrameOutput {
     pub status: Vec<u32>,
     /// Cluster tree nodes whose mesh was drawn, ascending (LOD cut only).
     pub clusters: Vec<u32>,
+    /// Buildings the early pass drew (last frame's visible set as the GPU held it, through the
+    /// gate when it ran), ascending.
+    pub drawn_early: Vec<u32>,
     /// The virtual occluders drawn into the pyramid's depth (indices into
     /// [`OccluderMeshes::occluders`]), ascending.
     pub occluders: Vec<usize>,
     pub stats: FrameStats,
+}
+
+/// What a frame culls: every building of a scene, or the draw ids of a LOD cut of a LOD scene
+/// (its buildings and cluster meshes).
+#[derive(Debug, Clone, Copy)]
+pub enum FrameScene<'a> {
+    Buildings(&'a SceneGpu),
+    Lod(&'a LodScene, &'a [u32]),
+}
+
+/// A submitted frame, whose report [`CullingRenderer::wait_report`] reads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FrameTicket {
+    /// The frame's number (counting from 1 per renderer).
+    pub number: u64,
+    /// Whether the frame copied its statistics (every report slot may have been in flight).
+    pub reported: bool,
+}
+
+/// What a submitted frame keeps on the CPU until its report is read.
+#[derive(Debug)]
+struct PendingFrame {
+    number: u64,
+    /// The candidates: every building of a scene of this many, or a LOD cut's draw ids.
+    buildings: usize,
+    lod_ids: Option<Vec<u32>>,
+    timed: TimedPhases,
+    occluders: Vec<usize>,
+    occluder_triangles: u64,
+    cpu_ms: f64,
+    started: Instant,
 }
 
 /// The two-phase culling renderer: pipelines, the cull pass, draw lists and targets.
@@ -279,22 +297,21 @@ pub struct CullingRenderer {
     copy_layout: wgpu::BindGroupLayout,
     view_buffer: wgpu::Buffer,
     view_group: wgpu::BindGroup,
+    /// The early entry points (`early`, `gate`): their status, the early pass's commands.
+    early: HzbCull,
+    /// The main cull.
     cull: HzbCull,
-    /// The occluder gate's cull (its own status, commands and count).
-    gate: HzbCull,
-    /// The gate's records, the candidate each stands for, and the per-candidate flags of
-    /// those it drew early.
-    gate_records: GrowBuffer,
-    gate_targets: GrowBuffer,
+    /// Per candidate: drawn by the early pass (written by `early`, read by `cull`).
     drawn_early: GrowBuffer,
+    /// The LOD cut's draw ids.
+    draw_ids: GrowBuffer,
+    /// One [`NO_PARENT`] word: the parents of a scene without a cluster tree.
+    no_parents: wgpu::Buffer,
     early_draws: GrowBuffer,
     occluder_draws: GrowBuffer,
-    late_records: GrowBuffer,
-    status_readback: StatusReadback,
+    reports: ReportRing<PendingFrame>,
+    frames: u64,
     targets: Option<Targets>,
-    /// The records the cull read last, with zero index counts for early buildings: the GPU
-    /// buffer's contents, updated per frame where they changed.
-    late_records_cpu: Vec<BuildingRecord>,
     multi_draw_count: bool,
     /// Timestamps around each pass ([`FRAME_PHASES`]).
     timer: GpuTimer,
@@ -303,10 +320,9 @@ pub struct CullingRenderer {
 }
 
 impl CullingRenderer {
-    /// The pyramid the last frame culled against last: its early depth, with the selected
-    /// occluders when the pre-pass ran, or, with
-    /// [`CullingOptions::visibility_from_final_depth`], its final depth; for debug views;
-    /// `None` until a frame has made its targets.
+    /// The pyramid the last frame culled against last (its early depth, with the selected
+    /// occluders when the pre-pass ran), for debug views; `None` until a frame has made its
+    /// targets.
     pub fn pyramid(&self) -> Option<&HzbPyramid> {
         self.targets.as_ref().map(|t| &t.pyramid)
     }
@@ -340,17 +356,20 @@ impl CullingRenderer {
             copy_layout,
             view_buffer,
             view_group,
+            early: HzbCull::new(gpu, 1024),
             cull: HzbCull::new(gpu, 1024),
-            gate: HzbCull::new(gpu, 1024),
-            gate_records: GrowBuffer::new(device, "gate records", storage),
-            gate_targets: GrowBuffer::new(device, "gate targets", storage),
             drawn_early: GrowBuffer::new(device, "drawn early", storage),
+            draw_ids: GrowBuffer::new(device, "cut draw ids", storage),
+            no_parents: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("no parents"),
+                contents: bytemuck::bytes_of(&NO_PARENT),
+                usage: wgpu::BufferUsages::STORAGE,
+            }),
             early_draws: GrowBuffer::new(device, "early draws", indirect),
             occluder_draws: GrowBuffer::new(device, "occluder draws", indirect),
-            late_records: GrowBuffer::new(device, "late cull records", storage),
-            status_readback: StatusReadback::new(device),
+            reports: ReportRing::new(device),
+            frames: 0,
             targets: None,
-            late_records_cpu: Vec::new(),
             multi_draw_count: gpu.has(wgpu::Features::MULTI_DRAW_INDIRECT_COUNT),
             timer: GpuTimer::new(gpu, "frame timer", FRAME_PHASES),
             style: SceneStyle::default(),
@@ -359,8 +378,8 @@ impl CullingRenderer {
 
     /// Renders one frame of every building of `scene` from `camera` into `colour`
     /// (`width × height`, the format given to [`CullingRenderer::new`]), with `occluders` when
-    /// `options.occluders` is set and some are given. Reads `visibility` (last frame) and writes
-    /// it for the next frame. Waits for the GPU.
+    /// `options.occluders` is set and some are given, and waits for its report. Reads
+    /// `visibility` (last frame) and marks it for the next frame.
     #[expect(clippy::too_many_arguments, reason = "one frame, all inputs explicit")]
     pub fn render(
         &mut self,
@@ -373,28 +392,16 @@ impl CullingRenderer {
         colour: &wgpu::TextureView,
         size: (u32, u32),
     ) -> Result<FrameOutput, FrameError> {
-        let start = Instant::now();
-        visibility.fit(scene.building_count());
-        let frustum = Frustum::from_view_proj(Self::view_proj(camera, size));
-        let candidates = Candidates::all_buildings(scene, visibility, &frustum);
-        self.frame(
-            gpu,
-            scene,
-            candidates,
-            occluders.filter(|_| options.occluders),
-            options,
-            visibility,
-            camera,
-            colour,
-            size,
-            start,
-        )
+        let frame = FrameScene::Buildings(scene);
+        let ticket = self.submit(
+            gpu, frame, occluders, options, visibility, camera, colour, size,
+        )?;
+        self.wait_report(gpu, ticket, (scene, None), visibility)
     }
 
     /// Renders one frame of the LOD cut `cut` of `lod` (from [`LodScene::select`] for this
     /// camera and viewport: its buildings and cluster meshes are the candidates of the two-phase
-    /// frame), otherwise as [`CullingRenderer::render`]. `visibility` is per building of the
-    /// scene, so the same one serves frames whose cuts differ. [`FrameOutput::drawn`] lists the
+    /// frame), otherwise as [`CullingRenderer::render`]. [`FrameOutput::drawn`] lists the
     /// buildings drawn themselves or through a drawn cluster.
     #[expect(clippy::too_many_arguments, reason = "one frame, all inputs explicit")]
     pub fn render_lod(
@@ -409,169 +416,219 @@ impl CullingRenderer {
         colour: &wgpu::TextureView,
         size: (u32, u32),
     ) -> Result<FrameOutput, FrameError> {
-        let start = Instant::now();
-        visibility.fit(lod.building_count as usize);
-        let frustum = Frustum::from_view_proj(Self::view_proj(camera, size));
-        let candidates = Candidates::lod(LodSource::of(lod), &cut.draw_ids, visibility, &frustum);
-        self.frame(
-            gpu,
-            &lod.gpu_scene,
-            candidates,
-            occluders.filter(|_| options.occluders),
-            options,
-            visibility,
-            camera,
-            colour,
-            size,
-            start,
-        )
+        let frame = FrameScene::Lod(lod, &cut.draw_ids);
+        let ticket = self.submit(
+            gpu, frame, occluders, options, visibility, camera, colour, size,
+        )?;
+        self.wait_report(gpu, ticket, (&lod.gpu_scene, Some(lod)), visibility)
     }
 
     fn view_proj(camera: &Camera, (width, height): (u32, u32)) -> Mat4 {
         camera.view_proj(width as f32 / height.max(1) as f32)
     }
 
-    /// The frame script, over `candidates` of `scene`.
+    /// Records and submits one frame of `scene` and returns without waiting: the frame script.
+    /// Its statistics come later ([`CullingRenderer::wait_report`],
+    /// [`CullingRenderer::poll_report`]).
     #[expect(clippy::too_many_arguments, reason = "one frame, all inputs explicit")]
-    fn frame(
+    pub fn submit(
         &mut self,
         gpu: &GpuContext,
-        scene: &SceneGpu,
-        mut candidates: Candidates<'_>,
+        scene: FrameScene<'_>,
         occluders: Option<&OccluderMeshes>,
         options: &CullingOptions,
         visibility: &mut Visibility,
         camera: &Camera,
         colour: &wgpu::TextureView,
         (width, height): (u32, u32),
-        start: Instant,
-    ) -> Result<FrameOutput, FrameError> {
+    ) -> Result<FrameTicket, FrameError> {
+        let started = Instant::now();
+        let clock = crate::cpu_clock::CpuClock::start();
         self.fit_targets(gpu, width, height)?;
-        let n = candidates.len();
+        self.frames += 1;
+        let number = self.frames;
+        let no_parents = self.no_parents.clone();
+        let frame = FrameInputs::of(scene, &no_parents);
+        let n = frame.candidates;
+        if let Some(ids) = frame.lod_ids {
+            let bytes: &[u8] = bytemuck::cast_slice(ids);
+            self.draw_ids.reserve(&gpu.device, bytes.len() as u64);
+            gpu.queue.write_buffer(&self.draw_ids.buffer, 0, bytes);
+        }
+        let (stamps, frame_stamp) = visibility.begin_frame(gpu, frame.draw_id_count);
+        let stamps = stamps.clone();
         let view_proj = Self::view_proj(camera, (width, height));
         let frustum = Frustum::from_view_proj(view_proj);
-        let early_count = candidates.early_draw_count as usize - 1;
-        // With the gate, every occluder counts (its pyramid has no early depth); without, not
-        // those of buildings drawn early (their real geometry is in the depth).
-        let gated = options.occluder_gate && occluders.is_some() && early_count > 0;
-        let occluders_drawn = match occluders {
-            Some(meshes) => meshes.select(
-                camera,
-                &frustum,
-                height,
-                options.occluder_min_px,
-                if gated {
-                    &[]
-                } else {
-                    &candidates.early_buildings
-                },
-            ),
+        let occluders_drawn = match occluders.filter(|_| options.occluders) {
+            Some(meshes) => meshes.select(camera, &frustum, height, options.occluder_min_px),
             None => Vec::new(),
         };
-        let gated = gated && !occluders_drawn.is_empty();
-        candidates.gated = gated;
-        let final_cull = options.visibility_from_final_depth && n > 0;
-        let slots = 1 + usize::from(final_cull) + usize::from(gated);
-        self.status_readback.reserve(gpu, n, slots);
+        let occluder_meshes = occluders.filter(|_| !occluders_drawn.is_empty());
+        let gated = options.occluder_gate && occluder_meshes.is_some();
         let uniforms = view_uniforms(camera, width, height, &self.style);
         gpu.queue
             .write_buffer(&self.view_buffer, 0, bytemuck::bytes_of(&uniforms));
+        let flag_bytes = (n.max(1) * 4) as u64;
+        self.drawn_early.reserve(&gpu.device, flag_bytes);
         let mut encoder = gpu
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("culled frame"),
             });
         self.timer.begin_frame();
+        encoder.clear_buffer(&self.drawn_early.buffer, 0, Some(flag_bytes));
+        let draw_ids = frame.lod_ids.map(|_| self.draw_ids.buffer.clone());
+        let drawn_early = self.drawn_early.buffer.clone();
+        let links = CullLinks {
+            draw_ids: draw_ids.as_ref(),
+            drawn_early: Some(&drawn_early),
+            visibility: Some(CullVisibility {
+                stamps: &stamps,
+                parents: frame.parents,
+                frame_stamp,
+                building_count: frame.building_count,
+            }),
+        };
+        let cull_input = (frame.records, &frame.geometry.parts_buffer, links);
 
-        let occluder_meshes = occluders.filter(|_| !occluders_drawn.is_empty());
-        if let (true, Some(meshes)) = (gated, occluder_meshes) {
-            self.occluder_gate(
+        match occluder_meshes {
+            Some(meshes) if gated => {
+                self.occluder_gate(gpu, &mut encoder, meshes, &occluders_drawn, frame.geometry)?;
+                self.early_cull(gpu, &mut encoder, CullEntry::Gate, cull_input, n, view_proj)?;
+            }
+            _ => self.early_cull(
                 gpu,
                 &mut encoder,
-                meshes,
-                &occluders_drawn,
-                (scene, &candidates),
+                CullEntry::Early,
+                cull_input,
+                n,
                 view_proj,
-            )?;
+            )?,
         }
-        self.early_pass(gpu, &mut encoder, scene, &candidates, colour);
+        self.early_pass(gpu, &mut encoder, frame.geometry, n as u32, colour);
         if let Some(meshes) = occluder_meshes {
             self.occluder_pass(gpu, &mut encoder, meshes, &occluders_drawn, gated);
         }
         self.build_pyramid(&mut encoder, occluder_meshes.is_some());
-        self.cull(gpu, &mut encoder, scene, &candidates, view_proj)?;
-        self.late_pass(&mut encoder, scene, n as u32, colour);
-        self.read_status(&mut encoder, n, 0);
-        if final_cull {
-            self.final_depth_cull(gpu, &mut encoder, scene, n, view_proj)?;
-        }
-        if gated {
-            self.status_readback.copy_from(
-                &mut encoder,
-                self.gate.status_buffer(),
-                early_count,
-                n,
-                slots - 1,
-            );
-        }
-        self.timer.resolve(&mut encoder);
+        self.cull(gpu, &mut encoder, cull_input, n, view_proj)?;
+        self.late_pass(&mut encoder, frame.geometry, n as u32, colour);
+        let report = self.record_report(gpu, &mut encoder, n);
 
         gpu.queue.submit([encoder.finish()]);
-        let mut status = self.status_readback.read(gpu, slots * n)?;
-        let mut later = status.split_off(n);
-        let gate_culled = if gated {
-            let gate_status = later.split_off(later.len() - n);
-            candidates.apply_gate(&gate_status[..early_count])
-        } else {
-            0
-        };
-        let final_status = later;
-        // A drawn cluster mesh may reach outside its buildings and hide, in the final depth,
-        // buildings the full-detail scene shows: such a frame keeps the first cull's set.
-        let from_final = final_cull && !candidates.cluster_kept(&status);
-        candidates.update_visibility(visibility, if from_final { &final_status } else { &status });
-        let mut output = candidates.statistics(status, !self.multi_draw_count);
-        output.stats.gate_culled = gate_culled;
-        if let Some(meshes) = occluders {
-            output.stats.occluders_drawn = occluders_drawn.len() as u32;
-            output.stats.occluder_triangles = occluders_drawn
-                .iter()
-                .map(|&i| u64::from(meshes.occluders[i].triangles))
-                .sum();
-            output.stats.draw_calls += occluders_drawn.len() as u32;
+        let reported = report.is_some();
+        if let Some((ticket, layout, timed)) = report {
+            let occluder_triangles = occluder_meshes.map_or(0, |meshes| {
+                occluders_drawn
+                    .iter()
+                    .map(|&i| u64::from(meshes.occluders[i].triangles))
+                    .sum()
+            });
+            let pending = PendingFrame {
+                number,
+                buildings: frame.building_count as usize,
+                lod_ids: frame.lod_ids.map(<[u32]>::to_vec),
+                timed,
+                occluders: occluders_drawn,
+                occluder_triangles,
+                cpu_ms: clock.elapsed_ms(),
+                started,
+            };
+            self.reports.submitted(ticket, layout, pending);
         }
-        output.occluders = occluders_drawn;
-        output.stats.cpu_ms = start.elapsed().as_secs_f64() * 1e3;
-        output.stats.gpu = self.timer.read(gpu)?;
-        Ok(output)
+        Ok(FrameTicket { number, reported })
     }
 
-    /// The occluder gate: the ground and the selected occluders alone into the culling depth,
-    /// their pyramid, and the early candidates culled against it (the cull's `gate` entry
-    /// point), which writes the early pass's commands and marks the candidates it keeps in
-    /// `drawn_early`.
+    /// Waits for the report of the submitted frame `ticket` and reads it; the frame's scene is
+    /// `scene` and, for a LOD frame, `lod`. Sets `visibility`'s CPU copy from it.
+    pub fn wait_report(
+        &mut self,
+        gpu: &GpuContext,
+        ticket: FrameTicket,
+        (scene, lod): (&SceneGpu, Option<&LodScene>),
+        visibility: &mut Visibility,
+    ) -> Result<FrameOutput, FrameError> {
+        if !ticket.reported {
+            return Err(FrameError::NoReport(ticket.number));
+        }
+        let ready = self
+            .reports
+            .wait(gpu, |p| p.number, |p| p.number == ticket.number)?;
+        let slot = ready
+            .into_iter()
+            .find(|r| r.pending.number == ticket.number)
+            .ok_or(FrameError::NoReport(ticket.number))?;
+        self.read_report(slot, (scene, lod), Some(visibility))
+            .ok_or(FrameError::NoReport(ticket.number))
+    }
+
+    /// The newest report that is ready, without waiting (older ready ones are dropped); `None`
+    /// when none is, or when it belongs to a scene other than `scene` / `lod`.
+    pub fn poll_report(
+        &mut self,
+        gpu: &GpuContext,
+        (scene, lod): (&SceneGpu, Option<&LodScene>),
+    ) -> Result<Option<FrameOutput>, FrameError> {
+        let ready = self.reports.take_ready(gpu, |p| p.number)?;
+        Ok(ready
+            .into_iter()
+            .last()
+            .and_then(|slot| self.read_report(slot, (scene, lod), None)))
+    }
+
+    /// The frame's output from its read report slot.
+    fn read_report(
+        &self,
+        slot: ReadSlot<PendingFrame>,
+        (scene, lod): (&SceneGpu, Option<&LodScene>),
+        visibility: Option<&mut Visibility>,
+    ) -> Option<FrameOutput> {
+        let ReadSlot {
+            bytes,
+            layout,
+            pending,
+        } = slot;
+        let n = layout.candidates as usize;
+        let words = |at: u64| -> Vec<u32> {
+            let at = at as usize;
+            bytemuck::pod_collect_to_vec(&bytes[at..at + n * 4])
+        };
+        let (status, early) = (words(layout.status_at()), words(layout.early_at()));
+        let candidates = match (&pending.lod_ids, lod) {
+            (None, _) if scene.building_count() == pending.buildings => {
+                Candidates::all_buildings(&scene.records, &early)
+            }
+            (Some(ids), Some(lod)) if lod.building_count as usize == pending.buildings => {
+                Candidates::lod(LodSource::of(lod), ids, &early)
+            }
+            _ => return None,
+        };
+        if let Some(visibility) = visibility {
+            candidates.update_visibility(visibility, &status);
+        }
+        let mut output = candidates.statistics(status, !self.multi_draw_count);
+        let stats = &mut output.stats;
+        stats.occluders_drawn = pending.occluders.len() as u32;
+        stats.occluder_triangles = pending.occluder_triangles;
+        stats.draw_calls += pending.occluders.len() as u32;
+        stats.cpu_ms = pending.cpu_ms;
+        stats.frame_ms = pending.started.elapsed().as_secs_f64() * 1e3;
+        stats.gpu = self
+            .timer
+            .times_from(&pending.timed, &bytes[..layout.timestamps_bytes as usize]);
+        output.occluders = pending.occluders;
+        Some(output)
+    }
+
+    /// The occluder gate's depth: the ground and the selected occluders alone into the culling
+    /// depth, and their pyramid (the gate entry point culls against it).
     fn occluder_gate(
         &mut self,
         gpu: &GpuContext,
         encoder: &mut wgpu::CommandEncoder,
         meshes: &OccluderMeshes,
         selected: &[usize],
-        (scene, candidates): (&SceneGpu, &Candidates<'_>),
-        view_proj: Mat4,
+        scene: &SceneGpu,
     ) -> Result<(), FrameError> {
-        let (records, targets) = candidates.gate_records();
-        let device = &gpu.device;
-        self.gate_records
-            .reserve(device, (records.len() * size_of::<BuildingRecord>()) as u64);
-        gpu.queue
-            .write_buffer(&self.gate_records.buffer, 0, bytemuck::cast_slice(&records));
-        self.gate_targets
-            .reserve(device, (targets.len() * 4) as u64);
-        gpu.queue
-            .write_buffer(&self.gate_targets.buffer, 0, bytemuck::cast_slice(&targets));
-        let flag_bytes = (candidates.len().max(1) * 4) as u64;
-        self.drawn_early.reserve(device, flag_bytes);
-        encoder.clear_buffer(&self.drawn_early.buffer, 0, Some(flag_bytes));
         self.upload_occluder_draws(gpu, meshes, selected);
         {
             let clear = wgpu::LoadOp::Clear(Camera::DEPTH_CLEAR);
@@ -589,52 +646,54 @@ impl CullingRenderer {
             );
             self.draw_occluders(&mut pass, meshes, selected.len());
         }
-        let targets_view = self.targets.as_ref().expect("fit_targets ran");
-        targets_view.pyramid.build_timed(
+        let targets = self.targets.as_ref().expect("fit_targets ran");
+        targets.pyramid.build_timed(
             encoder,
-            &targets_view.cull_depth_view,
+            &targets.cull_depth_view,
             self.timer.compute_pass_writes("gate_pyramid"),
         );
-        self.gate.encode_with_early(
+        Ok(())
+    }
+
+    /// The early entry point over every candidate: `Gate` against the gate's pyramid, `Early`
+    /// by the frustum alone; it writes the early pass's commands and the drawn-early flags.
+    fn early_cull(
+        &mut self,
+        gpu: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        entry: CullEntry,
+        (records, parts, links): (&wgpu::Buffer, &wgpu::Buffer, CullLinks<'_>),
+        n: usize,
+        view_proj: Mat4,
+    ) -> Result<(), FrameError> {
+        let targets = self.targets.as_ref().expect("fit_targets ran");
+        let phase = if entry == CullEntry::Gate {
+            "gate"
+        } else {
+            "early_cull"
+        };
+        self.early.encode_entry(
             gpu,
             encoder,
-            (
-                &self.gate_records.buffer,
-                Some(&scene.parts_buffer),
-                EarlyDraws::Mark {
-                    drawn: &self.drawn_early.buffer,
-                    targets: &self.gate_targets.buffer,
-                },
-            ),
-            records.len() as u32,
-            (&targets_view.pyramid, view_proj),
-            self.timer.compute_pass_writes("gate"),
+            (entry, records, Some(parts), links),
+            n as u32,
+            (&targets.pyramid, view_proj),
+            self.timer.compute_pass_writes(phase),
         )?;
         Ok(())
     }
 
-    /// Clears colour and depth, draws the ground and the candidates to draw early (last frame's
-    /// visible buildings that lie in the frustum; with the gate, the gate's commands).
+    /// Clears colour and depth, draws the ground and the early entry point's commands (at most
+    /// one per candidate of `n`).
     fn early_pass(
         &mut self,
         gpu: &GpuContext,
         encoder: &mut wgpu::CommandEncoder,
         scene: &SceneGpu,
-        candidates: &Candidates<'_>,
+        n: u32,
         colour: &wgpu::TextureView,
     ) {
-        let mut draws = vec![scene.ground];
-        if !candidates.gated {
-            draws.extend(
-                candidates
-                    .records
-                    .iter()
-                    .zip(&candidates.early)
-                    .filter(|(_, e)| **e)
-                    .map(|(r, _)| r.draw_args()),
-            );
-        }
-        let bytes: &[u8] = bytemuck::cast_slice(&draws);
+        let bytes: &[u8] = bytemuck::bytes_of(&scene.ground);
         self.early_draws.reserve(&gpu.device, bytes.len() as u64);
         gpu.queue.write_buffer(&self.early_draws.buffer, 0, bytes);
         let targets = self.targets.as_ref().expect("fit_targets ran");
@@ -657,10 +716,9 @@ impl CullingRenderer {
         pass.set_pipeline(&self.scene_pipeline);
         pass.set_bind_group(0, &self.view_group, &[]);
         scene.bind(&mut pass);
-        pass.multi_draw_indexed_indirect(&self.early_draws.buffer, 0, draws.len() as u32);
-        if candidates.gated {
-            let max = candidates.early_draw_count - 1;
-            self.indirect_draws(&mut pass, &self.gate, max);
+        pass.multi_draw_indexed_indirect(&self.early_draws.buffer, 0, 1);
+        if n > 0 {
+            self.indirect_draws(&mut pass, &self.early, n);
         }
     }
 
@@ -785,45 +843,21 @@ impl CullingRenderer {
         targets.pyramid.build_timed(encoder, depth, timestamps);
     }
 
-    /// Culls every candidate against the pyramid (by the parts of `scene` its record names);
-    /// early candidates get empty commands.
+    /// Culls every candidate against the pyramid (by its record's parts), skipping the draws
+    /// of those the early pass drew, and stamps the visible ones for the next frame.
     fn cull(
         &mut self,
         gpu: &GpuContext,
         encoder: &mut wgpu::CommandEncoder,
-        scene: &SceneGpu,
-        candidates: &Candidates<'_>,
+        (records, parts, links): (&wgpu::Buffer, &wgpu::Buffer, CullLinks<'_>),
+        n: usize,
         view_proj: Mat4,
     ) -> Result<(), FrameError> {
-        let n = candidates.len();
-        let bytes = (n.max(1) * size_of::<BuildingRecord>()) as u64;
-        let grown = self.late_records.reserve(&gpu.device, bytes);
-        if grown {
-            // A new buffer holds nothing: every entry is uploaded.
-            self.late_records_cpu.clear();
-        }
-        // Only the entries that changed since the last frame (mostly the early set's) go to
-        // the GPU; the buffer keeps the rest.
-        let runs =
-            candidates.update_late_records(&mut self.late_records_cpu, LATE_UPLOAD_MERGE_GAP);
-        let record_bytes = size_of::<BuildingRecord>() as u64;
-        for (first, end) in runs {
-            gpu.queue.write_buffer(
-                &self.late_records.buffer,
-                first as u64 * record_bytes,
-                bytemuck::cast_slice(&self.late_records_cpu[first..end]),
-            );
-        }
         let targets = self.targets.as_ref().expect("fit_targets ran");
-        let early = if candidates.gated {
-            EarlyDraws::Skip(&self.drawn_early.buffer)
-        } else {
-            EarlyDraws::None
-        };
-        self.cull.encode_with_early(
+        self.cull.encode_entry(
             gpu,
             encoder,
-            (&self.late_records.buffer, Some(&scene.parts_buffer), early),
+            (CullEntry::Cull, records, Some(parts), links),
             n as u32,
             (&targets.pyramid, view_proj),
             self.timer.compute_pass_writes("cull"),
@@ -872,38 +906,38 @@ impl CullingRenderer {
         self.indirect_draws(&mut pass, &self.cull, n);
     }
 
-    /// Copies the cull status into slot `slot` of the readback buffer.
-    fn read_status(&mut self, encoder: &mut wgpu::CommandEncoder, n: usize, slot: usize) {
-        self.status_readback
-            .copy_from(encoder, self.cull.status_buffer(), n, n, slot);
-    }
-
-    /// The next frame's visible set from this frame's final depth: the pyramid again, from the
-    /// depth after the late pass (real geometry only: occluders went to the copy), the same
-    /// candidates culled against it, the status copied into readback slot 1. Recorded after
-    /// the late pass and the copy of the first status in the same encoder, so wgpu orders the
-    /// first cull's commands, count and status (consumed there) before this cull overwrites
-    /// them; the cull's uniforms are the same view and box count as the first cull's.
-    fn final_depth_cull(
+    /// Copies the frame's timestamps, cull status and early status into a free report slot
+    /// (`None`, and no copies, when every slot is in flight).
+    fn record_report(
         &mut self,
         gpu: &GpuContext,
         encoder: &mut wgpu::CommandEncoder,
-        scene: &SceneGpu,
         n: usize,
-        view_proj: Mat4,
-    ) -> Result<(), FrameError> {
-        let targets = self.targets.as_ref().expect("fit_targets ran");
-        targets.pyramid.build(encoder, &targets.depth.view);
-        self.cull.encode(
-            gpu,
-            encoder,
-            (&self.late_records.buffer, Some(&scene.parts_buffer)),
-            n as u32,
-            &targets.pyramid,
-            view_proj,
-        )?;
-        self.read_status(encoder, n, 1);
-        Ok(())
+    ) -> Option<(report_ring::SlotTicket, SlotLayout, TimedPhases)> {
+        let layout = SlotLayout {
+            timestamps_bytes: self.timer.resolved_bytes(),
+            candidates: n as u64,
+        };
+        let (ticket, buffer) = self.reports.reserve(gpu, layout)?;
+        let timed = self.timer.resolve_to(encoder, buffer, 0);
+        if n > 0 {
+            let bytes = n as u64 * 4;
+            encoder.copy_buffer_to_buffer(
+                self.cull.status_buffer(),
+                0,
+                buffer,
+                layout.status_at(),
+                bytes,
+            );
+            encoder.copy_buffer_to_buffer(
+                self.early.status_buffer(),
+                0,
+                buffer,
+                layout.early_at(),
+                bytes,
+            );
+        }
+        Some((ticket, layout, timed))
     }
 
     /// (Re)makes the depth targets and the pyramid for a new viewport size.
@@ -917,5 +951,43 @@ impl CullingRenderer {
         }
         self.targets = Some(Targets::new(gpu, &self.copy_layout, width, height)?);
         Ok(())
+    }
+}
+
+/// What the frame script reads of a [`FrameScene`].
+struct FrameInputs<'a> {
+    /// The geometry drawn (vertices, indices, parts, ground).
+    geometry: &'a SceneGpu,
+    /// The records the cull reads by draw id.
+    records: &'a wgpu::Buffer,
+    parents: &'a wgpu::Buffer,
+    lod_ids: Option<&'a [u32]>,
+    building_count: u32,
+    draw_id_count: u32,
+    candidates: usize,
+}
+
+impl<'a> FrameInputs<'a> {
+    fn of(scene: FrameScene<'a>, no_parents: &'a wgpu::Buffer) -> FrameInputs<'a> {
+        match scene {
+            FrameScene::Buildings(s) => FrameInputs {
+                geometry: s,
+                records: &s.records_buffer,
+                parents: no_parents,
+                lod_ids: None,
+                building_count: s.building_count() as u32,
+                draw_id_count: s.building_count() as u32,
+                candidates: s.building_count(),
+            },
+            FrameScene::Lod(lod, ids) => FrameInputs {
+                geometry: &lod.gpu_scene,
+                records: &lod.cull_records_buffer,
+                parents: &lod.parents_buffer,
+                lod_ids: Some(ids),
+                building_count: lod.building_count,
+                draw_id_count: lod.cull_records.len() as u32,
+                candidates: ids.len(),
+            },
+        }
     }
 }

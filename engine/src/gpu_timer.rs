@@ -26,7 +26,8 @@ use crate::gpu::GpuContext;
 use crate::render::targets::{ReadbackError, map_read};
 
 /// The phases of the two-phase culling frame ([`crate::frame::CullingRenderer`]), one pass each,
-/// in frame order: the occluder gate's occluders, pyramid and cull, the early pass, the occluder
+/// in frame order: the occluder gate's occluders, pyramid and cull (or, without the gate, the
+/// frustum-only early cull), the early pass, the occluder
 /// pre-pass (with the gate: the merge of the early depth into the occluders'), the pyramid
 /// build, the cull and the late pass. A phase whose pass does not run in a frame (no occluders,
 /// no gate, no late draws) is `None` in that frame's times.
@@ -34,6 +35,7 @@ pub const FRAME_PHASES: &[&str] = &[
     "gate_occluders",
     "gate_pyramid",
     "gate",
+    "early_cull",
     "early",
     "occluders",
     "pyramid",
@@ -237,6 +239,78 @@ impl GpuTimer {
         encoder.copy_buffer_to_buffer(&q.resolve, 0, &q.readback, 0, q.resolve.size());
     }
 
+    /// Bytes [`GpuTimer::resolve_to`] copies (0 when disabled).
+    pub fn resolved_bytes(&self) -> u64 {
+        self.queries
+            .as_ref()
+            .map_or(0, |_| self.phases.len() as u64 * PHASE_STRIDE_BYTES)
+    }
+
+    /// As [`GpuTimer::resolve`], but copies the resolved timestamps to `dst` at `offset`
+    /// ([`GpuTimer::resolved_bytes`] bytes) instead of the timer's own readback buffer, so that
+    /// several frames can be in flight, each with its own copy. Returns which phases this frame
+    /// wrote, for [`GpuTimer::times_from`].
+    pub fn resolve_to(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        dst: &wgpu::Buffer,
+        offset: u64,
+    ) -> TimedPhases {
+        let written = (0..self.phases.len())
+            .map(|i| self.was_written(i))
+            .collect();
+        if let Some(q) = &self.queries
+            && self.any_written()
+        {
+            for i in (0..self.phases.len()).filter(|&i| self.was_written(i)) {
+                let first = i as u32 * 2;
+                encoder.resolve_query_set(
+                    &q.set,
+                    first..first + 2,
+                    &q.resolve,
+                    i as u64 * PHASE_STRIDE_BYTES,
+                );
+            }
+            encoder.copy_buffer_to_buffer(&q.resolve, 0, dst, offset, q.resolve.size());
+        }
+        TimedPhases { written }
+    }
+
+    /// The phase times of a frame from the bytes [`GpuTimer::resolve_to`] copied for it.
+    pub fn times_from(&self, phases: &TimedPhases, bytes: &[u8]) -> GpuTimes {
+        let enabled = self.queries.is_some() && phases.written.iter().any(|&w| w);
+        let words: Vec<u64> = if enabled {
+            bytemuck::pod_collect_to_vec(&bytes[..bytes.len() / 8 * 8])
+        } else {
+            Vec::new()
+        };
+        self.times_of(&words, |i| phases.written.get(i).copied().unwrap_or(false))
+    }
+
+    /// Phase times from resolved `words` (two per [`PHASE_STRIDE_BYTES`]), for the phases
+    /// `written` says were timed.
+    fn times_of(&self, words: &[u64], written: impl Fn(usize) -> bool) -> GpuTimes {
+        let stride = (PHASE_STRIDE_BYTES / 8) as usize;
+        let ticks: Vec<Option<(u64, u64)>> = (0..self.phases.len())
+            .map(|i| {
+                let at = i * stride;
+                written(i)
+                    .then(|| Some((*words.get(at)?, *words.get(at + 1)?)))
+                    .flatten()
+            })
+            .collect();
+        let period_ns = self.queries.as_ref().map_or(0.0, |q| q.period_ns);
+        let spans = spans_from_ticks(&ticks, period_ns);
+        GpuTimes {
+            phases: self
+                .phases
+                .iter()
+                .zip(spans)
+                .map(|(&name, span)| PhaseTime { name, span })
+                .collect(),
+        }
+    }
+
     /// The frame's phase times, after the encoder holding [`GpuTimer::resolve`] was submitted
     /// (waits for the GPU). Every phase is `None` when disabled.
     pub fn read(&self, gpu: &GpuContext) -> Result<GpuTimes, ReadbackError> {
@@ -254,25 +328,14 @@ impl GpuTimer {
             return Ok(none());
         }
         let words: Vec<u64> = bytemuck::pod_collect_to_vec(&map_read(gpu, &q.readback)?);
-        let stride = (PHASE_STRIDE_BYTES / 8) as usize;
-        let ticks: Vec<Option<(u64, u64)>> = (0..self.phases.len())
-            .map(|i| {
-                let at = i * stride;
-                self.was_written(i)
-                    .then(|| Some((*words.get(at)?, *words.get(at + 1)?)))
-                    .flatten()
-            })
-            .collect();
-        let spans = spans_from_ticks(&ticks, q.period_ns);
-        Ok(GpuTimes {
-            phases: self
-                .phases
-                .iter()
-                .zip(spans)
-                .map(|(&name, span)| PhaseTime { name, span })
-                .collect(),
-        })
+        Ok(self.times_of(&words, |i| self.was_written(i)))
     }
+}
+
+/// Which phases of one frame were timed ([`GpuTimer::resolve_to`]).
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct TimedPhases {
+    written: Vec<bool>,
 }
 
 /// Converts per-phase (beginning, end) ticks to spans in milliseconds since the earliest

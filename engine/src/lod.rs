@@ -157,6 +157,19 @@ pub struct LodCut {
 }
 
 impl LodCut {
+    /// The number of buildings [`LodCut::covered_buildings`] lists, in the cut's size: the
+    /// drawn clusters are disjoint, and the buildings of the cut under a drawn cluster are its
+    /// landmarks.
+    pub fn covered_count(&self, tree: &ClusterTree) -> usize {
+        let in_clusters: usize = self
+            .clusters
+            .iter()
+            .filter_map(|&c| tree.nodes.get(c as usize))
+            .map(|n| n.buildings.1.saturating_sub(n.buildings.0) as usize)
+            .sum();
+        in_clusters + self.buildings.len() - self.landmarks.len()
+    }
+
     /// Every building the cut shows, itself or through a drawn cluster containing it, ascending
     /// without repeats: the set to check against the visibility oracle.
     pub fn covered_buildings(&self, tree: &ClusterTree) -> Vec<u32> {

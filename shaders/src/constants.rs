@@ -33,6 +33,20 @@ pub const CULL_FRUSTUM_OUTSIDE: u32 = 1;
 /// Cull status of a box hidden behind the depth pyramid.
 pub const CULL_OCCLUDED: u32 = 2;
 
+/// Status the early entry points (`early`, `gate`) give a candidate that was not visible last
+/// frame (or lies outside the frustum): not a candidate of the early pass.
+pub const CULL_NOT_EARLY: u32 = 3;
+
+/// [`HzbCullParams::flags`](crate::HzbCullParams) bit: the boxes' draw ids are bound.
+pub const CULL_FLAG_DRAW_IDS: u32 = 1;
+
+/// [`HzbCullParams::flags`](crate::HzbCullParams) bit: the visibility stamps and the parents of
+/// the draw ids are bound.
+pub const CULL_FLAG_VISIBILITY: u32 = 2;
+
+/// Parent of a draw id with none (a root, or a building of a scene without a cluster tree).
+pub const NO_PARENT: u32 = u32::MAX;
+
 /// A box corner whose clip-space `w` is at most this is behind the eye (`hzb::reference`).
 pub const HZB_BEHIND_W: f32 = 1e-6;
 
@@ -77,6 +91,10 @@ pub const WGSL_U32: &[(&str, u32)] = &[
     ("CULL_VISIBLE", CULL_VISIBLE),
     ("CULL_FRUSTUM_OUTSIDE", CULL_FRUSTUM_OUTSIDE),
     ("CULL_OCCLUDED", CULL_OCCLUDED),
+    ("CULL_NOT_EARLY", CULL_NOT_EARLY),
+    ("CULL_FLAG_DRAW_IDS", CULL_FLAG_DRAW_IDS),
+    ("CULL_FLAG_VISIBILITY", CULL_FLAG_VISIBILITY),
+    ("NO_PARENT", NO_PARENT),
     ("HZB_FINE_SPAN", HZB_FINE_SPAN),
 ];
 

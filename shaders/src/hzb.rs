@@ -15,6 +15,19 @@ pub struct HzbCullParams {
     pub box_count: u32,
     /// Number of pyramid levels.
     pub level_count: u32,
+    /// The frame's visibility stamp: the cull marks each visible candidate's draw id with it;
+    /// the early entry points take a draw id marked with `frame_stamp - 1` (or under a cluster
+    /// so marked) as visible last frame.
+    pub frame_stamp: u32,
+    /// Draw ids below this are buildings (drawn early when visible last frame); the others are
+    /// cluster meshes (never drawn early).
+    pub building_count: u32,
+    /// Bit [`CULL_FLAG_DRAW_IDS`](crate::constants::CULL_FLAG_DRAW_IDS): box `i` stands for draw
+    /// id `draw_ids[i]` (else draw id `i`); bit
+    /// [`CULL_FLAG_VISIBILITY`](crate::constants::CULL_FLAG_VISIBILITY): the stamps and parents
+    /// are bound (else nothing is read or marked).
+    pub flags: u32,
+    pub _pad: u32,
 }
 
 #[cfg(test)]
@@ -43,6 +56,10 @@ mod tests {
             ("viewport_px", offset_of!(HzbCullParams, viewport_px)),
             ("box_count", offset_of!(HzbCullParams, box_count)),
             ("level_count", offset_of!(HzbCullParams, level_count)),
+            ("frame_stamp", offset_of!(HzbCullParams, frame_stamp)),
+            ("building_count", offset_of!(HzbCullParams, building_count)),
+            ("flags", offset_of!(HzbCullParams, flags)),
+            ("_pad", offset_of!(HzbCullParams, _pad)),
         ];
         assert_eq!(members.len(), rust.len());
         for (m, (name, offset)) in members.iter().zip(rust) {

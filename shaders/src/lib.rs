@@ -32,11 +32,12 @@ pub const IDS_WGSL: &str = include_str!(concat!(env!("OUT_DIR"), "/ids.wgsl"));
 /// write-only, binding 4 a `vec4<u32>` uniform: logical sizes of level l (xy) and l + 1 (zw)).
 pub const HZB_BUILD_WGSL: &str = include_str!(concat!(env!("OUT_DIR"), "/hzb_build.wgsl"));
 
-/// Hierarchical-Z occlusion cull (`wgsl/hzb_cull.wgsl`): entry point `cull`; group 0: binding 0
-/// the [`HzbCullParams`] uniform, 1 the [`BuildingRecord`]s, 2 the pyramid (unfilterable
-/// `texture_2d<f32>`, all levels), 3 the per-box status (`u32`), 4 the appended
-/// [`DrawIndexedIndirectArgs`], 5 their count (atomic `u32`), 6 the [`CullPart`]s the records
-/// name.
+/// Hierarchical-Z occlusion cull (`wgsl/hzb_cull.wgsl`): entry points `cull`, `early` and
+/// `gate`; group 0: binding 0 the [`HzbCullParams`] uniform, 1 the [`BuildingRecord`]s (by draw
+/// id), 2 the pyramid (unfilterable `texture_2d<f32>`, all levels), 3 the per-box status (`u32`),
+/// 4 the appended [`DrawIndexedIndirectArgs`], 5 their count (atomic `u32`), 6 the [`CullPart`]s
+/// the records name, 7 the drawn-early flags (`u32` per box), 8 the boxes' draw ids, 9 the
+/// visibility stamps and 10 the parents (`u32` per draw id).
 pub const HZB_CULL_WGSL: &str = include_str!(concat!(env!("OUT_DIR"), "/hzb_cull.wgsl"));
 
 /// Depth copy (`wgsl/depth_copy.wgsl`): entry points `vs_main` (fullscreen triangle, 3 vertices,

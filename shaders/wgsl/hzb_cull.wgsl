@@ -9,13 +9,21 @@
 // CULL_FRUSTUM_OUTSIDE or CULL_OCCLUDED; every visible box appends its DrawIndexedIndirectArgs
 // through an atomic counter.
 //
-// Two entry points (engine `frame`, the occluder-gated early pass):
-// - `gate` culls last frame's visible candidates against the occluders' pyramid: box j stands
-//   for candidate gate_targets[j]; a visible one appends its draw (the early pass draws those)
-//   and marks drawn_early[gate_targets[j]].
-// - `cull` culls every candidate; a visible box appends its draw unless drawn_early marks it
-//   (drawn already; a one-word buffer of zero when nothing was gated).
+// Visibility lives on the GPU (engine `frame`, niagara's drawVisibility): `stamps` holds, per
+// draw id, the frame stamp of the last frame whose cull kept it; `parents` the draw id of the
+// cluster above each draw id (NO_PARENT at a root). A building candidate was visible last frame
+// when it, or a cluster above it, carries stamp `frame_stamp - 1` (a drawn cluster stands for
+// every building under it); cluster candidates are never drawn early (their meshes are not
+// contained in their buildings). Stale stamps expire by themselves.
 //
+// Three entry points, each over every candidate (box i stands for draw id draw_ids[i]):
+// - `early`: candidates visible last frame and inside the frustum get CULL_VISIBLE, their draw
+//   (the early pass draws those) and their drawn_early mark; the others CULL_NOT_EARLY.
+// - `gate`: as `early`, but a candidate visible last frame is culled against the pyramid (the
+//   occluders' own) and drawn and marked only when visible; its status is the cull's.
+// - `cull`: every candidate against the pyramid; a visible one appends its draw unless
+//   drawn_early marks it (drawn already), and is stamped with `frame_stamp`.
+
 // Float rounding: the GPU's matrix product and division may round differently from the CPU's
 // (FMA, reciprocal). Every comparison is widened in the visible direction by a bound on that
 // difference (HZB_ROUNDING_REL times the magnitude of the terms), so the GPU never culls a box
@@ -37,6 +45,13 @@ struct HzbCullParams {
     box_count: u32,
     // Number of pyramid levels.
     level_count: u32,
+    // Stamp of this frame's visible draw ids (last frame's is frame_stamp - 1).
+    frame_stamp: u32,
+    // Draw ids below this are buildings, the others cluster meshes.
+    building_count: u32,
+    // CULL_FLAG_DRAW_IDS | CULL_FLAG_VISIBILITY.
+    flags: u32,
+    _pad: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: HzbCullParams;
@@ -47,7 +62,9 @@ struct HzbCullParams {
 @group(0) @binding(5) var<storage, read_write> draw_count: atomic<u32>;
 @group(0) @binding(6) var<storage, read> parts: array<CullPart>;
 @group(0) @binding(7) var<storage, read_write> drawn_early: array<u32>;
-@group(0) @binding(8) var<storage, read> gate_targets: array<u32>;
+@group(0) @binding(8) var<storage, read> draw_ids: array<u32>;
+@group(0) @binding(9) var<storage, read_write> stamps: array<u32>;
+@group(0) @binding(10) var<storage, read> parents: array<u32>;
 
 // Where a box lands: status CULL_VISIBLE with `rect` valid only when `has_rect`.
 struct Projection {
@@ -276,41 +293,107 @@ fn append_draw(record: BuildingRecord) {
     commands[slot] = DrawIndexedIndirectArgs(record.index_count, 1u, record.first_index, record.base_vertex, 0u);
 }
 
-// Culls record `index` (every invocation calls it, in range or not: the uniform level loop of
-// `test_hull`) and writes its status; returns the outcome, CULL_FRUSTUM_OUTSIDE past the box
-// count.
-fn cull_record(index: u32) -> u32 {
+// The draw id box `index` stands for.
+fn draw_id(index: u32) -> u32 {
+    if (params.flags & CULL_FLAG_DRAW_IDS) != 0u && index < arrayLength(&draw_ids) {
+        return draw_ids[index];
+    }
+    return index;
+}
+
+// The record of box `index` (clamped into the boxes and the records: every invocation reads one,
+// in range or not, for the uniform level loop of `test_hull`).
+fn record_of(index: u32) -> BuildingRecord {
+    let id = draw_id(min(index, max(params.box_count, 1u) - 1u));
+    return records[min(id, arrayLength(&records) - 1u)];
+}
+
+// Whether building draw id `id` was kept by last frame's cull, itself or through a cluster
+// above it (the walk is bounded: a malformed parent chain ends after 64 steps).
+fn visible_last_frame(id: u32) -> bool {
+    if (params.flags & CULL_FLAG_VISIBILITY) == 0u || id >= params.building_count {
+        return false;
+    }
+    let last = params.frame_stamp - 1u;
+    var at = id;
+    for (var step = 0u; step < 64u && at < arrayLength(&stamps); step++) {
+        if stamps[at] == last {
+            return true;
+        }
+        if at >= arrayLength(&parents) {
+            return false;
+        }
+        at = parents[at];
+    }
+    return false;
+}
+
+// The early candidates: those visible last frame whose box lies in the frustum (the rest get
+// CULL_NOT_EARLY); with `occlusion` (the gate) each is then culled against the pyramid, its
+// parts included, and only a visible one is drawn and marked (the others keep the cull's status:
+// kept out).
+fn early_record(index: u32, occlusion: bool) {
     let in_range = index < params.box_count;
-    let record = records[min(index, max(params.box_count, 1u) - 1u)];
+    let record = record_of(index);
+    let eligible = in_range && visible_last_frame(draw_id(index));
+    // The frustum alone: no reads.
+    let in_frustum =
+        test_hull(box_corners(record.bounds_min_m, record.bounds_max_m), false) != CULL_FRUSTUM_OUTSIDE;
+    let takes = eligible && in_frustum;
+    var outcome = CULL_VISIBLE;
+    if occlusion {
+        // Every invocation runs the uniform level loop; only those it takes read.
+        outcome = record_outcome(record, takes);
+    }
+    if !in_range {
+        return;
+    }
+    if !takes {
+        status[index] = CULL_NOT_EARLY;
+        return;
+    }
+    status[index] = outcome;
+    if outcome == CULL_VISIBLE {
+        append_draw(record);
+        if index < arrayLength(&drawn_early) {
+            drawn_early[index] = 1u;
+        }
+    }
+}
+
+// The early pass's candidates by the frustum alone (no occluders to gate them).
+@compute @workgroup_size(HZB_CULL_WORKGROUP, 1, 1)
+fn early(@builtin(global_invocation_id) id: vec3<u32>) {
+    early_record(id.x, false);
+}
+
+// The occluder gate of the early pass: last frame's visible candidates against the occluders'
+// pyramid.
+@compute @workgroup_size(HZB_CULL_WORKGROUP, 1, 1)
+fn gate(@builtin(global_invocation_id) id: vec3<u32>) {
+    early_record(id.x, true);
+}
+
+// The cull of every candidate: status, the draw of each visible one not drawn early, and its
+// visibility stamp.
+@compute @workgroup_size(HZB_CULL_WORKGROUP, 1, 1)
+fn cull(@builtin(global_invocation_id) id: vec3<u32>) {
+    let index = id.x;
+    let in_range = index < params.box_count;
+    let record = record_of(index);
     let outcome = record_outcome(record, in_range);
     if in_range {
         status[index] = outcome;
     }
-    return outcome;
-}
-
-// The cull of every candidate: status, and the draw of each visible one not drawn early.
-@compute @workgroup_size(HZB_CULL_WORKGROUP, 1, 1)
-fn cull(@builtin(global_invocation_id) id: vec3<u32>) {
-    let index = id.x;
     let drawn = index < arrayLength(&drawn_early) && drawn_early[index] != 0u;
-    if cull_record(index) == CULL_VISIBLE && !drawn {
-        append_draw(records[index]);
-    }
-}
-
-// The gate of the early pass: status and draw of each of last frame's visible candidates, and
-// the mark of each visible one in drawn_early (an index or target past its buffer marks
-// nothing).
-@compute @workgroup_size(HZB_CULL_WORKGROUP, 1, 1)
-fn gate(@builtin(global_invocation_id) id: vec3<u32>) {
-    let index = id.x;
-    if cull_record(index) == CULL_VISIBLE {
-        append_draw(records[index]);
-        if index < arrayLength(&gate_targets) {
-            let candidate = gate_targets[index];
-            if candidate < arrayLength(&drawn_early) {
-                drawn_early[candidate] = 1u;
+    if outcome == CULL_VISIBLE {
+        if !drawn {
+            append_draw(record);
+        }
+        if (params.flags & CULL_FLAG_VISIBILITY) != 0u {
+            let d = draw_id(index);
+            if d < arrayLength(&stamps) {
+                stamps[d] = params.frame_stamp;
             }
         }
     }

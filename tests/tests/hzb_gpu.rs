@@ -7,7 +7,10 @@
 
 use citywalk_engine::camera::Camera;
 use citywalk_engine::gpu::GpuContext;
-use citywalk_engine::hzb::cull::{CULL_FRUSTUM_OUTSIDE, CULL_OCCLUDED, CULL_VISIBLE, EarlyDraws};
+use citywalk_engine::hzb::cull::{
+    CULL_FRUSTUM_OUTSIDE, CULL_NOT_EARLY, CULL_OCCLUDED, CULL_VISIBLE, CullEntry, CullLinks,
+    CullVisibility, NO_PARENT,
+};
 use citywalk_engine::hzb::reference::{
     BoxProjection, DepthPyramid, HullTest, RecordCull, box_corners, project_box, select_level,
 };
@@ -604,16 +607,35 @@ fn storage_buffer(gpu: &GpuContext, label: &str, contents: &[u8]) -> wgpu::Buffe
         })
 }
 
-/// The occluder gate's two entry points (`engine::frame`): the gate culls a subset of the
-/// records (every third one, as last frame's visible set), appends the draws of those it keeps
-/// and marks them in the per-record flags; the main cull of every record, reading those flags,
-/// writes the same status as a plain cull and appends the draws of the visible records the gate
-/// did not mark, and only those. The gate's status of a record equals the plain cull's (same
-/// record, same pyramid) and follows the CPU reference with the usual rule (never culls what
-/// it keeps; agrees on 99.9 %). Two cameras, 1280 × 720 and 1001 × 777.
+/// Reads a storage buffer's `u32` words back (the buffer needs `COPY_SRC`).
+fn read_words(gpu: &GpuContext, buffer: &wgpu::Buffer) -> Vec<u32> {
+    let read = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("words readback"),
+        size: buffer.size(),
+        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+        mapped_at_creation: false,
+    });
+    let mut encoder = gpu
+        .device
+        .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+    encoder.copy_buffer_to_buffer(buffer, 0, &read, 0, buffer.size());
+    gpu.queue.submit([encoder.finish()]);
+    bytemuck::pod_collect_to_vec(&map_read(gpu, &read).expect("words"))
+}
+
+/// The early entry points and the GPU-resident visibility (`engine::frame`): box `j` stands for
+/// draw id `7·j mod n` (records read by draw id), the stamps say which draw ids the last frame
+/// kept (stamp 9 of frame 10; stale stamps 8 and 0 do not count), and a cluster draw id above
+/// every fifth building carries stamp 9 too (its buildings count as visible). `gate` takes
+/// exactly the visible-last-frame boxes inside the frustum and gives each the plain cull's status
+/// (which follows the CPU reference with the usual rule), drawing and marking the visible ones;
+/// `early` (frustum only) draws and marks every box it takes; the main cull, reading the marks,
+/// writes the plain status, appends the draws of the visible unmarked boxes only, and stamps
+/// every visible draw id with 10, leaving the others and the cluster as they were. Two cameras,
+/// 1280 × 720 and 1001 × 777.
 #[test]
-fn gate_marks_the_records_it_keeps_and_the_cull_skips_them() {
-    let Some(gpu) = gpu_or_skip("gate_marks_the_records_it_keeps_and_the_cull_skips_them") else {
+fn early_entries_read_the_stamps_and_the_cull_marks_them() {
+    let Some(gpu) = gpu_or_skip("early_entries_read_the_stamps_and_the_cull_marks_them") else {
         return;
     };
     let mut rng = Rng(0x0c11_6a7e);
@@ -621,13 +643,13 @@ fn gate_marks_the_records_it_keeps_and_the_cull_skips_them() {
         Camera::new(Vec3::new(0.0, 0.0, 1.7), 0.3, 0.05),
         Camera::new(Vec3::new(120.0, -40.0, 35.0), 2.2, -0.35),
     ];
-    let (mut plain, mut gate, mut main) = (
+    let (mut plain, mut early, mut main) = (
         HzbCull::new(&gpu, 64),
         HzbCull::new(&gpu, 64),
         HzbCull::new(&gpu, 64),
     );
-    let (mut marked_total, mut skipped_total, mut cpu_agree) = (0usize, 0usize, 0usize);
-    let mut gated_total = 0usize;
+    let storage = |label, contents: &[u8]| storage_buffer(&gpu, label, contents);
+    let (mut marked_total, mut kept_out_total, mut cpu_agree, mut taken_total) = (0, 0, 0, 0);
     for (c, camera) in cameras.iter().enumerate() {
         let (w, h) = if c == 1 { (1001, 777) } else { (1280, 720) };
         let depth = walls_depth(&mut rng, camera, w, h);
@@ -635,135 +657,148 @@ fn gate_marks_the_records_it_keeps_and_the_cull_skips_them() {
         let cpu_pyramid = DepthPyramid::build(w, h, &depth);
         let vp = camera.view_proj(w as f32 / h as f32);
         let boxes = random_boxes(&mut rng, camera, w as f32 / h as f32, 3000);
+        // Records by draw id; draw id n is the cluster (no record of its own is culled).
         let (records, parts) = records_for(&boxes);
+        let n = records.len() as u32;
         let reference = cull_records(&gpu, &mut plain, (&records, &parts), &pyramid, vp);
-        let targets: Vec<u32> = (0..records.len() as u32).step_by(3).collect();
-        let gate_records: Vec<BuildingRecord> =
-            targets.iter().map(|&i| records[i as usize]).collect();
-        let records_buffer = storage_buffer(&gpu, "records", bytemuck::cast_slice(&records));
-        let gate_buffer = storage_buffer(&gpu, "gate records", bytemuck::cast_slice(&gate_records));
-        let parts_buffer = storage_buffer(&gpu, "parts", bytemuck::cast_slice(&parts));
-        let targets_buffer = storage_buffer(&gpu, "targets", bytemuck::cast_slice(&targets));
-        // Flags start at 1 for every record: the gate's caller clears them.
-        let flags = storage_buffer(&gpu, "flags", &vec![1u8; records.len() * 4]);
-        let mut encoder = gpu
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
-        encoder.clear_buffer(&flags, 0, None);
-        gate.encode_with_early(
-            &gpu,
-            &mut encoder,
-            (
-                &gate_buffer,
-                Some(&parts_buffer),
-                EarlyDraws::Mark {
-                    drawn: &flags,
-                    targets: &targets_buffer,
-                },
-            ),
-            gate_records.len() as u32,
-            (&pyramid, vp),
-            None,
-        )
-        .expect("gate");
-        main.encode_with_early(
-            &gpu,
-            &mut encoder,
-            (
-                &records_buffer,
-                Some(&parts_buffer),
-                EarlyDraws::Skip(&flags),
-            ),
-            records.len() as u32,
-            (&pyramid, vp),
-            None,
-        )
-        .expect("main cull");
-        gpu.queue.submit([encoder.finish()]);
-        let gated = gate
-            .read_back(&gpu, gate_records.len() as u32)
-            .expect("gate readback");
-        let culled = main
-            .read_back(&gpu, records.len() as u32)
-            .expect("cull readback");
-        let flag_bytes = {
-            let read = gpu.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("flags readback"),
-                size: flags.size(),
-                usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-                mapped_at_creation: false,
-            });
+        let ids: Vec<u32> = (0..n).map(|j| (7 * j) % n).collect();
+        let cluster = n;
+        let mut parents = vec![NO_PARENT; n as usize + 1];
+        let mut stamps = vec![0u32; n as usize + 1];
+        for d in 0..n {
+            if d % 5 == 1 {
+                parents[d as usize] = cluster;
+            }
+            stamps[d as usize] = match d % 3 {
+                0 => 9,
+                1 => 8,
+                _ => 0,
+            };
+        }
+        stamps[cluster as usize] = 9;
+        let visible_last = |d: u32| d % 3 == 0 || d % 5 == 1;
+        let records_buffer = storage("records", bytemuck::cast_slice(&records));
+        let parts_buffer = storage("parts", bytemuck::cast_slice(&parts));
+        let ids_buffer = storage("draw ids", bytemuck::cast_slice(&ids));
+        let parents_buffer = storage("parents", bytemuck::cast_slice(&parents));
+        for entry in [CullEntry::Gate, CullEntry::Early] {
+            let stamps_buffer = storage("stamps", bytemuck::cast_slice(&stamps));
+            // Flags start at 1 for every box: the caller clears them.
+            let flags = storage("flags", &vec![1u8; records.len() * 4]);
+            let links = CullLinks {
+                draw_ids: Some(&ids_buffer),
+                drawn_early: Some(&flags),
+                visibility: Some(CullVisibility {
+                    stamps: &stamps_buffer,
+                    parents: &parents_buffer,
+                    frame_stamp: 10,
+                    building_count: n,
+                }),
+            };
             let mut encoder = gpu
                 .device
                 .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
-            encoder.copy_buffer_to_buffer(&flags, 0, &read, 0, flags.size());
+            encoder.clear_buffer(&flags, 0, None);
+            for (cull, e) in [(&mut early, entry), (&mut main, CullEntry::Cull)] {
+                cull.encode_entry(
+                    &gpu,
+                    &mut encoder,
+                    (e, &records_buffer, Some(&parts_buffer), links),
+                    n,
+                    (&pyramid, vp),
+                    None,
+                )
+                .expect("cull");
+            }
             gpu.queue.submit([encoder.finish()]);
-            map_read(&gpu, &read).expect("flags")
-        };
-        let marked: Vec<bool> = bytemuck::pod_collect_to_vec::<u8, u32>(&flag_bytes)
-            .iter()
-            .map(|&f| f != 0)
-            .collect();
-        // The gate: the plain cull's status for each of its records, never culling what the
-        // CPU reference (`DepthPyramid::cull_record`) keeps, and their draws.
-        for (j, &i) in targets.iter().enumerate() {
-            let g = gated.status[j];
+            let taken = early.read_back(&gpu, n).expect("early readback");
+            let culled = main.read_back(&gpu, n).expect("cull readback");
+            let marked: Vec<bool> = read_words(&gpu, &flags).iter().map(|&f| f != 0).collect();
+            let after = read_words(&gpu, &stamps_buffer);
+            let mut expected_early = Vec::new();
+            for j in 0..n as usize {
+                let d = ids[j];
+                let plain_status = reference.status[d as usize];
+                let t = taken.status[j];
+                if !visible_last(d) {
+                    assert_eq!(t, CULL_NOT_EARLY, "camera {c} {entry:?}: box {j} (id {d})");
+                } else if plain_status != CULL_FRUSTUM_OUTSIDE {
+                    // Its box is in the frustum: taken.
+                    let want = if entry == CullEntry::Gate {
+                        plain_status
+                    } else {
+                        CULL_VISIBLE
+                    };
+                    assert_eq!(t, want, "camera {c} {entry:?}: box {j} (id {d})");
+                } else {
+                    // Outside by its box (not taken) or by its parts alone (the gate: outside).
+                    assert!(
+                        t == CULL_NOT_EARLY || t == CULL_FRUSTUM_OUTSIDE || t == CULL_VISIBLE,
+                        "camera {c} {entry:?}: box {j} (id {d}): {t}"
+                    );
+                }
+                if entry == CullEntry::Gate && t != CULL_NOT_EARLY {
+                    let cpu = cpu_status(&cpu_pyramid, vp, &records[d as usize], &parts);
+                    assert!(
+                        t == cpu || t == CULL_VISIBLE,
+                        "camera {c}: gate box {j}: GPU status {t}, CPU status {cpu}"
+                    );
+                    cpu_agree += usize::from(t == cpu);
+                    taken_total += 1;
+                    kept_out_total += usize::from(t != CULL_VISIBLE);
+                }
+                assert_eq!(
+                    marked[j],
+                    t == CULL_VISIBLE,
+                    "camera {c} {entry:?}: mark {j}"
+                );
+                if t == CULL_VISIBLE {
+                    expected_early.push(key(&records[d as usize].draw_args()));
+                }
+                // The main cull: the plain status; the stamp of a visible draw id is this
+                // frame's, the others keep theirs.
+                assert_eq!(
+                    culled.status[j], plain_status,
+                    "camera {c}: main cull box {j}"
+                );
+                let stamp = if plain_status == CULL_VISIBLE {
+                    10
+                } else {
+                    stamps[d as usize]
+                };
+                assert_eq!(after[d as usize], stamp, "camera {c}: stamp of draw id {d}");
+            }
+            assert_eq!(after[cluster as usize], 9, "the cluster was no candidate");
+            let mut written: Vec<_> = taken.commands.iter().map(key).collect();
+            expected_early.sort_unstable();
+            written.sort_unstable();
             assert_eq!(
-                g, reference.status[i as usize],
-                "camera {c}: gate record {j} (record {i})"
+                written, expected_early,
+                "camera {c} {entry:?}: early commands"
             );
-            let cpu = cpu_status(&cpu_pyramid, vp, &gate_records[j], &parts);
-            assert!(
-                g == cpu || g == CULL_VISIBLE,
-                "camera {c}: gate record {j}: GPU status {g}, CPU status {cpu}"
-            );
-            cpu_agree += usize::from(g == cpu);
+            let mut expected: Vec<_> = (0..n as usize)
+                .filter(|&j| culled.status[j] == CULL_VISIBLE && !marked[j])
+                .map(|j| key(&records[ids[j] as usize].draw_args()))
+                .collect();
+            let mut written: Vec<_> = culled.commands.iter().map(key).collect();
+            expected.sort_unstable();
+            written.sort_unstable();
+            assert_eq!(written, expected, "camera {c}: the main cull's commands");
+            marked_total += marked.iter().filter(|&&m| m).count();
         }
-        let mut expected: Vec<_> = targets
-            .iter()
-            .filter(|&&i| reference.status[i as usize] == CULL_VISIBLE)
-            .map(|&i| key(&records[i as usize].draw_args()))
-            .collect();
-        let mut written: Vec<_> = gated.commands.iter().map(key).collect();
-        expected.sort_unstable();
-        written.sort_unstable();
-        assert_eq!(written, expected, "camera {c}: the gate's commands");
-        // The marks: exactly the gate's visible records.
-        for (i, &m) in marked.iter().enumerate() {
-            let want = i % 3 == 0 && reference.status[i] == CULL_VISIBLE;
-            assert_eq!(m, want, "camera {c}: record {i} marked {m}");
-        }
-        // The main cull: the plain status, draws of the visible unmarked records only.
-        assert_eq!(
-            culled.status, reference.status,
-            "camera {c}: main cull status"
-        );
-        let mut expected: Vec<_> = records
-            .iter()
-            .enumerate()
-            .filter(|&(i, _)| reference.status[i] == CULL_VISIBLE && !marked[i])
-            .map(|(_, r)| key(&r.draw_args()))
-            .collect();
-        let mut written: Vec<_> = culled.commands.iter().map(key).collect();
-        expected.sort_unstable();
-        written.sort_unstable();
-        assert_eq!(written, expected, "camera {c}: the main cull's commands");
-        gated_total += targets.len();
-        marked_total += marked.iter().filter(|&&m| m).count();
-        skipped_total += targets.len() - gated.commands.len();
     }
     eprintln!(
-        "gate: {marked_total} records marked, {skipped_total} kept out, {cpu_agree} of \
-         {gated_total} as the CPU reference"
+        "early entries: {marked_total} boxes marked, the gate kept {kept_out_total} out, \
+         {cpu_agree} of {taken_total} as the CPU reference"
     );
     assert!(
-        cpu_agree as f64 >= 0.999 * gated_total as f64,
-        "the gate agrees with the CPU reference on only {cpu_agree} of {gated_total} records"
+        cpu_agree as f64 >= 0.999 * taken_total as f64,
+        "the gate agrees with the CPU reference on only {cpu_agree} of {taken_total} boxes"
     );
     // Both outcomes of the gate are exercised.
     assert!(
-        marked_total > 50 && skipped_total > 50,
-        "{marked_total} marked, {skipped_total} kept out"
+        marked_total > 50 && kept_out_total > 50,
+        "{marked_total} marked, {kept_out_total} kept out"
     );
 }
 

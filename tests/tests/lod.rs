@@ -248,9 +248,12 @@ fn lod_cut_has_no_false_culls_and_saves_triangles_from_the_air() {
             }
             for (k, &criterion) in criteria.iter().enumerate() {
                 let frame: LodFrame = lod.select(&camera, w, h, criterion, None);
+                let covered = lod.covered(&frame);
+                // The count the viewer shows, in the cut's size, is the set's.
+                assert_eq!(frame.cut.covered_count(&lod.tree.tree), covered.len());
                 let missed: Vec<u32> = (0..city.buildings.len() as u32)
                     .filter(|&b| visible.contains(citywalk_scenes::BuildingId(b)))
-                    .filter(|b| frame.covered.binary_search(b).is_err())
+                    .filter(|b| covered.binary_search(b).is_err())
                     .collect();
                 assert!(
                     missed.is_empty(),

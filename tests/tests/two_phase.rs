@@ -178,8 +178,7 @@ fn short_move(rng: &mut Rng, scene: &TestScene, street: bool) -> (Camera, Camera
 }
 
 /// The configurations under test: the default, occluders (with the occluder gate, the
-/// default), and occluders without the gate and with the next frame's visible set from the
-/// final depth.
+/// default), and occluders without the gate (the frustum-only early cull).
 fn configurations() -> [(&'static str, CullingOptions); 3] {
     [
         ("hzb", CullingOptions::default()),
@@ -188,16 +187,14 @@ fn configurations() -> [(&'static str, CullingOptions); 3] {
             CullingOptions {
                 occluders: true,
                 occluder_gate: true,
-                visibility_from_final_depth: false,
                 ..CullingOptions::default()
             },
         ),
         (
-            "occluders ungated, visibility from the final depth",
+            "occluders ungated",
             CullingOptions {
                 occluders: true,
                 occluder_gate: false,
-                visibility_from_final_depth: true,
                 ..CullingOptions::default()
             },
         ),
@@ -218,8 +215,8 @@ struct Harness {
     brute: BruteRenderer,
     /// The colour of the last frame (RGBA8 sRGB).
     last_rgba: Vec<u8>,
-    /// The combined frame's `CullingOptions::visibility_from_final_depth`.
-    lod_final_depth: bool,
+    /// The combined frame's `CullingOptions::occluder_gate`.
+    lod_gate: bool,
 }
 
 impl Harness {
@@ -229,7 +226,7 @@ impl Harness {
             oracle: Oracle::new(&gpu),
             brute: BruteRenderer::new(&gpu, BruteRenderer::PNG_FORMAT),
             last_rgba: Vec::new(),
-            lod_final_depth: false,
+            lod_gate: true,
             gpu,
         }
     }
@@ -388,7 +385,7 @@ impl Harness {
         let cut = Self::cut(scene, criterion, camera, size);
         let options = CullingOptions {
             occluders: true,
-            visibility_from_final_depth: self.lod_final_depth,
+            occluder_gate: self.lod_gate,
             ..CullingOptions::default()
         };
         let target =
@@ -422,7 +419,7 @@ impl Harness {
             missing
                 .ids
                 .iter()
-                .map(|b| cut.covered.binary_search(b).is_ok())
+                .map(|b| scene.lod.covered(&cut).binary_search(b).is_ok())
                 .collect::<Vec<_>>(),
         );
         // Whatever was seen is early next frame, whichever cut comes next.
@@ -438,11 +435,8 @@ impl Harness {
             scene.name
         );
         // Drawn only from the cut; the counts add up.
-        assert!(
-            out.drawn
-                .iter()
-                .all(|b| cut.covered.binary_search(b).is_ok())
-        );
+        let covered = scene.lod.covered(&cut);
+        assert!(out.drawn.iter().all(|b| covered.binary_search(b).is_ok()));
         let st = &out.stats;
         assert_eq!(st.candidates as usize, cut.draw_ids.len());
         assert_eq!(
@@ -492,8 +486,8 @@ fn sweep_lod(h: &mut Harness, scene: &TestScene, seed: u64, cameras: usize) {
     let criteria = [None, Some(LodCriterion::YANG_PAPER)];
     for i in 0..cameras {
         let (before, camera) = short_move(&mut rng, scene, i % 2 == 0);
-        // Every other pair of cameras with the next visible set from the final depth.
-        h.lod_final_depth = i % 4 >= 2;
+        // Every other pair of cameras through the frustum-only early cull (no gate).
+        h.lod_gate = i % 4 < 2;
         for criterion in criteria {
             let mut visibility = Visibility::default();
             let size = (320, 200);
@@ -673,26 +667,34 @@ fn lod_cut_changes_between_frames_and_nothing_visible_is_dropped() {
     let runs = [None, Some(LodCriterion::YANG_PAPER)]
         .into_iter()
         .flat_map(|c| [(c, false), (c, true)]);
-    for (criterion, final_depth) in runs {
-        h.lod_final_depth = final_depth;
+    for (criterion, ungated) in runs {
+        h.lod_gate = !ungated;
         let mut visibility = Visibility::default();
         let mut previous: Option<LodFrame> = None;
-        let (mut changed, mut inherited, mut early) = (0, 0, 0);
+        let (mut changed, mut inherited, mut inherited_early, mut early) = (0, 0, 0, 0);
         for camera in &poses {
-            let before = visibility.clone();
+            let before = visibility.fork(&h.gpu);
             let (out, cut, _) = h.check_lod(&scene, criterion, &mut visibility, camera, size);
             if let Some(prev) = &previous {
                 if prev.draw_ids != cut.draw_ids {
                     changed += 1;
                 }
+                let prev_covered = scene.lod.covered(prev);
                 // Buildings drawn by a cluster last frame, themselves now, and early because
                 // the cluster was visible.
-                inherited += cut
+                let heirs: Vec<u32> = cut
                     .cut
                     .buildings
                     .iter()
+                    .copied()
                     .filter(|b| prev.cut.buildings.binary_search(b).is_err())
-                    .filter(|b| prev.covered.binary_search(b).is_ok() && before.is_visible(**b))
+                    .filter(|b| prev_covered.binary_search(b).is_ok() && before.is_visible(*b))
+                    .collect();
+                inherited += heirs.len();
+                // The GPU took them as visible last frame through their cluster's stamp.
+                inherited_early += heirs
+                    .iter()
+                    .filter(|b| out.drawn_early.binary_search(b).is_ok())
                     .count();
                 early += out.stats.early_drawn;
             }
@@ -700,7 +702,8 @@ fn lod_cut_changes_between_frames_and_nothing_visible_is_dropped() {
         }
         eprintln!(
             "{criterion:?}: {} frames, cut changed {changed} times, {inherited} buildings \
-             inherited visibility from a cluster, {early} drawn early",
+             inherited visibility from a cluster ({inherited_early} of them drawn early), \
+             {early} drawn early",
             poses.len()
         );
         assert!(
@@ -709,8 +712,9 @@ fn lod_cut_changes_between_frames_and_nothing_visible_is_dropped() {
             poses.len() - 1
         );
         assert!(
-            inherited > 0,
-            "{criterion:?}: no building inherited visibility from a cluster"
+            inherited > 0 && inherited_early > 0,
+            "{criterion:?}: no building inherited visibility from a cluster \
+             ({inherited} inherited, {inherited_early} drawn early)"
         );
         assert!(early > 0);
     }
@@ -942,99 +946,6 @@ fn bench_modes_run_a_street_walk_with_no_false_cull() {
     ));
 }
 
-/// `visibility_from_final_depth`: the next frame's early set, culled again against the final
-/// depth, is no larger than the first cull's (the final depth is nearer everywhere than the
-/// early depth, with or without occluders: each occluder lies inside a building the late pass
-/// draws), and still holds every building the oracle saw, so a camera that does not move draws
-/// every visible building early. Street-level cameras on the generated city, both
-/// configurations; the frames themselves are held to the oracle as in the sweeps.
-#[test]
-fn final_depth_visibility_is_smaller_and_keeps_every_visible_building() {
-    let Some((mut h, scene)) = harness("two_phase final depth visibility", generated) else {
-        return;
-    };
-    let mut rng = Rng(0x5eed_0007);
-    let size = (320, 200);
-    let (mut from_early, mut from_final, mut visible_total) = (0usize, 0usize, 0usize);
-    for _ in 0..12 {
-        let camera = street_camera(&mut rng, &scene.city);
-        // hzb and occluders; the option is set both ways below.
-        for (config, options) in configurations().into_iter().take(2) {
-            let early_options = CullingOptions {
-                visibility_from_final_depth: false,
-                ..options
-            };
-            let final_options = CullingOptions {
-                visibility_from_final_depth: true,
-                ..options
-            };
-            let mut early_vis = Visibility::default();
-            h.check(
-                &scene,
-                (config, &early_options),
-                &mut early_vis,
-                &camera,
-                size,
-            );
-            let mut final_vis = Visibility::default();
-            let (out, _) = h.check(
-                &scene,
-                (config, &final_options),
-                &mut final_vis,
-                &camera,
-                size,
-            );
-            let visible = h.visible_set(&scene, &camera, size);
-            let (early_ids, final_ids) = (early_vis.visible_ids(), final_vis.visible_ids());
-            let not_in_early: Vec<u32> = final_ids
-                .iter()
-                .copied()
-                .filter(|b| early_ids.binary_search(b).is_err())
-                .collect();
-            assert!(
-                not_in_early.is_empty(),
-                "{config}, camera {}: final-depth set has {not_in_early:?} the first cull culled",
-                camera.to_arg_string()
-            );
-            let missing: Vec<u32> = visible
-                .visible
-                .iter()
-                .map(|b| b.0)
-                .filter(|b| !final_vis.is_visible(*b))
-                .collect();
-            assert!(
-                missing.is_empty(),
-                "{config}, camera {}: visible buildings {missing:?} not in the next early set",
-                camera.to_arg_string()
-            );
-            // This frame's statistics are the first cull's either way.
-            assert_eq!(out.stats.cull_kept as usize, early_ids.len());
-            // The camera does not move: the next frame draws every visible building early.
-            let (next, _) = h.check(
-                &scene,
-                (config, &final_options),
-                &mut final_vis,
-                &camera,
-                size,
-            );
-            assert!(next.stats.early_drawn as usize >= visible.visible.len());
-            assert!(next.stats.early_drawn as usize <= final_ids.len());
-            from_early += early_ids.len();
-            from_final += final_ids.len();
-            visible_total += visible.visible.len();
-        }
-    }
-    eprintln!(
-        "next early set: {from_early} from the early-depth cull, {from_final} from the final \
-         depth, {visible_total} visible (oracle)"
-    );
-    assert!(visible_total > 0, "no camera saw a building");
-    assert!(
-        from_final < from_early,
-        "the final depth never culled more than the early depth"
-    );
-}
-
 /// The occluder gate (`CullingOptions::occluder_gate`) after a jump between two random street
 /// cameras, so that most of last frame's visible set is stale: the frame draws every building
 /// the oracle sees and the image of brute force; it draws a subset of what the same frame with
@@ -1071,7 +982,7 @@ fn occluder_gate_after_a_jump_draws_a_subset_of_a_cold_frame() {
             let camera = street_camera(&mut rng, &scene.city);
             let mut visibility = Visibility::default();
             h.check(scene, ("gated", &gated), &mut visibility, &before, size);
-            let mut ungated_visibility = visibility.clone();
+            let mut ungated_visibility = visibility.fork(&h.gpu);
             // Last frame's visible buildings in this frame's frustum: the gate's candidates.
             let frustum = citywalk_scenes::frustum::Frustum::from_view_proj(
                 camera.view_proj(size.0 as f32 / size.1 as f32),

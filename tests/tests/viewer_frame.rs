@@ -68,6 +68,7 @@ fn every_stage_combination_and_debug_view_renders_and_reports_its_counts() {
     .camera();
     let format = BruteRenderer::PNG_FORMAT;
     let mut drawer = FrameDrawer::new(&gpu, format, scene);
+    drawer.wait_for_reports = true;
     let target = OffscreenTarget::new(&gpu, SIZE.0, SIZE.1, format).expect("target");
     let mut frame = |settings: &RenderSettings, camera: &Camera| -> (Drawn, Vec<u8>) {
         let drawn = drawer

@@ -1,30 +1,25 @@
-//! What one frame culls: its candidates (every building of a scene, or the buildings and
-//! cluster meshes of a LOD cut), which of them the early pass draws, and how the cull's status of
-//! each candidate becomes the frame's statistics and the next frame's visible buildings.
+//! What one frame culled, as its report reads it: the candidates (every building of a scene,
+//! or the buildings and cluster meshes of a LOD cut), which of them the early pass drew (the
+//! early entry point's status, from the GPU), and how the cull's status of each candidate becomes
+//! the frame's statistics and the CPU copy of the visible buildings.
 //!
-//! **Visibility across LOD cuts.** Visibility is kept per building, never per candidate, so it
-//! survives any change of the cut: a candidate kept by the cull marks every building it covers
-//! (a building itself; a cluster, every building under it) visible for the next frame. A
-//! *building* candidate is drawn early when it was visible last frame, whether it was drawn
-//! itself then or through a cluster. A *cluster* candidate is never drawn early: the pyramid must
-//! be built from depth that the full-detail scene would hide at least as much as (the ground,
-//! buildings, occluders contained in buildings), and a cluster mesh is not contained in its
-//! buildings (it fills the negative space between them). Clusters therefore always go through
-//! the cull, which tests the box of everything they stand for
+//! **Visibility across LOD cuts.** A candidate kept by the cull makes every building it covers
+//! (a building itself; a cluster, every building under it) visible for the next frame: on the
+//! GPU through the stamps and the draw-id parents ([`crate::frame::Visibility`]), here in the CPU
+//! copy the same way. A *building* candidate is drawn early when it was visible last frame,
+//! whether it was drawn itself then or through a cluster. A *cluster* candidate is never drawn
+//! early: the pyramid must be built from depth that the full-detail scene would hide at least as
+//! much as (the ground, buildings, occluders contained in buildings), and a cluster mesh is not
+//! contained in its buildings (it fills the negative space between them). Clusters therefore
+//! always go through the cull, which tests the box of everything they stand for
 //! ([`crate::lod::scene::LodScene::cull_records`]).
 
-use std::borrow::Cow;
-
-use citywalk_scenes::frustum::{Containment, Frustum};
+use citywalk_scenes::cluster_tree::ClusterTree;
 use citywalk_shaders::BuildingRecord;
-use glam::Vec3;
 
 use crate::frame::{FrameOutput, FrameStats, Visibility};
-use crate::hzb::cull::{CULL_FRUSTUM_OUTSIDE, CULL_OCCLUDED, CULL_VISIBLE};
-use citywalk_scenes::cluster_tree::ClusterTree;
-
+use crate::hzb::cull::{CULL_FRUSTUM_OUTSIDE, CULL_NOT_EARLY, CULL_OCCLUDED, CULL_VISIBLE};
 use crate::lod::scene::{LodScene, covered_by};
-use crate::scene_gpu::SceneGpu;
 
 /// What the candidates of a LOD cut need of its scene ([`LodScene`]).
 #[derive(Debug, Clone, Copy)]
@@ -46,183 +41,108 @@ impl<'a> LodSource<'a> {
     }
 }
 
-/// The candidates of one frame.
-#[derive(Debug, Default)]
+/// The candidates of one frame, with what the early entry point did with each.
+#[derive(Debug)]
 pub(super) struct Candidates<'a> {
-    /// Cull record of each candidate: its draw (geometry in the scene) and the box it is tested
-    /// with.
-    /// Borrowed from the scene when the candidates are its buildings (no per-frame copy).
-    pub records: Cow<'a, [BuildingRecord]>,
+    /// Records by draw id: the scene's buildings, or a LOD scene's cull records.
+    records: &'a [BuildingRecord],
     /// Per candidate: drawn by the early pass.
     pub early: Vec<bool>,
-    /// Per building of the scene: drawn as itself by the early pass (occluder selection).
-    pub early_buildings: Vec<bool>,
-    /// Draws issued by the early pass, the ground included.
-    pub early_draw_count: u32,
-    /// The early candidates go through the occluder gate ([`Candidates::gate_records`]): their
-    /// cull records keep their index counts (the cull skips those the gate drew) and `early`
-    /// holds what the gate kept once [`Candidates::apply_gate`] has run.
-    pub gated: bool,
+    /// Candidates visible last frame that the early entry did not draw: the occluder gate kept
+    /// them out (0 without the gate: the frustum-only entry draws all it takes).
+    pub gate_culled: u32,
     /// The LOD scene and the draw id of each candidate, for a LOD cut; `None`: candidate `i` is
     /// building `i`.
-    lod: Option<(LodSource<'a>, Cow<'a, [u32]>)>,
+    lod: Option<(LodSource<'a>, &'a [u32])>,
     building_count: usize,
 }
 
-fn in_frustum(frustum: &Frustum, r: &BuildingRecord) -> bool {
-    frustum.classify_aabb(
-        Vec3::from_array(r.bounds_min_m),
-        Vec3::from_array(r.bounds_max_m),
-    ) != Containment::Outside
-}
-
 impl<'a> Candidates<'a> {
-    /// Every building of `scene`; early: visible last frame and in the frustum.
-    pub fn all_buildings(
-        scene: &'a SceneGpu,
-        visibility: &Visibility,
-        frustum: &Frustum,
-    ) -> Candidates<'a> {
-        let early: Vec<bool> = scene
-            .records
-            .iter()
-            .enumerate()
-            .map(|(i, r)| visibility.is_visible(i as u32) && in_frustum(frustum, r))
-            .collect();
-        Candidates {
-            records: Cow::Borrowed(&scene.records),
-            early_buildings: early.clone(),
-            early_draw_count: 1 + early.iter().filter(|&&e| e).count() as u32,
-            gated: false,
-            early,
+    /// Every building of a scene (`records`), with the early entry's `early_status` (one per
+    /// building).
+    pub fn all_buildings(records: &'a [BuildingRecord], early_status: &[u32]) -> Candidates<'a> {
+        let mut c = Candidates {
+            records,
+            early: Vec::new(),
+            gate_culled: 0,
             lod: None,
-            building_count: scene.building_count(),
-        }
+            building_count: records.len(),
+        };
+        c.take_early(early_status);
+        c
     }
 
-    /// The buildings and clusters of a LOD cut, `draw_ids` ([`crate::lod::scene::LodFrame::draw_ids`]); early: a
-    /// building visible last frame, in the frustum (see the module documentation for why
-    /// clusters are never early).
-    pub fn lod(
-        lod: LodSource<'a>,
-        draw_ids: &'a [u32],
-        visibility: &Visibility,
-        frustum: &Frustum,
-    ) -> Candidates<'a> {
-        let building_count = lod.building_count as usize;
-        let mut early_buildings = vec![false; building_count];
-        let mut records = Vec::with_capacity(draw_ids.len());
-        let mut early = Vec::with_capacity(draw_ids.len());
-        let mut ids = Vec::with_capacity(draw_ids.len());
-        for &id in draw_ids {
-            let Some(record) = lod.cull_records.get(id as usize) else {
-                continue;
-            };
-            let is_early = (id as usize) < building_count
-                && visibility.is_visible(id)
-                && in_frustum(frustum, record);
-            if is_early {
-                early_buildings[id as usize] = true;
-            }
-            records.push(*record);
-            early.push(is_early);
-            ids.push(id);
-        }
-        // `ids` equals `cut.draw_ids` unless the cut named an id out of range (the common case
-        // borrows).
-        let lod_ids = if ids.len() == draw_ids.len() {
-            Cow::Borrowed(draw_ids)
-        } else {
-            Cow::Owned(ids)
+    /// The buildings and clusters of a LOD cut, `draw_ids`
+    /// ([`crate::lod::scene::LodFrame::draw_ids`]), with the early entry's `early_status`.
+    pub fn lod(lod: LodSource<'a>, draw_ids: &'a [u32], early_status: &[u32]) -> Candidates<'a> {
+        let mut c = Candidates {
+            records: lod.cull_records,
+            early: Vec::new(),
+            gate_culled: 0,
+            lod: Some((lod, draw_ids)),
+            building_count: lod.building_count as usize,
         };
-        Candidates {
-            records: Cow::Owned(records),
-            early_draw_count: 1 + early.iter().filter(|&&e| e).count() as u32,
-            gated: false,
-            early,
-            early_buildings,
-            lod: Some((lod, lod_ids)),
-            building_count,
-        }
+        c.take_early(early_status);
+        c
+    }
+
+    /// Early: the early entry drew the candidate (`CULL_VISIBLE`); a candidate it took but did
+    /// not draw was kept out by the gate.
+    fn take_early(&mut self, early_status: &[u32]) {
+        let n = self.len();
+        self.early = (0..n)
+            .map(|i| early_status.get(i) == Some(&CULL_VISIBLE))
+            .collect();
+        self.gate_culled = early_status
+            .iter()
+            .take(n)
+            .filter(|&&s| s != CULL_VISIBLE && s != CULL_NOT_EARLY)
+            .count() as u32;
     }
 
     pub fn len(&self) -> usize {
-        self.records.len()
-    }
-
-    /// The early candidates for the occluder gate: their records (real index counts) and the
-    /// candidate index each stands for, in candidate order.
-    pub fn gate_records(&self) -> (Vec<BuildingRecord>, Vec<u32>) {
-        self.early
-            .iter()
-            .enumerate()
-            .filter(|&(_, &e)| e)
-            .map(|(i, _)| (self.records[i], i as u32))
-            .unzip()
-    }
-
-    /// Takes the gate's `status` (one per entry of [`Candidates::gate_records`], in its order):
-    /// an early candidate stays early (drawn by the early pass) only when the gate kept it;
-    /// the others go to the cull like any candidate. Returns how many the gate kept out.
-    pub fn apply_gate(&mut self, status: &[u32]) -> u32 {
-        let mut kept_out = 0;
-        let mut next = status.iter();
-        for i in 0..self.early.len() {
-            if self.early[i] && next.next() != Some(&CULL_VISIBLE) {
-                self.early[i] = false;
-                kept_out += 1;
-                if let Some(b) = self.building_of(i) {
-                    self.early_buildings[b] = false;
-                }
-            }
-        }
-        self.early_draw_count -= kept_out;
-        kept_out
-    }
-
-    /// The building candidate `i` is, when it is one (not a cluster).
-    fn building_of(&self, i: usize) -> Option<usize> {
         match &self.lod {
-            None => Some(i),
-            Some((lod, ids)) => ids
-                .get(i)
-                .filter(|&&id| id < lod.building_count)
-                .map(|&id| id as usize),
+            None => self.records.len(),
+            Some((_, ids)) => ids.len(),
         }
+    }
+
+    /// The draw id of candidate `i`.
+    fn draw_id(&self, i: usize) -> u32 {
+        match &self.lod {
+            None => i as u32,
+            Some((_, ids)) => ids[i],
+        }
+    }
+
+    /// The record the cull tested for candidate `i` (zeroed for a draw id out of range: the
+    /// shader clamps such an id, and it draws nothing the report should count).
+    fn record(&self, i: usize) -> BuildingRecord {
+        self.records
+            .get(self.draw_id(i) as usize)
+            .copied()
+            .unwrap_or_else(bytemuck::Zeroable::zeroed)
     }
 
     /// Calls `f` with every building candidate `i` covers.
-    fn for_each_covered(&self, i: usize, mut f: impl FnMut(u32)) {
+    fn for_each_covered(&self, i: usize, f: impl FnMut(u32)) {
         match &self.lod {
-            None => f(i as u32),
-            Some((lod, ids)) => {
-                if let Some(&id) = ids.get(i) {
-                    covered_by(lod.tree, lod.building_count, id).for_each(f);
-                }
-            }
+            None => std::iter::once(i as u32).for_each(f),
+            Some((lod, ids)) => covered_by(lod.tree, lod.building_count, ids[i]).for_each(f),
         }
     }
 
     /// The cluster node of candidate `i` when it is a cluster mesh (a LOD cut's inner node).
     fn cluster_node(&self, i: usize) -> Option<u32> {
         let (lod, ids) = self.lod.as_ref()?;
-        let id = *ids.get(i)?;
-        id.checked_sub(lod.building_count)
+        ids[i].checked_sub(lod.building_count)
     }
 
-    /// Next frame's visible buildings from this frame's cull `status` (one per candidate).
-    /// Whether the cull `status` kept a cluster mesh (so the late pass drew one): such a
-    /// frame's final depth holds geometry that is not contained in its buildings.
-    pub fn cluster_kept(&self, status: &[u32]) -> bool {
-        status
-            .iter()
-            .enumerate()
-            .any(|(i, &s)| s == CULL_VISIBLE && self.cluster_node(i).is_some())
-    }
-
+    /// The CPU copy of the buildings visible for the next frame, from this frame's cull
+    /// `status` (one per candidate): what the GPU's stamps say, per building.
     pub fn update_visibility(&self, visibility: &mut Visibility, status: &[u32]) {
         if self.lod.is_none() {
-            visibility.update(status);
+            visibility.mirror_status(status);
             return;
         }
         let mut visible = vec![false; self.building_count];
@@ -237,16 +157,20 @@ impl<'a> Candidates<'a> {
                 }
             });
         }
-        visibility.set(visible);
+        visibility.mirror_set(visible);
     }
 
     /// The frame's counts and drawn buildings from the cull `status` (one per candidate);
     /// `late_commands_all`: the late pass walks every candidate's command (no draw count).
     pub fn statistics(&self, status: Vec<u32>, late_commands_all: bool) -> FrameOutput {
+        let early_drawn = self.early.iter().filter(|&&d| d).count() as u32;
         let mut stats = FrameStats {
             building_count: self.building_count as u32,
             candidates: self.len() as u32,
-            draw_calls: self.early_draw_count,
+            early_drawn,
+            gate_culled: self.gate_culled,
+            // The ground and the early draws.
+            draw_calls: 1 + early_drawn,
             ..FrameStats::default()
         };
         // Per building: drawn itself, drawn through a cluster, best cull status seen.
@@ -254,7 +178,8 @@ impl<'a> Candidates<'a> {
         let mut through_cluster = vec![false; self.building_count];
         let mut building_status = vec![CULL_FRUSTUM_OUTSIDE; self.building_count];
         let mut clusters = Vec::new();
-        for (i, (&s, r)) in status.iter().zip(self.records.iter()).enumerate() {
+        for (i, &s) in status.iter().enumerate().take(self.len()) {
+            let r = self.record(i);
             let was_early = self.early[i];
             match s {
                 CULL_FRUSTUM_OUTSIDE => stats.frustum_culled += 1,
@@ -298,7 +223,6 @@ impl<'a> Candidates<'a> {
                 }
             });
         }
-        stats.early_drawn = self.early.iter().filter(|&&d| d).count() as u32;
         let drawn: Vec<u32> = (0..self.building_count)
             .filter(|&b| itself[b] || through_cluster[b])
             .map(|b| b as u32)
@@ -314,8 +238,14 @@ impl<'a> Candidates<'a> {
             stats.cull_kept
         };
         clusters.sort_unstable();
+        let mut drawn_early: Vec<u32> = (0..self.len())
+            .filter(|&i| self.early[i] && self.cluster_node(i).is_none())
+            .map(|i| self.draw_id(i))
+            .collect();
+        drawn_early.sort_unstable();
         FrameOutput {
             drawn,
+            drawn_early,
             occluders: Vec::new(),
             status: if self.lod.is_none() {
                 status
@@ -326,60 +256,6 @@ impl<'a> Candidates<'a> {
             stats,
         }
     }
-
-    /// The cull record of candidate `i` as the cull reads it: a zero index count when the
-    /// candidate is early and not gated (the cull then emits an empty command for it and the
-    /// late pass draws each candidate at most once; with the gate, the cull skips the drawn
-    /// ones by the gate's flags instead).
-    fn late_record(&self, i: usize) -> BuildingRecord {
-        let mut r = self.records[i];
-        if self.early[i] && !self.gated {
-            r.index_count = 0;
-        }
-        r
-    }
-
-    /// The cull records with a zero index count for every early candidate
-    /// ([`Candidates::late_record`]).
-    #[cfg(test)]
-    pub fn late_records(&self) -> Vec<BuildingRecord> {
-        (0..self.len()).map(|i| self.late_record(i)).collect()
-    }
-
-    /// Brings `late` (last frame's late records) to this frame's
-    /// ([`Candidates::late_record`] of every candidate) in place, and returns the runs of
-    /// changed entries as `(first, end)` index ranges, ascending and disjoint: what must be
-    /// uploaded when the GPU copy held `late`. Runs closer than `merge_gap` entries are merged
-    /// (one upload of a few unchanged entries is cheaper than two uploads).
-    pub fn update_late_records(
-        &self,
-        late: &mut Vec<BuildingRecord>,
-        merge_gap: usize,
-    ) -> Vec<(usize, usize)> {
-        let n = self.len();
-        let kept = late.len().min(n);
-        late.truncate(n);
-        let mut runs: Vec<(usize, usize)> = Vec::new();
-        let push = |i: usize, runs: &mut Vec<(usize, usize)>| match runs.last_mut() {
-            Some(last) if i <= last.1 + merge_gap => last.1 = i + 1,
-            _ => runs.push((i, i + 1)),
-        };
-        for (i, slot) in late.iter_mut().enumerate().take(kept) {
-            let r = self.late_record(i);
-            if *slot != r {
-                *slot = r;
-                push(i, &mut runs);
-            }
-        }
-        if n > kept {
-            late.extend((kept..n).map(|i| self.late_record(i)));
-            match runs.last_mut() {
-                Some(last) if kept <= last.1 + merge_gap => last.1 = n,
-                _ => runs.push((kept, n)),
-            }
-        }
-        runs
-    }
 }
 
 #[cfg(test)]
@@ -388,7 +264,6 @@ mod tests {
     use citywalk_scenes::cluster_tree::{ClusterNode, ClusterParams, ClusterStats};
 
     use super::*;
-    use crate::camera::Camera;
 
     /// A 10 m cube record at `x` metres along the view axis.
     fn record(x: f32) -> BuildingRecord {
@@ -426,9 +301,9 @@ mod tests {
         }
     }
 
-    /// Three buildings ahead of a camera looking along +x; buildings 2 and 0 (in that leaf
-    /// order) under cluster node 2, building 1 alone under the root.
-    fn scene() -> (ClusterTree, Vec<BuildingRecord>, Frustum) {
+    /// Three buildings; buildings 2 and 0 (in that leaf order) under cluster node 2, building 1
+    /// alone under the root.
+    fn scene() -> (ClusterTree, Vec<BuildingRecord>) {
         let tree = ClusterTree {
             vertices: vec![],
             nodes: vec![
@@ -447,188 +322,105 @@ mod tests {
         let mut records = vec![record(20.0), record(40.0), record(50.0)];
         records.extend((0..5).map(|_| record(20.0)));
         records[3 + 2].bounds_max_m[0] = 60.0;
-        let camera = Camera::new(Vec3::ZERO, 0.0, 0.0);
-        (
-            tree,
-            records,
-            Frustum::from_view_proj(camera.view_proj(1.0)),
-        )
+        (tree, records)
     }
 
-    /// The LOD source of [`scene`]'s tree and records, and a visibility of its three buildings
-    /// with nothing visible.
-    fn source<'a>(
-        tree: &'a ClusterTree,
-        records: &'a [BuildingRecord],
-    ) -> (LodSource<'a>, Visibility) {
-        let mut visibility = Visibility::default();
-        visibility.fit(3);
-        let lod = LodSource {
+    /// The LOD source of [`scene`]'s tree and records.
+    fn source<'a>(tree: &'a ClusterTree, records: &'a [BuildingRecord]) -> LodSource<'a> {
+        LodSource {
             building_count: 3,
             cull_records: records,
             tree,
-        };
-        (lod, visibility)
+        }
     }
 
     #[test]
-    fn visibility_is_kept_per_building_across_cuts() {
-        let (tree, records, frustum) = scene();
-        let (lod, mut visibility) = source(&tree, &records);
+    fn visibility_and_statistics_are_kept_per_building_across_cuts() {
+        let (tree, records) = scene();
+        let lod = source(&tree, &records);
+        let mut visibility = Visibility::default();
 
         // Coarse cut: cluster 2 (buildings 2 and 0) and building 1. Nothing seen yet: nothing
         // early.
         let coarse = [1, 3 + 2];
-        let c = Candidates::lod(lod, &coarse, &visibility, &frustum);
+        let c = Candidates::lod(lod, &coarse, &[CULL_NOT_EARLY, CULL_NOT_EARLY]);
         assert_eq!(c.len(), 2);
         assert_eq!(c.early, vec![false, false]);
-        assert_eq!(c.early_draw_count, 1);
         let status = vec![CULL_OCCLUDED, CULL_VISIBLE];
         c.update_visibility(&mut visibility, &status);
         assert_eq!(visibility.visible_ids(), vec![0, 2]);
         let out = c.statistics(status, false);
         assert_eq!(out.drawn, vec![0, 2]);
         assert_eq!(out.clusters, vec![2]);
+        assert!(out.drawn_early.is_empty());
         assert_eq!(out.status, vec![CULL_VISIBLE, CULL_OCCLUDED, CULL_VISIBLE]);
         let s = &out.stats;
         assert_eq!((s.candidates, s.cull_kept, s.occlusion_culled), (2, 1, 1));
         assert_eq!((s.clusters_drawn, s.buildings_through_clusters), (1, 2));
         assert_eq!((s.late_drawn, s.draw_calls, s.late_commands), (1, 2, 1));
 
-        // The cut refines the cluster: its buildings were seen through it, so they are drawn
-        // early as themselves; building 1 was not seen and is not.
+        // The cut refines the cluster; the GPU drew buildings 0 and 2 early (seen through the
+        // cluster). Building 2 turned out hidden: drawn (early) this frame, not visible next.
         let fine = [0, 1, 2];
-        let c = Candidates::lod(lod, &fine, &visibility, &frustum);
+        let c = Candidates::lod(lod, &fine, &[CULL_VISIBLE, CULL_NOT_EARLY, CULL_VISIBLE]);
         assert_eq!(c.early, vec![true, false, true]);
-        assert_eq!(c.early_buildings, vec![true, false, true]);
-        assert_eq!(c.early_draw_count, 3);
-        let late: Vec<u32> = c.late_records().iter().map(|r| r.index_count).collect();
-        assert_eq!(
-            late,
-            vec![0, 36, 0],
-            "early candidates are not drawn again late"
-        );
-        // Building 2 turned out hidden: drawn (early) this frame, not early next frame.
         let status = vec![CULL_VISIBLE, CULL_VISIBLE, CULL_OCCLUDED];
         c.update_visibility(&mut visibility, &status);
         assert_eq!(visibility.visible_ids(), vec![0, 1]);
         let out = c.statistics(status, true);
         assert_eq!(out.drawn, vec![0, 1, 2]);
+        assert_eq!(out.drawn_early, vec![0, 2]);
         assert!(out.clusters.is_empty());
         let s = &out.stats;
         assert_eq!((s.early_drawn, s.late_drawn, s.drawn), (2, 1, 3));
         assert_eq!((s.clusters_drawn, s.buildings_through_clusters), (0, 0));
         assert_eq!(s.late_commands, 3);
         assert_eq!(s.triangles, 3 * 12);
-
-        // Coarser again: the cluster is not early even though its buildings were visible
-        // (cluster meshes never reach the pyramid's depth).
-        let c = Candidates::lod(lod, &coarse, &visibility, &frustum);
-        assert_eq!(c.early, vec![true, false]);
-        assert_eq!(c.early_buildings, vec![false, true, false]);
+        assert_eq!(s.draw_calls, 1 + 2 + 1, "ground, two early, one late");
     }
 
-    /// The occluder gate's bookkeeping over a LOD cut: the gate's records are the early
-    /// candidates in order, with the candidate each stands for; gated late records keep their
-    /// index counts (the cull skips by the gate's flags); the gate's status leaves early only
-    /// those it kept, and the statistics count the kept-out ones as late draws when the cull
-    /// keeps them.
+    /// The occluder gate's statuses: a candidate the early entry took but did not draw (the
+    /// gate's cull status) was kept out, and the main cull's keeping it makes it a late draw.
     #[test]
     fn the_gate_keeps_early_only_what_it_kept() {
-        let (tree, records, frustum) = scene();
-        let (lod, mut visibility) = source(&tree, &records);
-        visibility.set(vec![true, true, true]);
-        // Cut: building 2, cluster 2 (never early), building 0, building 1.
+        let (tree, records) = scene();
+        let lod = source(&tree, &records);
+        // Cut: building 2, cluster 2 (never early), building 0, building 1. The gate drew
+        // buildings 2 and 1 and kept building 0 out; the main cull then finds building 0
+        // visible (a late draw) and hides the cluster and building 1 (drawn early all the same).
         let cut = [2, 3 + 2, 0, 1];
-        let mut c = Candidates::lod(lod, &cut, &visibility, &frustum);
-        assert_eq!(c.early, vec![true, false, true, true]);
-        let (gate, targets) = c.gate_records();
-        assert_eq!(targets, vec![0, 2, 3]);
-        assert_eq!(gate, vec![records[2], records[0], records[1]]);
-        c.gated = true;
-        let late: Vec<u32> = c.late_records().iter().map(|r| r.index_count).collect();
-        assert_eq!(
-            late,
-            vec![36, 36, 36, 36],
-            "gated late records keep their draws"
+        let c = Candidates::lod(
+            lod,
+            &cut,
+            &[CULL_VISIBLE, CULL_NOT_EARLY, CULL_OCCLUDED, CULL_VISIBLE],
         );
-        // The gate keeps building 2 and building 1, keeps building 0 out.
-        let kept_out = c.apply_gate(&[CULL_VISIBLE, CULL_OCCLUDED, CULL_VISIBLE]);
-        assert_eq!(kept_out, 1);
         assert_eq!(c.early, vec![true, false, false, true]);
-        assert_eq!(c.early_buildings, vec![false, true, true]);
-        assert_eq!(c.early_draw_count, 3);
-        // The cull keeps building 0 (drawn late) and hides the cluster and building 1 (drawn
-        // early all the same).
+        assert_eq!(c.gate_culled, 1);
         let out = c.statistics(
             vec![CULL_VISIBLE, CULL_OCCLUDED, CULL_VISIBLE, CULL_OCCLUDED],
             false,
         );
         let s = &out.stats;
         assert_eq!((s.early_drawn, s.late_drawn, s.drawn), (2, 1, 3));
+        assert_eq!(s.gate_culled, 1);
         assert_eq!(out.drawn, vec![0, 1, 2]);
+        assert_eq!(out.drawn_early, vec![1, 2]);
         assert_eq!(s.draw_calls, 3 + 1, "ground, two early, one late");
     }
 
     #[test]
-    fn late_records_are_updated_in_place_with_the_changed_runs() {
-        let (tree, records, frustum) = scene();
-        let (lod, mut visibility) = source(&tree, &records);
-        let fine = [0, 1, 2];
-        let mut late = Vec::new();
-        // First frame: everything is new.
-        let c = Candidates::lod(lod, &fine, &visibility, &frustum);
-        assert_eq!(c.update_late_records(&mut late, 0), vec![(0, 3)]);
-        assert_eq!(late, c.late_records());
-        // Same candidates, nothing early: nothing changes.
-        assert!(c.update_late_records(&mut late, 0).is_empty());
-        // Buildings 0 and 2 become early: two runs, one when merged across the gap.
-        c.update_visibility(
-            &mut visibility,
-            &[CULL_VISIBLE, CULL_OCCLUDED, CULL_VISIBLE],
-        );
-        let c = Candidates::lod(lod, &fine, &visibility, &frustum);
-        let mut merged = late.clone();
-        assert_eq!(c.update_late_records(&mut late, 0), vec![(0, 1), (2, 3)]);
-        assert_eq!(c.update_late_records(&mut merged, 1), vec![(0, 3)]);
-        assert_eq!(late, c.late_records());
-        assert_eq!(merged, late);
-        // A shorter cut truncates; its changed entries are reported.
-        let coarse = [1, 3 + 2];
-        let c = Candidates::lod(lod, &coarse, &visibility, &frustum);
-        let runs = c.update_late_records(&mut late, 0);
-        assert_eq!(late, c.late_records());
-        assert_eq!(runs, vec![(0, 2)]);
-    }
-
-    #[test]
     fn every_building_is_a_candidate_without_a_cut() {
-        let (_, records, frustum) = scene();
-        let scene_records = records[..3].to_vec();
+        let (_, records) = scene();
+        let scene_records = &records[..3];
+        let c =
+            Candidates::all_buildings(scene_records, &[CULL_VISIBLE, CULL_NOT_EARLY, CULL_VISIBLE]);
         let mut visibility = Visibility::default();
-        visibility.fit(3);
-        visibility.update(&[CULL_VISIBLE, CULL_OCCLUDED, CULL_VISIBLE]);
-        let early: Vec<bool> = scene_records
-            .iter()
-            .enumerate()
-            .map(|(i, r)| visibility.is_visible(i as u32) && in_frustum(&frustum, r))
-            .collect();
-        assert_eq!(early, vec![true, false, true]);
-        // The same rule as the LOD path, through the identity cover.
-        let c = Candidates {
-            records: Cow::Owned(scene_records),
-            early_buildings: early.clone(),
-            early_draw_count: 3,
-            gated: false,
-            early,
-            lod: None,
-            building_count: 3,
-        };
         let status = vec![CULL_VISIBLE, CULL_FRUSTUM_OUTSIDE, CULL_OCCLUDED];
         c.update_visibility(&mut visibility, &status);
         assert_eq!(visibility.visible_ids(), vec![0]);
         let out = c.statistics(status.clone(), false);
         assert_eq!(out.drawn, vec![0, 2]);
+        assert_eq!(out.drawn_early, vec![0, 2]);
         assert_eq!(out.status, status);
         assert_eq!(out.stats.frustum_culled, 1);
         assert_eq!(out.stats.buildings_through_clusters, 0);

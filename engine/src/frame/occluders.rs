@@ -103,16 +103,16 @@ impl OccluderMeshes {
         }
     }
 
-    /// The occluders to draw for `camera` on a viewport `height_px` tall: in the frustum, of a
-    /// building not drawn by the early pass (its own geometry hides at least as much), and whose
-    /// bounding sphere projects to more than `min_px` pixels (or contains the eye).
+    /// The occluders to draw for `camera` on a viewport `height_px` tall: in the frustum, and
+    /// whose bounding sphere projects to more than `min_px` pixels (or contains the eye). The
+    /// early set lives on the GPU, so an occluder of a building drawn early is drawn as well
+    /// (it lies inside the building: it hides nothing more).
     pub fn select(
         &self,
         camera: &Camera,
         frustum: &Frustum,
         height_px: u32,
         min_px: f32,
-        drawn_early: &[bool],
     ) -> Vec<usize> {
         let px_per_rad = height_px as f32 / (camera.fov_y_rad * 0.5).tan();
         let spheres: Cow<'_, [Sphere]> = if self.spheres.len() == self.occluders.len() {
@@ -127,13 +127,12 @@ impl OccluderMeshes {
             frustum,
             px_per_rad,
             min_px,
-            drawn_early,
         )
     }
 }
 
 /// [`OccluderMeshes::select`] over `occluders` and their `spheres` ([`Sphere::of`], one each):
-/// the indices of those of a building not in `drawn_early` that [`occluder_wanted`] admits.
+/// the indices of those [`occluder_wanted`] admits.
 fn select_occluders(
     occluders: &[OccluderDraw],
     spheres: &[Sphere],
@@ -141,7 +140,6 @@ fn select_occluders(
     frustum: &Frustum,
     px_per_rad: f32,
     min_px: f32,
-    drawn_early: &[bool],
 ) -> Vec<usize> {
     // A cheap pre-filter before the exact test: an occluder projects to more than `min_px`
     // only within `radius · max(1, px_per_rad / min_px)` of the eye (a squared distance, no
@@ -152,12 +150,6 @@ fn select_occluders(
         .iter()
         .zip(spheres)
         .enumerate()
-        .filter(|(_, (o, _))| {
-            !drawn_early
-                .get(o.building as usize)
-                .copied()
-                .unwrap_or(false)
-        })
         .filter(|&(_, (o, &sphere))| {
             if prefilter {
                 let reach_m = sphere.radius_m * reach_per_radius;
@@ -274,10 +266,8 @@ mod tests {
             })
             .collect();
         let spheres: Vec<Sphere> = occluders.iter().map(Sphere::of).collect();
-        let drawn_early: Vec<bool> = (0..50).map(|b| b % 7 == 0).collect();
         for min_px in [DEFAULT_OCCLUDER_MIN_PX, 1.0, 48.0, 0.0, -1.0, f32::NAN] {
             let exact: Vec<usize> = (0..occluders.len())
-                .filter(|&i| !drawn_early[occluders[i].building as usize])
                 .filter(|&i| {
                     occluder_wanted(
                         &occluders[i],
@@ -296,7 +286,6 @@ mod tests {
                 &frustum,
                 px_per_rad,
                 min_px,
-                &drawn_early,
             );
             assert_eq!(selected, exact, "min_px {min_px}");
             if min_px == DEFAULT_OCCLUDER_MIN_PX {

@@ -1,50 +1,126 @@
-//! Which buildings were visible in the last frame: the early pass's set.
+//! Which draw ids the last frame's cull kept: the early pass's set, kept on the GPU.
+//!
+//! niagara's `drawVisibility`: the GPU marks, and the next frame's early entry point reads, a
+//! stamp per draw id (`shaders/wgsl/hzb_cull.wgsl`); the CPU never walks or uploads the set.
+//! Stamps rather than flags, so that a draw id that left the candidates (the LOD cut moved, the
+//! frustum turned) expires by itself instead of needing a clear: a draw id counts as visible
+//! last frame only when its stamp is exactly last frame's.
 
-use crate::hzb::cull::CULL_VISIBLE;
+use citywalk_shaders::constants::CULL_VISIBLE;
 
-/// Per-building "visible last frame" flags, carried from frame to frame.
-#[derive(Debug, Clone, Default, PartialEq, Eq)]
+use crate::gpu::GpuContext;
+
+/// The stamp of the first frame: last frame's (1) is newer than the zeroed buffer's 0.
+const FIRST_STAMP: u32 = 2;
+
+/// Per-draw-id visibility on the GPU, carried from frame to frame (one per camera path or view),
+/// with a CPU copy of the buildings it holds as of the last frame whose report was read. Not
+/// `Clone`: two frames streams must not share stamps; [`Visibility::fork`] copies them.
+#[derive(Debug, Default)]
 pub struct Visibility {
-    visible: Vec<bool>,
+    /// The stamps (`u32` per draw id), made for the first frame of a scene's shape.
+    stamps: Option<Stamps>,
+    /// The stamp of the frame rendered last (0 before any).
+    stamp: u32,
+    /// Per building: visible in the frame whose report was read last ([`Visibility::is_visible`]).
+    mirror: Vec<bool>,
+}
+
+#[derive(Debug)]
+struct Stamps {
+    buffer: wgpu::Buffer,
+    draw_ids: u32,
 }
 
 impl Visibility {
-    /// Nothing visible (the state at the start of a camera path).
+    /// Nothing visible (the state at the start of a camera path): the next frame's stamp skips
+    /// one, so no stamp on the GPU equals "last frame".
     pub fn reset(&mut self) {
-        self.visible.clear();
+        if self.stamp != 0 {
+            self.stamp += 1;
+        }
+        self.mirror.clear();
     }
 
-    /// Whether building `id` was visible in the last frame.
+    /// Whether building `id` was visible in the last frame whose report was read (a frame
+    /// rendered with [`crate::frame::CullingRenderer::render`] or `render_lod` has been).
     pub fn is_visible(&self, id: u32) -> bool {
-        self.visible.get(id as usize).copied().unwrap_or(false)
+        self.mirror.get(id as usize).copied().unwrap_or(false)
     }
 
-    /// The visible buildings, in id order.
+    /// The buildings of [`Visibility::is_visible`], in id order.
     pub fn visible_ids(&self) -> Vec<u32> {
-        (0..self.visible.len() as u32)
-            .filter(|&b| self.visible[b as usize])
+        (0..self.mirror.len() as u32)
+            .filter(|&b| self.mirror[b as usize])
             .collect()
     }
 
-    /// Sets the flags from a cull status (`CULL_VISIBLE` = visible).
-    pub(super) fn update(&mut self, status: &[u32]) {
-        self.visible.clear();
-        self.visible
+    /// An independent copy (the GPU stamps copied, on the queue, after what was submitted).
+    pub fn fork(&self, gpu: &GpuContext) -> Visibility {
+        let stamps = self.stamps.as_ref().map(|s| {
+            let buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("visibility stamps"),
+                size: s.buffer.size(),
+                usage: wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_DST
+                    | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            });
+            let mut encoder = gpu
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("visibility fork"),
+                });
+            encoder.copy_buffer_to_buffer(&s.buffer, 0, &buffer, 0, s.buffer.size());
+            gpu.queue.submit([encoder.finish()]);
+            Stamps {
+                buffer,
+                draw_ids: s.draw_ids,
+            }
+        });
+        Visibility {
+            stamps,
+            stamp: self.stamp,
+            mirror: self.mirror.clone(),
+        }
+    }
+
+    /// Readies the stamps for a frame over a scene of `draw_ids` draw ids and returns the
+    /// buffer and this frame's stamp. A buffer of another size belongs to another scene and is
+    /// replaced by a zeroed one (nothing visible).
+    pub(super) fn begin_frame(&mut self, gpu: &GpuContext, draw_ids: u32) -> (&wgpu::Buffer, u32) {
+        let fits = self.stamps.as_ref().is_some_and(|s| s.draw_ids == draw_ids);
+        if !fits {
+            self.stamps = Some(Stamps {
+                buffer: gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("visibility stamps"),
+                    size: u64::from(draw_ids.max(1)) * 4,
+                    usage: wgpu::BufferUsages::STORAGE
+                        | wgpu::BufferUsages::COPY_DST
+                        | wgpu::BufferUsages::COPY_SRC,
+                    mapped_at_creation: false,
+                }),
+                draw_ids,
+            });
+            self.stamp = FIRST_STAMP - 1;
+            self.mirror.clear();
+        }
+        self.stamp = self.stamp.max(FIRST_STAMP - 1) + 1;
+        let stamps = self.stamps.as_ref().expect("made above");
+        (&stamps.buffer, self.stamp)
+    }
+
+    /// Sets the CPU copy from a cull status (`CULL_VISIBLE` = visible), one per building.
+    pub(super) fn mirror_status(&mut self, status: &[u32]) {
+        self.mirror.clear();
+        self.mirror
             .extend(status.iter().map(|&s| s == CULL_VISIBLE));
     }
 
-    /// Sets the flags to `visible` (one per building): for a frame whose candidates are not
+    /// Sets the CPU copy to `visible` (one per building): for a frame whose candidates are not
     /// the buildings themselves (a LOD cut), the caller maps candidates to buildings.
-    pub(super) fn set(&mut self, visible: Vec<bool>) {
-        self.visible = visible;
-    }
-
-    /// Adjusts to a scene of `building_count` buildings: a visibility of another size belongs
-    /// to another scene and is dropped.
-    pub(super) fn fit(&mut self, building_count: usize) {
-        if self.visible.len() != building_count {
-            self.visible.clear();
-        }
+    pub(super) fn mirror_set(&mut self, visible: Vec<bool>) {
+        self.mirror = visible;
     }
 }
 
@@ -54,20 +130,34 @@ mod tests {
     use crate::hzb::cull::{CULL_FRUSTUM_OUTSIDE, CULL_OCCLUDED};
 
     #[test]
-    fn visibility_follows_the_status_and_resets_for_another_scene() {
+    fn the_mirror_follows_the_status_and_a_reset_clears_it() {
         let mut v = Visibility::default();
         assert!(!v.is_visible(0));
-        v.fit(3);
-        v.update(&[CULL_VISIBLE, CULL_OCCLUDED, CULL_VISIBLE]);
+        v.mirror_status(&[CULL_VISIBLE, CULL_OCCLUDED, CULL_VISIBLE]);
         assert_eq!(v.visible_ids(), vec![0, 2]);
         assert!(v.is_visible(2) && !v.is_visible(1) && !v.is_visible(7));
-        v.fit(3);
-        assert_eq!(v.visible_ids(), vec![0, 2]);
-        // Another building count: another scene, nothing carried over.
-        v.fit(4);
-        assert!(v.visible_ids().is_empty());
-        v.update(&[CULL_FRUSTUM_OUTSIDE, CULL_VISIBLE, 0, 0]);
+        v.mirror_status(&[CULL_FRUSTUM_OUTSIDE, CULL_VISIBLE]);
+        assert_eq!(v.visible_ids(), vec![1]);
         v.reset();
         assert!(!v.is_visible(1));
+    }
+
+    #[test]
+    fn stamps_advance_per_frame_and_a_reset_skips_one() {
+        let Ok(gpu) = GpuContext::headless() else {
+            assert!(std::env::var_os("CI").is_none(), "no adapter in CI");
+            return;
+        };
+        let mut v = Visibility::default();
+        let (_, first) = v.begin_frame(&gpu, 10);
+        assert_eq!(first, FIRST_STAMP);
+        let (_, second) = v.begin_frame(&gpu, 10);
+        assert_eq!(second, first + 1, "consecutive frames");
+        v.reset();
+        let (_, after_reset) = v.begin_frame(&gpu, 10);
+        assert_eq!(after_reset, second + 2, "last frame's stamp is no frame's");
+        // Another scene shape: a new zeroed buffer, stamps from the start.
+        let (_, other) = v.begin_frame(&gpu, 11);
+        assert_eq!(other, FIRST_STAMP);
     }
 }

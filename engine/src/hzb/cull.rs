@@ -11,12 +11,12 @@
 //! difference between the GPU's and the CPU's float rounding ([`HZB_ROUNDING_REL`]), so the GPU
 //! never culls a box the CPU reference keeps; it may keep a few more.
 //!
-//! **Early draws.** The same pass serves the occluder-gated early pass of [`crate::frame`]
-//! ([`EarlyDraws`]): as a *gate* (entry point `gate`) it culls last frame's visible candidates
-//! against the occluders' pyramid, appends the draws of those it keeps (the early pass draws
-//! them) and marks them in a per-candidate flag buffer; as the main cull (entry point `cull`) it
-//! reads those flags and appends no draw for a candidate drawn early, while still writing its
-//! status.
+//! **Early draws and visibility.** The same pass serves the early pass of [`crate::frame`]
+//! ([`CullEntry`]): entry point `early` (or, against the occluders' pyramid, `gate`) draws last
+//! frame's visible candidates and marks them in a per-candidate flag buffer; the main cull
+//! (`cull`) appends no draw for a marked candidate, still writes its status, and stamps every
+//! visible candidate's draw id in the visibility buffer that the next frame's early entry reads
+//! ([`CullVisibility`]). Nothing of it passes through the CPU.
 //!
 //! The command buffer is cleared before each cull, so it can be drawn either with
 //! `multi_draw_indexed_indirect_count` (count from [`HzbCull::count_buffer`], when
@@ -24,8 +24,10 @@
 //! `box_count` commands, where the unused tail is zero draws.
 
 use citywalk_shaders::constants::HZB_CULL_WORKGROUP;
+use citywalk_shaders::constants::{CULL_FLAG_DRAW_IDS, CULL_FLAG_VISIBILITY};
 pub use citywalk_shaders::constants::{
-    CULL_FRUSTUM_OUTSIDE, CULL_OCCLUDED, CULL_VISIBLE, HZB_FINE_SPAN, HZB_ROUNDING_REL,
+    CULL_FRUSTUM_OUTSIDE, CULL_NOT_EARLY, CULL_OCCLUDED, CULL_VISIBLE, HZB_FINE_SPAN,
+    HZB_ROUNDING_REL, NO_PARENT,
 };
 use citywalk_shaders::{
     BuildingRecord, CullPart, DrawIndexedIndirectArgs, HZB_CULL_WGSL, HzbCullParams,
@@ -44,28 +46,54 @@ pub enum CullError {
     TooManyBoxes { box_count: u32, max: u32 },
     #[error("the records buffer holds {records} records, fewer than the {box_count} boxes to cull")]
     RecordsTooSmall { records: u64, box_count: u32 },
-    #[error(
-        "the gate's target buffer holds {targets} entries, fewer than the {box_count} boxes to cull"
-    )]
-    GateTargetsTooSmall { targets: u64, box_count: u32 },
+    #[error("the draw-id buffer holds {ids} entries, fewer than the {box_count} boxes to cull")]
+    DrawIdsTooSmall { ids: u64, box_count: u32 },
 }
 
-/// What the cull knows of draws made before it (see the module documentation).
+/// Which entry point a cull runs (see the module documentation).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CullEntry {
+    /// Last frame's visible candidates inside the frustum: drawn early and marked.
+    Early,
+    /// Last frame's visible candidates against the pyramid (the occluders'): those it keeps
+    /// drawn early and marked.
+    Gate,
+    /// Every candidate against the pyramid: status, draws of the unmarked visible ones, stamps.
+    Cull,
+}
+
+impl CullEntry {
+    fn name(self) -> &'static str {
+        match self {
+            CullEntry::Early => "early",
+            CullEntry::Gate => "gate",
+            CullEntry::Cull => "cull",
+        }
+    }
+}
+
+/// The GPU-resident visibility a frame's culls read and mark: per draw id the stamp of the last
+/// frame that kept it, and the draw id of the cluster above it.
+#[derive(Debug, Clone, Copy)]
+pub struct CullVisibility<'a> {
+    /// `u32` per draw id.
+    pub stamps: &'a wgpu::Buffer,
+    /// `u32` per draw id: the parent cluster's draw id, or [`NO_PARENT`].
+    pub parents: &'a wgpu::Buffer,
+    /// This frame's stamp; last frame's is one less.
+    pub frame_stamp: u32,
+    /// Draw ids below this are buildings.
+    pub building_count: u32,
+}
+
+/// What a cull reads and writes besides its records: the candidates' draw ids (`None`: box `i`
+/// is draw id `i`), the drawn-early flags (one `u32` per box; written by the early entry
+/// points, read by the cull) and the visibility.
 #[derive(Debug, Clone, Copy, Default)]
-pub enum EarlyDraws<'a> {
-    /// Nothing drawn early (or drawn-early records carry a zero index count): every visible box
-    /// appends its draw.
-    #[default]
-    None,
-    /// Main cull: box `i` was drawn early when word `i` of this `u32` buffer is not zero; it
-    /// then gets its status but no draw.
-    Skip(&'a wgpu::Buffer),
-    /// Gate: box `j` stands for candidate `targets[j]` (a `u32` buffer of at least `box_count`
-    /// words); when visible, word `targets[j]` of `drawn` is set to 1.
-    Mark {
-        drawn: &'a wgpu::Buffer,
-        targets: &'a wgpu::Buffer,
-    },
+pub struct CullLinks<'a> {
+    pub draw_ids: Option<&'a wgpu::Buffer>,
+    pub drawn_early: Option<&'a wgpu::Buffer>,
+    pub visibility: Option<CullVisibility<'a>>,
 }
 
 /// What one cull wrote, read back to the CPU (tests, statistics).
@@ -84,8 +112,8 @@ pub struct HzbCull {
     device: wgpu::Device,
     module: wgpu::ShaderModule,
     pipeline_layout: wgpu::PipelineLayout,
-    /// The `cull` and `gate` pipelines, made when first used.
-    pipelines: [Option<wgpu::ComputePipeline>; 2],
+    /// The `early`, `gate` and `cull` pipelines, made when first used.
+    pipelines: [Option<wgpu::ComputePipeline>; 3],
     layout: wgpu::BindGroupLayout,
     params: wgpu::Buffer,
     status: wgpu::Buffer,
@@ -93,10 +121,12 @@ pub struct HzbCull {
     count: wgpu::Buffer,
     /// One zeroed part, bound when the records name none.
     no_parts: wgpu::Buffer,
-    /// One zero word each: the drawn-early flags and the gate targets when there are none (two
-    /// buffers: one binding is written, the other read).
+    /// One word each, bound when the frame gives none: the drawn-early flags, the draw ids, the
+    /// stamps and the parents (separate buffers: some bindings are written, others read).
     no_flags: wgpu::Buffer,
-    no_targets: wgpu::Buffer,
+    no_ids: wgpu::Buffer,
+    no_stamps: wgpu::Buffer,
+    no_parents: wgpu::Buffer,
     capacity: u32,
 }
 
@@ -155,6 +185,8 @@ impl HzbCull {
                 ),
                 buffer_entry(7, rw, 4),
                 buffer_entry(8, wgpu::BufferBindingType::Storage { read_only: true }, 4),
+                buffer_entry(9, rw, 4),
+                buffer_entry(10, wgpu::BufferBindingType::Storage { read_only: true }, 4),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -190,14 +222,16 @@ impl HzbCull {
             })
         };
         let no_flags = zero_word("hzb cull: no early draws");
-        let no_targets = zero_word("hzb cull: no gate targets");
+        let no_ids = zero_word("hzb cull: no draw ids");
+        let no_stamps = zero_word("hzb cull: no stamps");
+        let no_parents = zero_word("hzb cull: no parents");
         let capacity = capacity.max(1);
         let (status, commands) = Self::outputs(device, capacity);
         HzbCull {
             device: device.clone(),
             module,
             pipeline_layout,
-            pipelines: [None, None],
+            pipelines: [None, None, None],
             layout,
             params,
             status,
@@ -205,21 +239,23 @@ impl HzbCull {
             count,
             no_parts,
             no_flags,
-            no_targets,
+            no_ids,
+            no_stamps,
+            no_parents,
             capacity,
         }
     }
 
-    /// The pipeline of entry point `cull` (`gate` false) or `gate`, made on first use.
-    fn pipeline(&mut self, gate: bool) -> &wgpu::ComputePipeline {
-        let (slot, entry) = if gate { (1, "gate") } else { (0, "cull") };
+    /// The pipeline of `entry`, made on first use.
+    fn pipeline(&mut self, entry: CullEntry) -> &wgpu::ComputePipeline {
+        let slot = entry as usize;
         self.pipelines[slot].get_or_insert_with(|| {
             self.device
                 .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some(if gate { "hzb cull: gate" } else { "hzb cull" }),
+                    label: Some(entry.name()),
                     layout: Some(&self.pipeline_layout),
                     module: &self.module,
-                    entry_point: Some(entry),
+                    entry_point: Some(entry.name()),
                     compilation_options: Default::default(),
                     cache: None,
                 })
@@ -291,24 +327,29 @@ impl HzbCull {
         (pyramid, view_proj): (&HzbPyramid, Mat4),
         timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
     ) -> Result<(), CullError> {
-        self.encode_with_early(
+        self.encode_entry(
             gpu,
             encoder,
-            (records, parts, EarlyDraws::None),
+            (CullEntry::Cull, records, parts, CullLinks::default()),
             box_count,
             (pyramid, view_proj),
             timestamp_writes,
         )
     }
 
-    /// As [`HzbCull::encode_timed`], knowing the frame's early draws: `early` makes this the
-    /// main cull that skips drawn-early boxes ([`EarlyDraws::Skip`]) or the gate that marks
-    /// them ([`EarlyDraws::Mark`]). The flags buffer is the caller's to clear before the gate.
-    pub fn encode_with_early(
+    /// As [`HzbCull::encode_timed`], running `entry` with the frame's `links` (draw ids,
+    /// drawn-early flags, visibility; see the module documentation). The flags buffer is the
+    /// caller's to clear before an early entry point runs.
+    pub fn encode_entry(
         &mut self,
         gpu: &GpuContext,
         encoder: &mut wgpu::CommandEncoder,
-        (records, parts, early): (&wgpu::Buffer, Option<&wgpu::Buffer>, EarlyDraws<'_>),
+        (entry, records, parts, links): (
+            CullEntry,
+            &wgpu::Buffer,
+            Option<&wgpu::Buffer>,
+            CullLinks<'_>,
+        ),
         box_count: u32,
         (pyramid, view_proj): (&HzbPyramid, Mat4),
         timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
@@ -318,22 +359,27 @@ impl HzbCull {
             return Err(CullError::TooManyBoxes { box_count, max });
         }
         let record_capacity = records.size() / size_of::<BuildingRecord>() as u64;
-        if record_capacity < u64::from(box_count) {
+        // With draw ids the records are indexed by id (the shader clamps an id past them).
+        if links.draw_ids.is_none() && record_capacity < u64::from(box_count) {
             return Err(CullError::RecordsTooSmall {
                 records: record_capacity,
                 box_count,
             });
         }
-        let (flags, targets, gate) = match early {
-            EarlyDraws::None => (&self.no_flags, &self.no_targets, false),
-            EarlyDraws::Skip(drawn) => (drawn, &self.no_targets, false),
-            EarlyDraws::Mark { drawn, targets } => (drawn, targets, true),
-        };
-        if gate && targets.size() / 4 < u64::from(box_count) {
-            return Err(CullError::GateTargetsTooSmall {
-                targets: targets.size() / 4,
+        if let Some(ids) = links.draw_ids
+            && ids.size() / 4 < u64::from(box_count)
+        {
+            return Err(CullError::DrawIdsTooSmall {
+                ids: ids.size() / 4,
                 box_count,
             });
+        }
+        let mut flags = 0;
+        if links.draw_ids.is_some() {
+            flags |= CULL_FLAG_DRAW_IDS;
+        }
+        if links.visibility.is_some() {
+            flags |= CULL_FLAG_VISIBILITY;
         }
         if box_count > self.capacity {
             self.capacity = box_count.next_power_of_two().min(max).max(box_count);
@@ -345,6 +391,10 @@ impl HzbCull {
             viewport_px: [width, height],
             box_count,
             level_count: pyramid.level_count(),
+            frame_stamp: links.visibility.map_or(1, |v| v.frame_stamp),
+            building_count: links.visibility.map_or(0, |v| v.building_count),
+            flags,
+            _pad: 0,
         };
         gpu.queue
             .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
@@ -397,17 +447,34 @@ impl HzbCull {
                 },
                 wgpu::BindGroupEntry {
                     binding: 7,
-                    resource: flags.as_entire_binding(),
+                    resource: links
+                        .drawn_early
+                        .unwrap_or(&self.no_flags)
+                        .as_entire_binding(),
                 },
                 wgpu::BindGroupEntry {
                     binding: 8,
-                    resource: targets.as_entire_binding(),
+                    resource: links.draw_ids.unwrap_or(&self.no_ids).as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 9,
+                    resource: links
+                        .visibility
+                        .map_or(&self.no_stamps, |v| v.stamps)
+                        .as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 10,
+                    resource: links
+                        .visibility
+                        .map_or(&self.no_parents, |v| v.parents)
+                        .as_entire_binding(),
                 },
             ],
         });
-        let pipeline = self.pipeline(gate).clone();
+        let pipeline = self.pipeline(entry).clone();
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some(if gate { "hzb cull: gate" } else { "hzb cull" }),
+            label: Some(entry.name()),
             timestamp_writes,
         });
         pass.set_pipeline(&pipeline);

@@ -10,13 +10,16 @@
 //! over two scenes drawn into the same targets because the selected renderer clears its
 //! targets at the start of its pass; the cost is a second copy of the building geometry.
 
+use bytemuck::Zeroable;
 use citywalk_scenes::TriangleMesh;
 use citywalk_scenes::city::Building;
 use citywalk_scenes::cluster_tree::ClusterTree;
 use citywalk_scenes::extrude::building_mesh;
 use citywalk_scenes::{BuildingId, City};
 use citywalk_shaders::BuildingRecord;
+use citywalk_shaders::constants::NO_PARENT;
 use glam::Vec3;
+use wgpu::util::DeviceExt;
 
 use crate::camera::Camera;
 use crate::gpu::GpuContext;
@@ -39,6 +42,12 @@ pub struct LodScene {
     /// at the area-weighted mean height, below its tallest buildings, and culling it by its own
     /// box could hide a building the full-detail scene shows). See [`cull_records`].
     pub cull_records: Vec<BuildingRecord>,
+    /// [`LodScene::cull_records`] on the GPU: the cull reads a candidate's record by its draw
+    /// id, so a frame uploads only the cut's draw ids.
+    pub cull_records_buffer: wgpu::Buffer,
+    /// Per draw id, the draw id of the cluster above it ([`draw_id_parents`]), for the GPU's
+    /// "visible last frame" test.
+    pub parents_buffer: wgpu::Buffer,
 }
 
 /// One frame's LOD selection.
@@ -47,8 +56,6 @@ pub struct LodFrame {
     pub cut: LodCut,
     /// Draw ids into [`LodScene::gpu_scene`].
     pub draw_ids: Vec<u32>,
-    /// Buildings shown, themselves or through a drawn cluster ([`LodCut::covered_buildings`]).
-    pub covered: Vec<u32>,
     /// Triangles of the drawn buildings and clusters.
     pub triangles: u64,
 }
@@ -142,13 +149,60 @@ pub fn cull_records(
     out
 }
 
+/// Per draw id of the combined scene (see the module documentation), the draw id of the cluster
+/// above it, or [`NO_PARENT`]: a building's is its leaf node's, a node's its parent node's. A
+/// building was visible last frame when it or a draw id up this chain was kept (a drawn cluster
+/// shows every building under it).
+pub fn draw_id_parents(tree: &ClusterTree, building_count: u32) -> Vec<u32> {
+    let nodes = tree.nodes.len();
+    let mut parents = vec![NO_PARENT; building_count as usize + nodes];
+    for (n, node) in tree.nodes.iter().enumerate() {
+        for &c in &node.children {
+            if (c as usize) < nodes {
+                parents[building_count as usize + c as usize] = building_count + n as u32;
+            }
+        }
+        if node.is_leaf()
+            && let Some(b) = tree.building_order.get(node.buildings.0 as usize)
+            && b.0 < building_count
+        {
+            parents[b.index()] = building_count + n as u32;
+        }
+    }
+    parents
+}
+
 impl LodScene {
     /// Uploads the buildings of `city` and the cluster meshes of `tree` (built from `city`).
     pub fn upload(gpu: &GpuContext, city: &City, tree: ClusterTree) -> LodScene {
         let geometry = lod_geometry(city, &tree);
         let building_count = city.buildings.len() as u32;
+        let cull_records = cull_records(&geometry.records, building_count, &tree);
+        let storage = |label, contents: &[u8]| {
+            gpu.device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some(label),
+                    contents,
+                    usage: wgpu::BufferUsages::STORAGE,
+                })
+        };
+        let one_record = [BuildingRecord::zeroed()];
+        let cull_records_buffer = storage(
+            "lod cull records",
+            bytemuck::cast_slice(if cull_records.is_empty() {
+                &one_record
+            } else {
+                &cull_records
+            }),
+        );
+        let mut parents = draw_id_parents(&tree, building_count);
+        if parents.is_empty() {
+            parents.push(NO_PARENT);
+        }
         LodScene {
-            cull_records: cull_records(&geometry.records, building_count, &tree),
+            parents_buffer: storage("lod draw-id parents", bytemuck::cast_slice(&parents)),
+            cull_records_buffer,
+            cull_records,
             gpu_scene: SceneGpu::upload(gpu, &geometry),
             building_count,
             tree: LodTree::new(tree),
@@ -175,11 +229,17 @@ impl LodScene {
         let cut = self.tree.cut(&view, criterion, visible_blocks);
         let draw_ids = self.draw_ids(&cut);
         LodFrame {
-            covered: cut.covered_buildings(&self.tree.tree),
             triangles: self.triangles(&draw_ids),
             draw_ids,
             cut,
         }
+    }
+
+    /// Buildings `frame` shows, themselves or through a drawn cluster, ascending
+    /// ([`LodCut::covered_buildings`]): as many as the clusters stand for, so not computed per
+    /// frame, only where a caller needs the set (the benchmark's oracle check).
+    pub fn covered(&self, frame: &LodFrame) -> Vec<u32> {
+        frame.cut.covered_buildings(&self.tree.tree)
     }
 
     /// What the benchmark's `lod` mode uses: [`LodScene::criterion`] if set, else the Chang

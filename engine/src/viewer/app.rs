@@ -149,7 +149,9 @@ impl App {
                 "the scene was uploaded to an earlier window".to_string(),
             ));
         };
-        let drawer = FrameDrawer::new(&surface.gpu, surface.config.format, scene);
+        let mut drawer = FrameDrawer::new(&surface.gpu, surface.config.format, scene);
+        // A screenshot's panel shows the counts of the frame it captures.
+        drawer.wait_for_reports = self.options.screenshot.is_some();
         let overlay = Overlay::new(
             &surface.gpu,
             &surface.window,

@@ -12,7 +12,10 @@ use super::overlay::StageCounts;
 use super::settings::{DebugView, DrawPath, RenderSettings, SceneFeatures};
 use crate::bench::mode::{CullingData, Mode, select, visible_blocks};
 use crate::camera::Camera;
-use crate::frame::{CullingOptions, CullingRenderer, FrameError, OccluderMeshes, Visibility};
+use crate::frame::{
+    CullingOptions, CullingRenderer, FrameError, FrameOutput, FrameScene, OccluderMeshes,
+    Visibility,
+};
 use crate::gpu::GpuContext;
 use crate::lod::LodView;
 use crate::lod::scene::{LodFrame, LodScene};
@@ -78,6 +81,13 @@ pub struct FrameDrawer {
     occluder_overlay_meshes: Option<OccluderOverlayMeshes>,
     /// Last frame's visible buildings, carried along the camera stream.
     visibility: Visibility,
+    /// The newest report of the HZB frame read so far (reports come a frame or more late), and
+    /// whether it was drawn with the LOD scene.
+    last_report: Option<(FrameOutput, bool)>,
+    /// Wait for each HZB frame's own report instead of showing the newest ready one: for
+    /// screenshots and headless runs, whose counts must be the frame's. The interactive viewer
+    /// never waits.
+    pub wait_for_reports: bool,
     cluster_view: ClusterView,
     depth_pyramid: DepthPyramid,
     pyramid_view: PyramidView,
@@ -104,6 +114,8 @@ impl FrameDrawer {
                 .as_ref()
                 .map(|set| OccluderMeshes::upload(gpu, set)),
             visibility: Visibility::default(),
+            last_report: None,
+            wait_for_reports: false,
             cluster_view: ClusterView::new(gpu, format),
             depth_pyramid: DepthPyramid::new(gpu),
             pyramid_view: PyramidView::new(gpu, format),
@@ -209,9 +221,10 @@ impl FrameDrawer {
                     frustum,
                     quadtree,
                 );
-                drawn.counts.frustum_culled = Some(n.saturating_sub(cut.covered.len() as u32));
+                let covered = cut.cut.covered_count(&lod.tree.tree) as u32;
+                drawn.counts.frustum_culled = Some(n.saturating_sub(covered));
                 drawn.counts.clusters_drawn = Some(cut.cut.clusters.len() as u32);
-                drawn.counts.buildings_drawn = cut.covered.len() as u32;
+                drawn.counts.buildings_drawn = covered;
                 drawn.counts.triangles = cut.triangles;
                 drawn.counts.draw_calls = self.selected.encode(
                     gpu,
@@ -239,7 +252,6 @@ impl FrameDrawer {
             }
         }
         gpu.queue.submit([encoder.finish()]);
-        gpu.wait_idle();
         if !drawn.lod_scene {
             drawn.counts.buildings_drawn = drawn.ids.len() as u32;
             drawn.counts.triangles = drawn
@@ -297,19 +309,42 @@ impl FrameDrawer {
             _ => None,
         };
         drawn.hzb = true;
-        let output = match lod_frame {
-            Some((lod, cut)) => {
-                let output = self.culling.render_lod(
-                    gpu,
-                    lod,
-                    &cut,
-                    occluders,
-                    &options,
-                    &mut self.visibility,
-                    camera,
-                    colour,
-                    size,
-                )?;
+        let start = std::time::Instant::now();
+        let frame = match &lod_frame {
+            Some((lod, cut)) => FrameScene::Lod(lod, &cut.draw_ids),
+            None => FrameScene::Buildings(&self.scene),
+        };
+        let ticket = self.culling.submit(
+            gpu,
+            frame,
+            occluders,
+            &options,
+            &mut self.visibility,
+            camera,
+            colour,
+            size,
+        )?;
+        let scenes = (&self.scene, self.lod.as_ref());
+        // The cluster view colours what this very frame drew: it waits for the frame's report.
+        let wait = self.wait_for_reports || settings.debug_view == DebugView::Clusters;
+        let report = if wait {
+            Some(
+                self.culling
+                    .wait_report(gpu, ticket, scenes, &mut self.visibility)?,
+            )
+        } else {
+            self.culling.poll_report(gpu, scenes)?
+        };
+        if let Some(output) = report {
+            self.last_report = Some((output, lod_frame.is_some()));
+        }
+        let frame_cpu_ms = start.elapsed().as_secs_f64() * 1e3;
+        let Some((output, lod_report)) = &self.last_report else {
+            drawn.counts.cpu_ms = frame_cpu_ms;
+            return Ok(drawn);
+        };
+        match (*lod_report, &lod_frame) {
+            (true, Some((lod, cut))) => {
                 // Buildings of the cut drawn themselves, and the clusters drawn. (A landmark the
                 // cull hid beside a drawn cluster that contains it is listed too: the frame
                 // reports buildings covered, not the draw ids it kept.)
@@ -323,23 +358,9 @@ impl FrameDrawer {
                     .collect();
                 drawn.lod_scene = true;
                 drawn.counts.clusters_drawn = Some(output.stats.clusters_drawn);
-                output
             }
-            None => {
-                let output = self.culling.render(
-                    gpu,
-                    &self.scene,
-                    occluders,
-                    &options,
-                    &mut self.visibility,
-                    camera,
-                    colour,
-                    size,
-                )?;
-                drawn.ids = output.drawn.clone();
-                output
-            }
-        };
+            _ => drawn.ids = output.drawn.clone(),
+        }
         let s = &output.stats;
         let counts = &mut drawn.counts;
         counts.frustum_culled = Some(s.frustum_culled);
@@ -351,9 +372,9 @@ impl FrameDrawer {
         counts.gate_culled = occluders
             .filter(|_| options.occluder_gate)
             .map(|_| s.gate_culled);
-        counts.cpu_ms = s.cpu_ms;
+        counts.cpu_ms = frame_cpu_ms;
         counts.gpu_ms = s.gpu.timed().map(|(p, ms)| (p.to_string(), ms)).collect();
-        drawn.selected_occluders = output.occluders;
+        drawn.selected_occluders = output.occluders.clone();
         Ok(drawn)
     }
 
@@ -461,7 +482,6 @@ fn lod_cut(
         let cut = lod.tree.cut(&view, criterion, None);
         let draw_ids = lod.draw_ids(&cut);
         return LodFrame {
-            covered: cut.covered_buildings(&lod.tree.tree),
             triangles: lod.triangles(&draw_ids),
             draw_ids,
             cut,
