@@ -106,6 +106,7 @@ mod depth_copy;
 mod grow_buffer;
 mod occluders;
 mod report_ring;
+mod sphere_index;
 mod targets;
 mod visibility;
 

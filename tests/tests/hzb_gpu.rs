@@ -676,7 +676,7 @@ fn early_entries_read_the_stamps_and_the_cull_marks_them() {
             };
         }
         stamps[cluster as usize] = 9;
-        let visible_last = |d: u32| d % 3 == 0 || d % 5 == 1;
+        let visible_last = |d: u32| d.is_multiple_of(3) || d % 5 == 1;
         let records_buffer = storage("records", bytemuck::cast_slice(&records));
         let parts_buffer = storage("parts", bytemuck::cast_slice(&parts));
         let ids_buffer = storage("draw ids", bytemuck::cast_slice(&ids));

@@ -9,6 +9,7 @@ use citywalk_shaders::{DrawIndexedIndirectArgs, SceneVertex};
 use glam::Vec3;
 
 use crate::camera::Camera;
+use crate::frame::sphere_index::SphereIndex;
 use crate::gpu::GpuContext;
 
 /// One occluder on the GPU: its draw and its bounds for the CPU selection.
@@ -30,6 +31,9 @@ pub struct OccluderMeshes {
     pub occluders: Vec<OccluderDraw>,
     /// Per entry of `occluders`: its bounding sphere, for the selection's distance pre-filter.
     spheres: Vec<Sphere>,
+    /// The spheres binned by radius, centres in R-trees: the selection visits only those near
+    /// enough to be wanted.
+    index: SphereIndex,
 }
 
 /// The bounding sphere of an occluder's box (centre, radius in metres).
@@ -98,6 +102,12 @@ impl OccluderMeshes {
         OccluderMeshes {
             vertex_buffer,
             index_buffer,
+            index: SphereIndex::new(
+                occluders
+                    .iter()
+                    .map(Sphere::of)
+                    .map(|s| (s.centre_m, s.radius_m)),
+            ),
             spheres: occluders.iter().map(Sphere::of).collect(),
             occluders,
         }
@@ -115,14 +125,16 @@ impl OccluderMeshes {
         min_px: f32,
     ) -> Vec<usize> {
         let px_per_rad = height_px as f32 / (camera.fov_y_rad * 0.5).tan();
-        let spheres: Cow<'_, [Sphere]> = if self.spheres.len() == self.occluders.len() {
+        let indexed =
+            self.spheres.len() == self.occluders.len() && self.index.len() == self.occluders.len();
+        let spheres: Cow<'_, [Sphere]> = if indexed {
             Cow::Borrowed(&self.spheres)
         } else {
             Cow::Owned(self.occluders.iter().map(Sphere::of).collect())
         };
         select_occluders(
             &self.occluders,
-            &spheres,
+            (&spheres, indexed.then_some(&self.index)),
             camera.position,
             frustum,
             px_per_rad,
@@ -131,11 +143,12 @@ impl OccluderMeshes {
     }
 }
 
-/// [`OccluderMeshes::select`] over `occluders` and their `spheres` ([`Sphere::of`], one each):
-/// the indices of those [`occluder_wanted`] admits.
+/// [`OccluderMeshes::select`] over `occluders` and their `spheres` ([`Sphere::of`], one each,
+/// and their index when there is one): the indices of those [`occluder_wanted`] admits,
+/// ascending.
 fn select_occluders(
     occluders: &[OccluderDraw],
-    spheres: &[Sphere],
+    (spheres, index): (&[Sphere], Option<&SphereIndex>),
     eye: Vec3,
     frustum: &Frustum,
     px_per_rad: f32,
@@ -146,21 +159,24 @@ fn select_occluders(
     // root); the margin keeps it from rejecting anything the exact test's rounding admits.
     let reach_per_radius = (px_per_rad / min_px).max(1.0) * (1.0 + 1e-3);
     let prefilter = min_px > 0.0 && reach_per_radius.is_finite();
-    occluders
-        .iter()
-        .zip(spheres)
-        .enumerate()
-        .filter(|&(_, (o, &sphere))| {
-            if prefilter {
-                let reach_m = sphere.radius_m * reach_per_radius;
-                if sphere.centre_m.distance_squared(eye) > reach_m * reach_m {
-                    return false;
-                }
+    let wanted = |i: usize| {
+        let (o, sphere) = (&occluders[i], spheres[i]);
+        if prefilter {
+            let reach_m = sphere.radius_m * reach_per_radius;
+            if sphere.centre_m.distance_squared(eye) > reach_m * reach_m {
+                return false;
             }
-            occluder_wanted(o, sphere, eye, frustum, px_per_rad, min_px)
-        })
-        .map(|(i, _)| i)
-        .collect()
+        }
+        occluder_wanted(o, sphere, eye, frustum, px_per_rad, min_px)
+    };
+    match index {
+        Some(index) if prefilter => index
+            .near(eye, reach_per_radius)
+            .into_iter()
+            .filter(|&i| wanted(i))
+            .collect(),
+        _ => (0..occluders.len()).filter(|&i| wanted(i)).collect(),
+    }
 }
 
 /// Whether an occluder is near enough to draw: its bounding sphere contains the eye or projects
@@ -279,9 +295,19 @@ mod tests {
                     )
                 })
                 .collect();
+            let index = SphereIndex::new(spheres.iter().map(|s| (s.centre_m, s.radius_m)));
+            let indexed = select_occluders(
+                &occluders,
+                (&spheres, Some(&index)),
+                camera.position,
+                &frustum,
+                px_per_rad,
+                min_px,
+            );
+            assert_eq!(indexed, exact, "min_px {min_px}, indexed");
             let selected = select_occluders(
                 &occluders,
-                &spheres,
+                (&spheres, None),
                 camera.position,
                 &frustum,
                 px_per_rad,
