@@ -5,6 +5,7 @@ pub mod bench;
 pub mod camera;
 pub mod camera_path_io;
 pub mod controller;
+pub mod cpu_clock;
 pub mod frame;
 pub mod gpu;
 pub mod gpu_timer;
