@@ -593,6 +593,9 @@ impl CullingRenderer {
             let at = at as usize;
             bytemuck::pod_collect_to_vec(&bytes[at..at + n * 4])
         };
+        // The frame's time to GPU completion (as close as this read gets), before the CPU
+        // works on its statistics.
+        let frame_ms = pending.started.elapsed().as_secs_f64() * 1e3;
         let (status, early) = (words(layout.status_at()), words(layout.early_at()));
         let candidates = match (&pending.lod_ids, lod) {
             (None, _) if scene.building_count() == pending.buildings => {
@@ -612,7 +615,7 @@ impl CullingRenderer {
         stats.occluder_triangles = pending.occluder_triangles;
         stats.draw_calls += pending.occluders.len() as u32;
         stats.cpu_ms = pending.cpu_ms;
-        stats.frame_ms = pending.started.elapsed().as_secs_f64() * 1e3;
+        stats.frame_ms = frame_ms;
         stats.gpu = self
             .timer
             .times_from(&pending.timed, &bytes[..layout.timestamps_bytes as usize]);

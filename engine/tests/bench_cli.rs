@@ -1,6 +1,6 @@
 //! `citywalk bench` end to end on a tiny GeoJSON city: its files (frames.csv, bench.json,
-//! summary.md, plots), the decimated baseline, `--json` on standard output, and the refusal of
-//! modes it does not know.
+//! summary.md, plots), the `oracle` pseudo-mode, the decimated baseline, `--json` on standard
+//! output, and the refusal of modes it does not know.
 //!
 //! Without a GPU adapter (software ones count) the run is skipped with a message, except under
 //! CI (env `CI` set), where it fails — the rule of `citywalk_tests::gpu::gpu_or_skip`.
@@ -58,7 +58,7 @@ fn bench_writes_its_files_and_plots() {
         &out,
         &[
             "--modes",
-            "brute,frustum",
+            "brute,frustum,oracle",
             "--baseline",
             "decimate:25%",
             "--json",
@@ -74,8 +74,22 @@ fn bench_writes_its_files_and_plots() {
         )
     });
     let csv = std::fs::read_to_string(out.join("frames.csv")).expect("frames.csv");
-    // Header + 4 frames × (2 modes + the decimated baseline).
-    assert_eq!(csv.lines().count(), 1 + 4 * 3, "{csv}");
+    // Header + 4 frames × (3 modes + the decimated baseline).
+    assert_eq!(csv.lines().count(), 1 + 4 * 4, "{csv}");
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().expect("header").split(',').collect();
+    let column = |name: &str| header.iter().position(|h| *h == name).expect(name);
+    let mut oracle_rows = 0;
+    for row in lines.map(|l| l.split(',').collect::<Vec<&str>>()) {
+        let cpu_ms: f64 = row[column("cpu_ms")].parse().expect("cpu_ms");
+        assert!(cpu_ms.is_finite() && cpu_ms >= 0.0, "{row:?}");
+        if row[column("mode")] == "oracle" {
+            oracle_rows += 1;
+            assert_eq!(row[column("false_culls")], "0", "{row:?}");
+            assert_eq!(row[column("drawn")], row[column("visible")], "{row:?}");
+        }
+    }
+    assert_eq!(oracle_rows, 4);
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("bench.json")).expect("json"))
             .expect("bench.json parses");
@@ -85,12 +99,37 @@ fn bench_writes_its_files_and_plots() {
         .iter()
         .filter_map(|e| e["mode"].as_str())
         .collect();
-    assert_eq!(modes, ["brute", "frustum", "decimated"]);
+    assert_eq!(modes, ["brute", "frustum", "oracle", "decimated"]);
+    for e in json["entries"].as_array().expect("entries") {
+        let ratio = e["oracle_ratio"].as_f64().unwrap_or_else(|| panic!("{e}"));
+        let (median, oracle_median) = (
+            e["frame_ms_median"].as_f64().expect("median"),
+            json["entries"][2]["frame_ms_median"]
+                .as_f64()
+                .expect("oracle median"),
+        );
+        assert!(
+            (ratio - median / oracle_median).abs() <= 1e-9 * ratio,
+            "{e}"
+        );
+        for key in ["frame_ms_p95", "frame_ms_p99", "frame_ms_max"] {
+            assert!(e[key].as_f64().expect(key) >= median, "{key}: {e}");
+        }
+        let cpu = |key: &str| e[key].as_f64().unwrap_or_else(|| panic!("{key}: {e}"));
+        assert!(
+            cpu("cpu_ms_max") >= cpu("cpu_ms_p99") && cpu("cpu_ms_p99") >= cpu("cpu_ms_median")
+        );
+    }
+    assert_eq!(json["entries"][2]["false_culls"], 0);
     assert_eq!(json["size"], serde_json::json!([96, 64]));
     assert_eq!(printed, json);
     let summary = std::fs::read_to_string(out.join("summary.md")).expect("summary.md");
     assert!(
         summary.contains("| tiny | street | decimated |"),
+        "{summary}"
+    );
+    assert!(
+        summary.contains("| tiny | street | oracle |") && summary.contains("÷ oracle"),
         "{summary}"
     );
     for kind in ["frame-ms", "triangles", "pixel-error", "culled"] {

@@ -1,5 +1,5 @@
 //! The benchmark harness on a tiny scene: its oracle accounting, that it catches a broken
-//! culler, its JSON, and the decimated-city baseline.
+//! culler, its JSON, the `oracle` pseudo-mode, and the decimated-city baseline.
 
 use citywalk_engine::bench::baseline::{DECIMATED_MODE, DecimatedBaseline};
 use citywalk_engine::bench::decimate::decimate_city;
@@ -176,6 +176,19 @@ fn oracle_counts_match_the_id_image_and_a_dropped_building_is_caught() {
     for key in ISSUE_KEYS {
         assert!(ENTRY_KEYS.contains(&key), "ENTRY_KEYS lacks {key}");
     }
+    // Issue 13's frame-time distribution, CPU time and oracle ratio.
+    const DISTRIBUTION_KEYS: [&str; 7] = [
+        "frame_ms_p95",
+        "frame_ms_p99",
+        "frame_ms_max",
+        "cpu_ms_median",
+        "cpu_ms_p99",
+        "cpu_ms_max",
+        "oracle_ratio",
+    ];
+    for key in DISTRIBUTION_KEYS {
+        assert!(ENTRY_KEYS.contains(&key), "ENTRY_KEYS lacks {key}");
+    }
     for e in json["entries"].as_array().expect("entries") {
         for key in ENTRY_KEYS {
             assert!(e.get(key).is_some(), "missing {key}");
@@ -189,6 +202,92 @@ fn oracle_counts_match_the_id_image_and_a_dropped_building_is_caught() {
             assert!(e["gpu_ms_median"].is_null(), "{e}");
             assert_eq!(e["gpu_phase_ms_median"], serde_json::json!({}));
         }
+    }
+}
+
+#[test]
+fn oracle_mode_draws_exactly_the_visible_set() {
+    let Some(gpu) = gpu_or_skip("bench_harness_oracle_mode") else {
+        return;
+    };
+    let city = grid_city();
+    let scene = bench_scene(&gpu, &city);
+    let path = walk();
+    let mut renderers = BenchRenderers::new(&gpu);
+    let records = run_path(
+        &gpu,
+        &mut renderers,
+        &scene,
+        &path,
+        &config(vec![Mode::Brute, Mode::Frustum, Mode::Oracle]),
+    )
+    .expect("run");
+    assert_eq!(records.len(), 3 * path.poses.len());
+    let of = |mode: Mode, frame: usize| {
+        records
+            .iter()
+            .find(|r| r.mode == mode.name() && r.frame == frame)
+            .expect("record")
+    };
+    for frame in 0..path.poses.len() {
+        let oracle = of(Mode::Oracle, frame);
+        let frustum = of(Mode::Frustum, frame);
+        // Every mode of a frame is checked against the same visible set.
+        assert_eq!(oracle.visible, of(Mode::Brute, frame).visible);
+        assert_eq!(oracle.false_culls, 0, "frame {frame}");
+        assert_eq!(oracle.drawn, oracle.visible, "frame {frame}");
+        // Nothing that culls conservatively draws less than what is seen.
+        assert!(oracle.drawn <= frustum.drawn, "frame {frame}");
+        assert!(oracle.triangles <= frustum.triangles, "frame {frame}");
+        assert_eq!(
+            oracle.draw_calls as usize,
+            oracle.drawn + 1,
+            "and the ground"
+        );
+        // What no pixel shows leaves no pixel changed; allow a pixel in a thousand for depth
+        // ties between the id pass and the colour pass.
+        assert!(oracle.pixel_error_grey <= 1e-3, "frame {frame}: {oracle:?}");
+        for r in [oracle, frustum] {
+            assert!(r.cpu_ms.is_finite() && r.cpu_ms >= 0.0, "{r:?}");
+        }
+    }
+    assert!(
+        records
+            .iter()
+            .any(|r| r.mode == "oracle" && r.visible > 0 && r.visible < 36),
+        "the walk should see some buildings and hide others"
+    );
+
+    let report = report(&records);
+    assert_eq!(report.false_culls(), 0);
+    let entry = |mode: Mode| {
+        report
+            .entries
+            .iter()
+            .find(|e| e.mode == mode.name())
+            .expect("entry")
+    };
+    let oracle = entry(Mode::Oracle);
+    assert_eq!(oracle.false_culls, 0);
+    assert_eq!(oracle.oracle_ratio, Some(1.0));
+    for mode in [Mode::Brute, Mode::Frustum] {
+        let e = entry(mode);
+        let ratio = e
+            .oracle_ratio
+            .expect("oracle_ratio beside speedup_vs_brute");
+        assert_eq!(ratio, e.frame_ms_median / oracle.frame_ms_median);
+        assert!(e.frame_ms_median <= e.frame_ms_p95 && e.frame_ms_p95 <= e.frame_ms_p99);
+        assert!(e.frame_ms_p99 <= e.frame_ms_max && e.cpu_ms_median <= e.cpu_ms_max);
+        let slowest = records
+            .iter()
+            .filter(|r| r.mode == mode.name())
+            .map(|r| r.frame_ms)
+            .fold(0.0, f64::max);
+        assert_eq!(e.frame_ms_max, slowest);
+    }
+    let json: serde_json::Value = serde_json::to_value(&report).expect("json");
+    for e in json["entries"].as_array().expect("entries") {
+        assert!(e["oracle_ratio"].as_f64().is_some(), "{e}");
     }
 }
 

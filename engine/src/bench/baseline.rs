@@ -13,6 +13,7 @@ use std::time::Instant;
 use crate::bench::mode::Mode;
 use crate::bench::pixel_error::pixel_error;
 use crate::bench::run::{BenchConfig, BenchError, BenchScene, FrameRecord, pose_camera};
+use crate::cpu_clock::CpuClock;
 use crate::gpu::GpuContext;
 use crate::oracle::Oracle;
 use crate::render::BruteRenderer;
@@ -148,7 +149,7 @@ impl DecimatedBaseline {
                 .count();
             self.render(gpu, &scene.gpu_scene, &camera, &reference);
             let reference_rgba = reference.read_colour(gpu)?;
-            let frame_ms = self.render(gpu, decimated, &camera, &target);
+            let (frame_ms, cpu_ms) = self.render(gpu, decimated, &camera, &target);
             let rgba = target.read_colour(gpu)?;
             let error = pixel_error(&reference_rgba, &rgba);
             if let Some(dir) = &config.frames_dir
@@ -187,6 +188,7 @@ impl DecimatedBaseline {
                 draw_calls: total as u32 + 1,
                 select_ms: 0.0,
                 frame_ms,
+                cpu_ms,
                 pixel_error_grey: error.grey_fraction,
                 pixel_error_colour: error.colour_fraction,
                 gpu: crate::gpu_timer::GpuTimes::default(),
@@ -195,15 +197,17 @@ impl DecimatedBaseline {
         Ok(records)
     }
 
-    /// Draws `scene` unculled into `target` and waits for the GPU; returns the wall time (ms).
+    /// Draws `scene` unculled into `target` and waits for the GPU; returns the wall time and the
+    /// thread CPU time of recording and submission (ms), as the bench's single-pass modes.
     fn render(
         &self,
         gpu: &GpuContext,
         scene: &SceneGpu,
         camera: &crate::camera::Camera,
         target: &OffscreenTarget,
-    ) -> f64 {
+    ) -> (f64, f64) {
         let start = Instant::now();
+        let cpu = CpuClock::start();
         let mut encoder = gpu
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
@@ -218,8 +222,9 @@ impl DecimatedBaseline {
             &target.depth,
         );
         gpu.queue.submit([encoder.finish()]);
+        let cpu_ms = cpu.elapsed_ms();
         gpu.wait_idle();
-        start.elapsed().as_secs_f64() * 1e3
+        (start.elapsed().as_secs_f64() * 1e3, cpu_ms)
     }
 }
 
@@ -267,6 +272,7 @@ mod tests {
             draw_calls: 2,
             select_ms: 0.0,
             frame_ms: 1.0,
+            cpu_ms: 0.5,
             pixel_error_grey: 0.0,
             pixel_error_colour: 0.0,
             gpu: crate::gpu_timer::GpuTimes::default(),

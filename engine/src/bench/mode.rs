@@ -8,7 +8,9 @@
 //! B-Quadtree culling ([`crate::lod::scene::LodScene::select`], called by the bench runner);
 //! `all` feeds that cut's buildings and clusters through the two-phase frame with occluders
 //! ([`crate::frame::CullingRenderer::render_lod`]); modes the runtime does not implement are
-//! named so the command line can refuse them clearly.
+//! named so the command line can refuse them clearly. The pseudo-mode `oracle` draws exactly the
+//! buildings the ID-buffer oracle sees: no culler can draw less without a false cull, so its
+//! frame time is the floor every mode is measured against (`oracle_ratio` in `bench.json`).
 
 use std::fmt;
 
@@ -37,6 +39,9 @@ pub enum Mode {
     Lod,
     /// Everything on.
     All,
+    /// Exactly the oracle's visible set of the frame, in one plain pass: the fastest any
+    /// culling could be.
+    Oracle,
     /// Test-only: brute force minus the first building the oracle sees, so tests can prove
     /// that the benchmark catches a false cull. Not reachable from the command line.
     DropOneVisibleForTest,
@@ -44,7 +49,7 @@ pub enum Mode {
 
 impl Mode {
     /// The modes the command line knows, in order.
-    pub const NAMED: [Mode; 7] = [
+    pub const NAMED: [Mode; 8] = [
         Mode::Brute,
         Mode::Frustum,
         Mode::Quadtree,
@@ -52,6 +57,7 @@ impl Mode {
         Mode::Occluders,
         Mode::Lod,
         Mode::All,
+        Mode::Oracle,
     ];
 
     pub fn name(self) -> &'static str {
@@ -63,6 +69,7 @@ impl Mode {
             Mode::Occluders => "occluders",
             Mode::Lod => "lod",
             Mode::All => "all",
+            Mode::Oracle => "oracle",
             Mode::DropOneVisibleForTest => "drop-one-visible-for-test",
         }
     }
@@ -129,8 +136,9 @@ pub struct CullingData<'a> {
 
 /// The buildings `mode` draws for a camera with `view_proj`, in id order, or `None` for a mode
 /// the runtime does not implement yet, or one not selected here (`lod` needs the scene's
-/// cluster tree: [`crate::lod::scene::LodScene::select`]). `visible_first` is the first
-/// building of the oracle's visible set, used only by the test-only mode.
+/// cluster tree: [`crate::lod::scene::LodScene::select`]; `oracle` draws the frame's visible
+/// set, which the bench runner holds). `visible_first` is the first building of the oracle's
+/// visible set, used only by the test-only mode.
 pub fn select(
     mode: Mode,
     data: &CullingData<'_>,
@@ -160,7 +168,7 @@ pub fn select(
             out.sort_unstable();
             out
         }
-        Mode::Hzb | Mode::Occluders | Mode::Lod | Mode::All => return None,
+        Mode::Hzb | Mode::Occluders | Mode::Lod | Mode::All | Mode::Oracle => return None,
     })
 }
 
@@ -179,10 +187,11 @@ mod tests {
                 .unwrap_err()
                 .contains("unknown mode")
         );
-        // Every named mode is built now, `all` included; the test-only mode stays unreachable.
+        // Every named mode is built now, `all` and `oracle` included; the test-only mode stays
+        // unreachable.
         assert_eq!(
-            Mode::parse_list("brute,all,lod").unwrap(),
-            vec![Mode::Brute, Mode::All, Mode::Lod]
+            Mode::parse_list("brute,all,lod,oracle").unwrap(),
+            vec![Mode::Brute, Mode::All, Mode::Lod, Mode::Oracle]
         );
         assert!(Mode::parse_list("").is_err());
         assert!(Mode::parse_list("drop-one-visible-for-test").is_err());

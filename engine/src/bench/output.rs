@@ -7,6 +7,7 @@ use std::path::Path;
 
 use serde::Serialize;
 
+use crate::bench::mode::Mode;
 use crate::bench::run::{BenchError, DRAW_PHASES, FrameRecord};
 
 /// The keys every `bench.json` entry holds (issue 7's documented set and ours), each a field of
@@ -24,7 +25,14 @@ pub const ENTRY_KEYS: &[&str] = &[
     "triangles_mean",
     "draw_calls_mean",
     "frame_ms_median",
+    "frame_ms_p95",
+    "frame_ms_p99",
+    "frame_ms_max",
+    "cpu_ms_median",
+    "cpu_ms_p99",
+    "cpu_ms_max",
     "speedup_vs_brute",
+    "oracle_ratio",
     "pixel_error_mean",
     "gpu_ms_median",
     "gpu_phase_ms_median",
@@ -48,6 +56,15 @@ pub struct ModeSummary {
     pub triangles_mean: f64,
     pub draw_calls_mean: f64,
     pub frame_ms_median: f64,
+    /// The tail of the frame times ([`percentile`], nearest rank): hitches a median hides.
+    pub frame_ms_p95: f64,
+    pub frame_ms_p99: f64,
+    pub frame_ms_max: f64,
+    /// The engine's own CPU time per frame ([`FrameRecord::cpu_ms`]): median, p99 (nearest
+    /// rank) and max.
+    pub cpu_ms_median: f64,
+    pub cpu_ms_p99: f64,
+    pub cpu_ms_max: f64,
     /// Median over the frames with GPU timestamps of the frame's GPU time (ms): the sum of its
     /// timed phases ([`crate::gpu_timer::GpuTimes::total_ms`]). `null` when the adapter has no
     /// timestamp queries (or the mode is not timed, as the `decimated` baseline).
@@ -59,6 +76,10 @@ pub struct ModeSummary {
     pub gpu_phase_ms_median: BTreeMap<String, f64>,
     /// Brute force's median frame time ÷ this mode's, same scene and path, same run.
     pub speedup_vs_brute: Option<f64>,
+    /// This mode's median frame time ÷ the `oracle` mode's, same scene and path, same run: how
+    /// far from the fastest any culling could be (1.0 is the floor). `null` when `oracle` was
+    /// not run.
+    pub oracle_ratio: Option<f64>,
     /// Mean share of pixels whose grey level differs from brute force (Chang et al. §9).
     pub pixel_error_mean: f64,
     /// Mean share of pixels differing by more than 40 in a channel (Chang et al. §9).
@@ -112,6 +133,22 @@ fn median(mut values: Vec<f64>) -> f64 {
     }
 }
 
+/// The `pct`-th percentile (`pct` in 1..=100) by nearest rank: the smallest value with at least
+/// `pct` % of the values at or below it, i.e. the `⌈pct·n/100⌉`-th smallest. It is always one of
+/// the measured frames (no interpolation), and p100 is the max. The rank is computed in
+/// integers, so p95 of 20 frames is the 19th exactly. 0 for no values, as [`median`].
+pub fn percentile(values: &[f64], pct: u32) -> f64 {
+    debug_assert!((1..=100).contains(&pct), "percentile {pct}");
+    if values.is_empty() {
+        return 0.0;
+    }
+    let mut sorted = values.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    let n = sorted.len();
+    let rank = (pct.clamp(1, 100) as usize * n).div_ceil(100);
+    sorted[rank.clamp(1, n) - 1]
+}
+
 /// The median of the values present; `None` when none is.
 fn median_of_some(values: impl Iterator<Item = Option<f64>>) -> Option<f64> {
     let present: Vec<f64> = values.flatten().collect();
@@ -151,6 +188,8 @@ pub fn summarise(records: &[FrameRecord]) -> Vec<ModeSummary> {
                 .iter()
                 .filter(|r| r.scene == scene && r.path == path && r.mode == mode)
                 .collect();
+            let frame_ms: Vec<f64> = rows.iter().map(|r| r.frame_ms).collect();
+            let cpu_ms: Vec<f64> = rows.iter().map(|r| r.cpu_ms).collect();
             ModeSummary {
                 frames: rows.len(),
                 false_culls: rows.iter().map(|r| r.false_culls).sum(),
@@ -160,7 +199,13 @@ pub fn summarise(records: &[FrameRecord]) -> Vec<ModeSummary> {
                 culled_fraction_mean: mean(rows.iter().map(|r| r.culled_fraction)),
                 triangles_mean: mean(rows.iter().map(|r| r.triangles as f64)),
                 draw_calls_mean: mean(rows.iter().map(|r| f64::from(r.draw_calls))),
-                frame_ms_median: median(rows.iter().map(|r| r.frame_ms).collect()),
+                frame_ms_median: median(frame_ms.clone()),
+                frame_ms_p95: percentile(&frame_ms, 95),
+                frame_ms_p99: percentile(&frame_ms, 99),
+                frame_ms_max: percentile(&frame_ms, 100),
+                cpu_ms_median: median(cpu_ms.clone()),
+                cpu_ms_p99: percentile(&cpu_ms, 99),
+                cpu_ms_max: percentile(&cpu_ms, 100),
                 gpu_ms_median: median_of_some(rows.iter().map(|r| r.gpu.total_ms())),
                 gpu_phase_ms_median: gpu_phase_names(rows.iter().copied())
                     .into_iter()
@@ -170,6 +215,7 @@ pub fn summarise(records: &[FrameRecord]) -> Vec<ModeSummary> {
                     })
                     .collect(),
                 speedup_vs_brute: None,
+                oracle_ratio: None,
                 pixel_error_mean: mean(rows.iter().map(|r| r.pixel_error_grey)),
                 pixel_error_colour_mean: mean(rows.iter().map(|r| r.pixel_error_colour)),
                 scene,
@@ -178,17 +224,26 @@ pub fn summarise(records: &[FrameRecord]) -> Vec<ModeSummary> {
             }
         })
         .collect();
-    let brute: Vec<(String, String, f64)> = out
-        .iter()
-        .filter(|s| s.mode == "brute")
-        .map(|s| (s.scene.clone(), s.path.clone(), s.frame_ms_median))
-        .collect();
-    for s in &mut out {
-        s.speedup_vs_brute = brute
-            .iter()
+    let medians_of = |mode: &str| -> Vec<(String, String, f64)> {
+        out.iter()
+            .filter(|s| s.mode == mode)
+            .map(|s| (s.scene.clone(), s.path.clone(), s.frame_ms_median))
+            .collect()
+    };
+    let brute = medians_of(Mode::Brute.name());
+    let oracle = medians_of(Mode::Oracle.name());
+    let same_run = |of: &[(String, String, f64)], s: &ModeSummary| {
+        of.iter()
             .find(|(scene, path, _)| *scene == s.scene && *path == s.path)
+            .map(|&(_, _, ms)| ms)
+    };
+    for s in &mut out {
+        s.speedup_vs_brute = same_run(&brute, s)
             .filter(|_| s.frame_ms_median > 0.0)
-            .map(|(_, _, b)| b / s.frame_ms_median);
+            .map(|b| b / s.frame_ms_median);
+        s.oracle_ratio = same_run(&oracle, s)
+            .filter(|&o| o > 0.0)
+            .map(|o| s.frame_ms_median / o);
     }
     out
 }
@@ -201,7 +256,7 @@ pub fn frames_csv(records: &[FrameRecord]) -> String {
     let phases = gpu_phase_names(records);
     let mut out = String::from(
         "scene,path,mode,frame,visible,drawn,clusters,false_culls,culled_fraction,triangles,draw_calls,\
-         select_ms,frame_ms,pixel_error_grey,pixel_error_colour,gpu_ms",
+         select_ms,frame_ms,cpu_ms,pixel_error_grey,pixel_error_colour,gpu_ms",
     );
     for phase in &phases {
         let _ = write!(out, ",gpu_{phase}_ms");
@@ -211,7 +266,7 @@ pub fn frames_csv(records: &[FrameRecord]) -> String {
     for r in records {
         let _ = write!(
             out,
-            "{},{},{},{},{},{},{},{},{:.6},{},{},{:.4},{:.4},{:.6},{:.6},{}",
+            "{},{},{},{},{},{},{},{},{:.6},{},{},{:.4},{:.4},{:.4},{:.6},{:.6},{}",
             csv_field(&r.scene),
             csv_field(&r.path),
             csv_field(&r.mode),
@@ -225,6 +280,7 @@ pub fn frames_csv(records: &[FrameRecord]) -> String {
             r.draw_calls,
             r.select_ms,
             r.frame_ms,
+            r.cpu_ms,
             r.pixel_error_grey,
             r.pixel_error_colour,
             cell(r.gpu.total_ms()),
@@ -259,14 +315,16 @@ pub fn summary_markdown(report: &BenchReport) -> String {
     );
     out.push_str(
         "| scene | path | mode | frames | false culls | visible | drawn | clusters | culled | triangles | \
-         draw calls | frame ms (median) | GPU ms (median) | speed-up vs brute | pixel error (grey / \
-         colour) |\n",
+         draw calls | frame ms (median) | p95 | p99 | max | CPU ms (median / p99 / max) | \
+         GPU ms (median) | speed-up vs brute | ÷ oracle | pixel error (grey / colour) |\n",
     );
-    out.push_str("|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+    out.push_str(
+        "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+    );
     for e in &report.entries {
         let _ = writeln!(
             out,
-            "| {} | {} | {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.1} % | {:.0} | {:.1} | {:.2} | {} | {} | {:.2} % / {:.2} % |",
+            "| {} | {} | {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.1} % | {:.0} | {:.1} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} / {:.2} / {:.2} | {} | {} | {} | {:.2} % / {:.2} % |",
             e.scene,
             e.path,
             e.mode,
@@ -279,12 +337,32 @@ pub fn summary_markdown(report: &BenchReport) -> String {
             e.triangles_mean,
             e.draw_calls_mean,
             e.frame_ms_median,
+            e.frame_ms_p95,
+            e.frame_ms_p99,
+            e.frame_ms_max,
+            e.cpu_ms_median,
+            e.cpu_ms_p99,
+            e.cpu_ms_max,
             e.gpu_ms_median
                 .map_or("n/a".to_string(), |ms| format!("{ms:.2}")),
             e.speedup_vs_brute
                 .map_or("–".to_string(), |s| format!("{s:.2}×")),
+            e.oracle_ratio
+                .map_or("–".to_string(), |r| format!("{r:.2}×")),
             100.0 * e.pixel_error_mean,
             100.0 * e.pixel_error_colour_mean,
+        );
+    }
+    out.push_str(
+        "\nFrame ms is CPU wall time from recording to the GPU's completion; p95 and p99 are \
+         nearest-rank percentiles over the path's frames. CPU ms is the engine's own thread CPU \
+         time per frame (selection, recording, submission; not the wait for the GPU).\n",
+    );
+    if report.entries.iter().any(|e| e.mode == Mode::Oracle.name()) {
+        out.push_str(
+            "\n`oracle`: exactly the buildings the ID-buffer oracle sees, drawn in one plain pass \
+             (finding them is not timed): the fastest any culling could be. ÷ oracle is a mode's \
+             median frame time ÷ the oracle's, same scene and path.\n",
         );
     }
     gpu_phase_table(&mut out, report);
@@ -411,6 +489,7 @@ mod tests {
             draw_calls: 21,
             select_ms: 0.1,
             frame_ms: ms,
+            cpu_ms: ms / 10.0,
             pixel_error_grey: 0.0,
             pixel_error_colour: 0.0,
             gpu: crate::gpu_timer::GpuTimes::default(),
@@ -434,6 +513,91 @@ mod tests {
         assert_eq!(s[1].speedup_vs_brute, Some(20.0 / 3.0));
         assert_eq!(s[0].speedup_vs_brute, Some(1.0));
         assert_eq!(s[1].false_culls, 1);
+    }
+
+    #[test]
+    fn percentiles_are_nearest_rank() {
+        // 1..=100 in a scrambled order: the p-th percentile of 100 values is the p-th smallest.
+        let hundred: Vec<f64> = (0..100).map(|i| f64::from((i * 37) % 100 + 1)).collect();
+        assert_eq!(percentile(&hundred, 95), 95.0);
+        assert_eq!(percentile(&hundred, 99), 99.0);
+        assert_eq!(percentile(&hundred, 100), 100.0);
+        assert_eq!(percentile(&hundred, 1), 1.0);
+        // Few frames: the rank rounds up, so one hitch in four is the p95 and the p99.
+        let four = [30.0, 10.0, 400.0, 20.0];
+        assert_eq!(percentile(&four, 50), 20.0);
+        assert_eq!(percentile(&four, 75), 30.0);
+        assert_eq!(percentile(&four, 76), 400.0);
+        assert_eq!(percentile(&four, 95), 400.0);
+        // 20 frames: p95 is the 19th smallest, not the max (the rank is exact, 95·20/100 = 19).
+        let twenty: Vec<f64> = (1..=20).rev().map(f64::from).collect();
+        assert_eq!(percentile(&twenty, 95), 19.0);
+        assert_eq!(percentile(&twenty, 99), 20.0);
+        assert_eq!(percentile(&[7.5], 99), 7.5);
+        assert_eq!(percentile(&[], 95), 0.0);
+    }
+
+    #[test]
+    fn tails_cpu_time_and_oracle_ratio() {
+        let mut records = Vec::new();
+        for (frame, ms) in [4.0, 5.0, 6.0, 50.0, 5.5].into_iter().enumerate() {
+            records.push(record("brute", frame, 10.0 * ms, 0));
+            records.push(record("frustum", frame, ms, 0));
+            records.push(record("oracle", frame, 2.0 + 0.1 * frame as f64, 0));
+        }
+        let s = summarise(&records);
+        let frustum = &s[1];
+        assert_eq!(frustum.frame_ms_median, 5.5);
+        assert_eq!(frustum.frame_ms_p95, 50.0);
+        assert_eq!(frustum.frame_ms_p99, 50.0);
+        assert_eq!(frustum.frame_ms_max, 50.0);
+        // `record` gives every frame a tenth of its frame time as CPU time.
+        assert_eq!(frustum.cpu_ms_median, 0.55);
+        assert_eq!(frustum.cpu_ms_max, 5.0);
+        assert_eq!(frustum.cpu_ms_p99, 5.0);
+        let oracle = &s[2];
+        assert_eq!(oracle.mode, "oracle");
+        assert_eq!(oracle.frame_ms_median, 2.2);
+        assert_eq!(oracle.oracle_ratio, Some(1.0));
+        assert_eq!(frustum.oracle_ratio, Some(5.5 / 2.2));
+        assert_eq!(s[0].oracle_ratio, Some(55.0 / 2.2));
+
+        // Without an oracle run there is no ratio, in the JSON too (null, not absent).
+        let no_oracle: Vec<FrameRecord> = records
+            .iter()
+            .filter(|r| r.mode != "oracle")
+            .cloned()
+            .collect();
+        let s = summarise(&no_oracle);
+        assert!(s.iter().all(|e| e.oracle_ratio.is_none()));
+        let json = serde_json::to_value(report_of(s)).unwrap();
+        assert!(json["entries"][1]["oracle_ratio"].is_null());
+
+        // An oracle of another path does not count.
+        let mut other_path = records.clone();
+        for r in other_path.iter_mut().filter(|r| r.mode == "oracle") {
+            r.path = "flyover".into();
+        }
+        let s = summarise(&other_path);
+        assert!(
+            s.iter()
+                .filter(|e| e.path == "street")
+                .all(|e| e.oracle_ratio.is_none())
+        );
+
+        let md = summary_markdown(&report_of(summarise(&records)));
+        assert!(md.contains("÷ oracle") && md.contains("`oracle`:"), "{md}");
+        assert!(md.contains("| 2.50× |"), "{md}");
+        assert!(md.contains("| 0.55 / 5.00 / 5.00 |"), "{md}");
+        let csv = frames_csv(&records);
+        let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+        let cpu = header
+            .iter()
+            .position(|h| *h == "cpu_ms")
+            .expect("cpu_ms column");
+        let row: Vec<&str> = csv.lines().nth(5).unwrap().split(',').collect();
+        assert_eq!(row[2], "frustum");
+        assert_eq!(row[cpu], "0.5000");
     }
 
     #[test]

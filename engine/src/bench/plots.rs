@@ -302,6 +302,7 @@ mod tests {
                     draw_calls: 21,
                     select_ms: 0.1,
                     frame_ms: 5.0 + m as f64 + (f * 0.7).sin(),
+                    cpu_ms: 0.5 + 0.1 * m as f64,
                     pixel_error_grey: 0.001 * m as f64 * f,
                     pixel_error_colour: 0.0005 * m as f64 * f,
                     gpu: crate::gpu_timer::GpuTimes::default(),

@@ -11,6 +11,7 @@ use citywalk_scenes::quadtree::BQuadtree;
 use crate::bench::mode::{CullingData, Mode, select, visible_blocks};
 use crate::bench::pixel_error::pixel_error;
 use crate::camera::Camera;
+use crate::cpu_clock::CpuClock;
 use crate::frame::{CullingOptions, CullingRenderer, OccluderMeshes, Visibility};
 use crate::gpu::GpuContext;
 use crate::gpu_timer::{GpuTimer, GpuTimes};
@@ -70,6 +71,11 @@ pub struct FrameRecord {
     pub select_ms: f64,
     /// CPU wall time of selection, recording, submission and GPU completion (ms).
     pub frame_ms: f64,
+    /// The engine's own CPU time: thread CPU time ([`crate::cpu_clock`]) of the mode's selection
+    /// (frustum test, quadtree, LOD cut), recording and submission, without the wait for the GPU
+    /// (ms). For the two-phase modes the frame's share is its own
+    /// [`crate::frame::FrameStats::cpu_ms`].
+    pub cpu_ms: f64,
     /// Chang et al. §9: share of pixels whose grey level differs from the brute-force frame.
     pub pixel_error_grey: f64,
     /// Chang et al. §9: share of pixels differing by more than 40 in a channel.
@@ -159,20 +165,22 @@ struct ModeFrame {
     clusters: usize,
     select_ms: f64,
     frame_ms: f64,
+    cpu_ms: f64,
     /// Triangles of the drawn buildings and clusters.
     triangles: u64,
 }
 
 /// Renders one frame of `mode` into `target`. For `lod` and `all`, a building counts as drawn
 /// when it is drawn itself or through a drawn cluster containing it, and triangles are the
-/// buildings' and clusters'. The frame's GPU times are left in `renderers.last_gpu`.
+/// buildings' and clusters'. `visible` is the oracle's visible set of the frame, in id order
+/// (drawn by `oracle`). The frame's GPU times are left in `renderers.last_gpu`.
 fn render_mode(
     gpu: &GpuContext,
     renderers: &mut BenchRenderers,
     scene: &BenchScene,
     mode: Mode,
     camera: &Camera,
-    visible_first: Option<u32>,
+    visible: &[u32],
     target: &OffscreenTarget,
 ) -> Result<ModeFrame, BenchError> {
     if mode == Mode::All {
@@ -190,6 +198,7 @@ fn render_mode(
         quadtree: &scene.quadtree,
     };
     let start = Instant::now();
+    let cpu = CpuClock::start();
     let mut encoder = gpu
         .device
         .create_command_encoder(&wgpu::CommandEncoderDescriptor {
@@ -243,8 +252,17 @@ fn render_mode(
         let triangles = building_triangles(&all);
         (all, n + 1, 0.0, triangles, 0)
     } else {
-        let drawn = select(mode, &data, camera.view_proj(aspect), visible_first)
-            .ok_or(BenchError::ModeNotAvailable(mode))?;
+        let drawn = if mode == Mode::Oracle {
+            visible.to_vec()
+        } else {
+            select(
+                mode,
+                &data,
+                camera.view_proj(aspect),
+                visible.first().copied(),
+            )
+            .ok_or(BenchError::ModeNotAvailable(mode))?
+        };
         let select_ms = start.elapsed().as_secs_f64() * 1e3;
         let calls = renderers.selected.encode_timed(
             gpu,
@@ -260,6 +278,7 @@ fn render_mode(
     };
     renderers.timer.resolve(&mut encoder);
     gpu.queue.submit([encoder.finish()]);
+    let cpu_ms = cpu.elapsed_ms();
     gpu.wait_idle();
     let frame_ms = start.elapsed().as_secs_f64() * 1e3;
     renderers.last_gpu = renderers.timer.read(gpu)?;
@@ -269,6 +288,7 @@ fn render_mode(
         clusters,
         select_ms,
         frame_ms,
+        cpu_ms,
         triangles,
     })
 }
@@ -291,19 +311,24 @@ pub fn run_path(
         return Ok(records);
     }
     let warm_camera = pose_camera(path, 0);
+    let warm_visible = oracle_visible(gpu, renderers, scene, &warm_camera, w, h)?;
     for &mode in &config.modes {
-        render_mode(gpu, renderers, scene, mode, &warm_camera, None, &target)?;
+        render_mode(
+            gpu,
+            renderers,
+            scene,
+            mode,
+            &warm_camera,
+            &warm_visible,
+            &target,
+        )?;
     }
     // Each path starts with nothing visible from a previous frame.
     renderers.reset_visibility();
     for i in 0..path.poses.len() {
         let camera = pose_camera(path, i);
-        let visible = renderers
-            .oracle
-            .visible_set(gpu, &scene.gpu_scene, &camera, w, h)?;
-        let visible_ids: Vec<u32> = (0..total as u32)
-            .filter(|&b| visible.contains(citywalk_scenes::BuildingId(b)))
-            .collect();
+        // Outside every mode's timing: `oracle` draws this set, but finding it is not its work.
+        let visible_ids = oracle_visible(gpu, renderers, scene, &camera, w, h)?;
         let mut encoder = gpu
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
@@ -320,15 +345,7 @@ pub fn run_path(
         gpu.queue.submit([encoder.finish()]);
         let reference_rgba = reference.read_colour(gpu)?;
         for &mode in &config.modes {
-            let out = render_mode(
-                gpu,
-                renderers,
-                scene,
-                mode,
-                &camera,
-                visible_ids.first().copied(),
-                &target,
-            )?;
+            let out = render_mode(gpu, renderers, scene, mode, &camera, &visible_ids, &target)?;
             let rgba = target.read_colour(gpu)?;
             let error = pixel_error(&reference_rgba, &rgba);
             let false_culls = visible_ids
@@ -363,6 +380,7 @@ pub fn run_path(
                 draw_calls: out.draw_calls,
                 select_ms: out.select_ms,
                 frame_ms: out.frame_ms,
+                cpu_ms: out.cpu_ms,
                 pixel_error_grey: error.grey_fraction,
                 pixel_error_colour: error.colour_fraction,
                 gpu: renderers.last_gpu.clone(),
@@ -370,6 +388,24 @@ pub fn run_path(
         }
     }
     Ok(records)
+}
+
+/// The buildings the ID-buffer oracle sees from `camera`, in id order.
+fn oracle_visible(
+    gpu: &GpuContext,
+    renderers: &BenchRenderers,
+    scene: &BenchScene,
+    camera: &Camera,
+    w: u32,
+    h: u32,
+) -> Result<Vec<u32>, BenchError> {
+    let visible = renderers
+        .oracle
+        .visible_set(gpu, &scene.gpu_scene, camera, w, h)?;
+    let total = scene.gpu_scene.building_count() as u32;
+    Ok((0..total)
+        .filter(|&b| visible.contains(citywalk_scenes::BuildingId(b)))
+        .collect())
 }
 
 fn save_png(file: &std::path::Path, w: u32, h: u32, rgba: Vec<u8>) -> Result<(), BenchError> {
@@ -396,7 +432,8 @@ fn culling_options(mode: Mode) -> Option<CullingOptions> {
 /// One frame of `hzb` or `occluders` through [`CullingRenderer`]: the drawn set is the early
 /// pass's plus what the cull kept; draw calls count non-empty draws (ground, early buildings,
 /// occluders, late buildings). The culling runs on the GPU inside the frame, so `select_ms` is
-/// 0 and `frame_ms` is the frame's wall time to GPU completion.
+/// 0, `frame_ms` is the frame's wall time to GPU completion and `cpu_ms` the frame's own CPU
+/// time (recording and submission).
 fn render_culled(
     gpu: &GpuContext,
     renderers: &mut BenchRenderers,
@@ -434,6 +471,7 @@ fn render_culled(
         clusters: 0,
         select_ms: 0.0,
         frame_ms: s.frame_ms,
+        cpu_ms: s.cpu_ms,
         triangles: s.triangles,
         drawn: out.drawn,
     })
@@ -471,7 +509,7 @@ fn lod_select<'a>(
 /// buildings and clusters through the two-phase HiZ frame with the occluder pre-pass
 /// ([`CullingRenderer::render_lod`]). Drawn buildings are those drawn themselves or through a
 /// drawn cluster; triangles are the drawn buildings' and clusters'; `frame_ms` covers the cut
-/// and the frame.
+/// and the frame, `cpu_ms` the cut's thread CPU time plus the frame's own.
 fn render_all(
     gpu: &GpuContext,
     renderers: &mut BenchRenderers,
@@ -480,12 +518,14 @@ fn render_all(
     target: &OffscreenTarget,
 ) -> Result<ModeFrame, BenchError> {
     let start = Instant::now();
+    let cpu = CpuClock::start();
     let occluders = scene
         .occluders
         .as_ref()
         .ok_or_else(|| BenchError::NoOccluders(scene.name.clone()))?;
     let (lod, cut) = lod_select(scene, camera, target)?;
     let select_ms = start.elapsed().as_secs_f64() * 1e3;
+    let select_cpu_ms = cpu.elapsed_ms();
     let options = CullingOptions {
         occluders: true,
         ..CullingOptions::default()
@@ -502,14 +542,15 @@ fn render_all(
         &target.colour_view,
         (target.width, target.height),
     )?;
-    let frame_ms = start.elapsed().as_secs_f64() * 1e3;
     renderers.last_gpu = out.stats.gpu.clone();
     let s = &out.stats;
     Ok(ModeFrame {
         draw_calls: s.draw_calls,
         clusters: s.clusters_drawn as usize,
         select_ms,
-        frame_ms,
+        // The cut, then the frame to GPU completion (its report's statistics excluded).
+        frame_ms: select_ms + s.frame_ms,
+        cpu_ms: select_cpu_ms + s.cpu_ms,
         triangles: s.triangles,
         drawn: out.drawn,
     })

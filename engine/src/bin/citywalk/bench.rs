@@ -43,7 +43,7 @@ pub struct Args {
     #[arg(long = "path-file")]
     pub path_files: Vec<PathBuf>,
     /// Culling modes: brute, frustum, quadtree, hzb, occluders, lod, all (quadtree + LOD + HZB +
-    /// occluders).
+    /// occluders), oracle (exactly the oracle's visible set: the fastest any culling could be).
     #[arg(long, default_value = "brute,frustum,quadtree")]
     pub modes: String,
     /// LOD criterion of the `lod` mode: auto (Chang ε = τ = 1 px at street level, 2 px above
