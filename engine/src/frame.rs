@@ -81,7 +81,7 @@
 //! #     camera: &citywalk_engine::camera::Camera,
 //! #     colour: &wgpu::TextureView,
 //! # ) -> Result<(), citywalk_engine::frame::FrameError> {
-//! use citywalk_engine::bench::mode::visible_blocks;
+//! use citywalk_engine::runner::visible_blocks;
 //! use citywalk_engine::frame::{CullingOptions, CullingRenderer, Visibility};
 //! use citywalk_engine::render::BruteRenderer;
 //!
@@ -250,6 +250,10 @@ pub struct FrameOutput {
     /// Buildings the early pass drew (last frame's visible set as the GPU held it, through the
     /// gate when it ran), ascending.
     pub drawn_early: Vec<u32>,
+    /// Buildings drawn as themselves (not only through a cluster), ascending.
+    pub drawn_themselves: Vec<u32>,
+    /// The frame's candidates were a LOD cut (draw ids of its LOD scene), not every building.
+    pub lod_cut: bool,
     /// The virtual occluders drawn into the pyramid's depth (indices into
     /// [`OccluderMeshes::occluders`]), ascending.
     pub occluders: Vec<usize>,
@@ -620,6 +624,7 @@ impl CullingRenderer {
             .timer
             .times_from(&pending.timed, &bytes[..layout.timestamps_bytes as usize]);
         output.occluders = pending.occluders;
+        output.lod_cut = pending.lod_ids.is_some();
         Some(output)
     }
 

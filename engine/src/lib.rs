@@ -12,6 +12,8 @@ pub mod gpu_timer;
 pub mod hzb;
 pub mod lod;
 pub mod oracle;
+pub mod plan;
 pub mod render;
+pub mod runner;
 pub mod scene_gpu;
 pub mod viewer;

@@ -10,7 +10,6 @@
 use std::path::PathBuf;
 use std::sync::OnceLock;
 
-use citywalk_engine::bench::mode::visible_blocks;
 use citywalk_engine::bench::pixel_error::pixel_error;
 use citywalk_engine::bench::{BenchConfig, BenchError, BenchRenderers, BenchScene, Mode, run_path};
 use citywalk_engine::camera::Camera;
@@ -24,6 +23,7 @@ use citywalk_engine::lod::scene::{LodFrame, LodScene};
 use citywalk_engine::oracle::{Oracle, VisibleSet};
 use citywalk_engine::render::BruteRenderer;
 use citywalk_engine::render::targets::OffscreenTarget;
+use citywalk_engine::runner::visible_blocks;
 use citywalk_engine::scene_gpu::SceneGpu;
 use citywalk_preprocess::pipeline::{NoProgress, PreprocessParams, preprocess};
 use citywalk_scenes::City;

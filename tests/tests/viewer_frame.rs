@@ -9,8 +9,8 @@ use citywalk_engine::controller::{CameraRig, CollisionWorld, Mode};
 use citywalk_engine::render::BruteRenderer;
 use citywalk_engine::render::targets::OffscreenTarget;
 use citywalk_engine::viewer::draw::{Drawn, FrameDrawer};
-use citywalk_engine::viewer::settings::{DrawPath, SceneFeatures};
-use citywalk_engine::viewer::{DebugView, RenderSettings, Stages, ViewerScene};
+use citywalk_engine::viewer::settings::SceneFeatures;
+use citywalk_engine::viewer::{DebugView, FramePlan, RenderSettings, ViewerScene};
 use citywalk_preprocess::pipeline::{NoProgress, PreprocessParams, preprocess};
 use citywalk_scenes::generate::{GenerateParams, generate_city};
 use citywalk_tests::gpu::gpu_or_skip;
@@ -84,28 +84,28 @@ fn every_stage_combination_and_debug_view_renders_and_reports_its_counts() {
             .expect("frame");
         (drawn, target.read_colour(&gpu).expect("read the frame"))
     };
-    let with = |stages: Stages| RenderSettings {
+    let with = |stages: FramePlan| RenderSettings {
         stages,
         ..RenderSettings::default()
     };
 
-    let (brute, brute_image) = frame(&with(Stages::NONE), &street);
-    let (brute_above, brute_above_image) = frame(&with(Stages::NONE), &overview);
-    assert_eq!(brute.counts.renderer, DrawPath::Brute.describe());
+    let (brute, brute_image) = frame(&with(FramePlan::NONE), &street);
+    let (brute_above, brute_above_image) = frame(&with(FramePlan::NONE), &overview);
+    assert_eq!(brute.counts.renderer, FramePlan::NONE.describe());
     assert_eq!(brute.counts.buildings_drawn, n);
     assert_eq!(brute.counts.frustum_culled, None);
     assert_eq!(brute.counts.occlusion_culled, None);
     assert_eq!(brute.ids.len() as u32, n);
 
-    let frustum_only = Stages {
+    let frustum_only = FramePlan {
         frustum: true,
-        ..Stages::NONE
+        ..FramePlan::NONE
     };
-    let hzb = Stages {
+    let hzb = FramePlan {
         lod: false,
-        ..Stages::ALL
+        ..FramePlan::ALL
     };
-    let ungated = Stages {
+    let ungated = FramePlan {
         occluder_gate: false,
         ..hzb
     };
@@ -142,14 +142,14 @@ fn every_stage_combination_and_debug_view_renders_and_reports_its_counts() {
 
     // A coarse cut (Chang ε = 10⁵, τ = 100) draws clusters and fewer triangles, alone and as
     // the HZB frame's candidates.
-    let mut coarse = with(Stages::ALL);
+    let mut coarse = with(FramePlan::ALL);
     coarse.lod.epsilon_px = 1e5;
     coarse.lod.tau_px = 100.0;
     let lod_alone = RenderSettings {
-        stages: Stages {
+        stages: FramePlan {
             lod: true,
             frustum: true,
-            ..Stages::NONE
+            ..FramePlan::NONE
         },
         ..coarse
     };

@@ -1,26 +1,20 @@
-//! Culling modes of the benchmark and the CPU selection each makes.
+//! Culling modes of the benchmark: each a name for a [`FramePlan`] (the science of the
+//! benchmark is comparing fixed plans), carried out by the frame runner
+//! ([`crate::runner::FrameRunner`]) as `view` and `render` carry out theirs.
 //!
 //! Modes build on each other: `brute` draws everything; `frustum` tests every building's box
 //! against the view frustum; `quadtree` culls whole urban blocks top-down through the
-//! B-Quadtree (Pina et al. 2013, §3-4: hierarchical frustum culling of blocks). The GPU
-//! occlusion modes `hzb` and `occluders` select on the GPU inside the two-phase frame
-//! ([`crate::frame::CullingRenderer`]), not here; `lod` cuts the cluster tree on the CPU after
-//! B-Quadtree culling ([`crate::lod::scene::LodScene::select`], called by the bench runner);
-//! `all` feeds that cut's buildings and clusters through the two-phase frame with occluders
-//! ([`crate::frame::CullingRenderer::render_lod`]); modes the runtime does not implement are
-//! named so the command line can refuse them clearly. The pseudo-mode `oracle` draws exactly the
-//! buildings the ID-buffer oracle sees: no culler can draw less without a false cull, so its
-//! frame time is the floor every mode is measured against (`oracle_ratio` in `bench.json`).
+//! B-Quadtree (Pina et al. 2013, §3-4: hierarchical frustum culling of blocks); `hzb` and
+//! `occluders` cull on the GPU inside the two-phase frame ([`crate::frame::CullingRenderer`]);
+//! `lod` cuts the cluster tree on the CPU after B-Quadtree culling; `all` feeds that cut's
+//! buildings and clusters through the two-phase frame with occluders. The pseudo-mode `oracle`
+//! draws exactly the buildings the ID-buffer oracle sees: no culler can draw less without a false
+//! cull, so its frame time is the floor every mode is measured against (`oracle_ratio` in
+//! `bench.json`).
 
 use std::fmt;
 
-use citywalk_scenes::blocks::UrbanBlocks;
-use citywalk_scenes::frustum::Frustum;
-use citywalk_scenes::quadtree::BQuadtree;
-use glam::Mat4;
-
-use crate::camera::Camera;
-use crate::scene_gpu::SceneGpu;
+use crate::plan::FramePlan;
 
 /// A culling configuration measured by the benchmark.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -99,77 +93,45 @@ impl Mode {
     }
 }
 
+impl Mode {
+    /// The stages the mode runs, or `None` for the pseudo-modes drawn as a plain selection
+    /// (`oracle`, the test-only mode).
+    pub fn plan(self) -> Option<FramePlan> {
+        let none = FramePlan::NONE;
+        Some(match self {
+            Mode::Brute => none,
+            Mode::Frustum => FramePlan {
+                frustum: true,
+                ..none
+            },
+            Mode::Quadtree => FramePlan {
+                frustum: true,
+                quadtree: true,
+                ..none
+            },
+            Mode::Hzb => FramePlan { hzb: true, ..none },
+            Mode::Occluders => FramePlan {
+                hzb: true,
+                occluders: true,
+                occluder_gate: true,
+                ..none
+            },
+            Mode::Lod => FramePlan {
+                lod: true,
+                frustum: true,
+                quadtree: true,
+                ..none
+            },
+            Mode::All => FramePlan::ALL,
+            Mode::Oracle | Mode::DropOneVisibleForTest => return None,
+        })
+    }
+}
+
 impl fmt::Display for Mode {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(self.name())
     }
-}
-
-/// The urban blocks the B-Quadtree finds in the frustum of `camera` on a
-/// `width_px`×`height_px` viewport, one flag per block (Pina et al. 2013 §4): the
-/// `visible_blocks` argument of [`crate::lod::scene::LodScene::select`].
-pub fn visible_blocks(
-    quadtree: &BQuadtree,
-    block_count: usize,
-    camera: &Camera,
-    width_px: u32,
-    height_px: u32,
-) -> Vec<bool> {
-    let aspect = width_px.max(1) as f32 / height_px.max(1) as f32;
-    let frustum = Frustum::from_view_proj(camera.view_proj(aspect));
-    let mut visible = vec![false; block_count];
-    for block in quadtree.cull(&frustum) {
-        if let Some(v) = visible.get_mut(block as usize) {
-            *v = true;
-        }
-    }
-    visible
-}
-
-/// What a mode needs to select buildings on the CPU.
-#[derive(Debug)]
-pub struct CullingData<'a> {
-    pub scene: &'a SceneGpu,
-    pub blocks: &'a UrbanBlocks,
-    pub quadtree: &'a BQuadtree,
-}
-
-/// The buildings `mode` draws for a camera with `view_proj`, in id order, or `None` for a mode
-/// the runtime does not implement yet, or one not selected here (`lod` needs the scene's
-/// cluster tree: [`crate::lod::scene::LodScene::select`]; `oracle` draws the frame's visible
-/// set, which the bench runner holds). `visible_first` is the first building of the oracle's
-/// visible set, used only by the test-only mode.
-pub fn select(
-    mode: Mode,
-    data: &CullingData<'_>,
-    view_proj: Mat4,
-    visible_first: Option<u32>,
-) -> Option<Vec<u32>> {
-    let all = || (0..data.scene.building_count() as u32).collect::<Vec<u32>>();
-    Some(match mode {
-        Mode::Brute => all(),
-        Mode::DropOneVisibleForTest => {
-            let mut v = all();
-            v.retain(|&b| Some(b) != visible_first);
-            v
-        }
-        Mode::Frustum => data
-            .scene
-            .buildings_in_frustum(&Frustum::from_view_proj(view_proj)),
-        Mode::Quadtree => {
-            let frustum = Frustum::from_view_proj(view_proj);
-            let mut out: Vec<u32> = data
-                .quadtree
-                .cull(&frustum)
-                .into_iter()
-                .filter_map(|block| data.blocks.blocks.get(block as usize))
-                .flat_map(|block| block.buildings.iter().map(|b| b.0))
-                .collect();
-            out.sort_unstable();
-            out
-        }
-        Mode::Hzb | Mode::Occluders | Mode::Lod | Mode::All | Mode::Oracle => return None,
-    })
 }
 
 #[cfg(test)]

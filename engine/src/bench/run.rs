@@ -8,18 +8,20 @@ use citywalk_scenes::blocks::UrbanBlocks;
 use citywalk_scenes::camera_path::CameraPath;
 use citywalk_scenes::quadtree::BQuadtree;
 
-use crate::bench::mode::{CullingData, Mode, select, visible_blocks};
+use crate::bench::mode::Mode;
 use crate::bench::pixel_error::pixel_error;
 use crate::camera::Camera;
 use crate::cpu_clock::CpuClock;
-use crate::frame::{CullingOptions, CullingRenderer, OccluderMeshes, Visibility};
+use crate::frame::{OccluderMeshes, Visibility};
 use crate::gpu::GpuContext;
 use crate::gpu_timer::{GpuTimer, GpuTimes};
-use crate::lod::scene::{LodFrame, LodScene};
+use crate::lod::scene::LodScene;
 use crate::oracle::Oracle;
 use crate::render::BruteRenderer;
 use crate::render::selected::SelectedRenderer;
 use crate::render::targets::{OffscreenTarget, ReadbackError};
+pub use crate::runner::DRAW_PHASES;
+use crate::runner::{Completion, FrameRunner, FrameTarget, SceneRefs};
 use crate::scene_gpu::SceneGpu;
 
 /// One scene ready for benchmarking: its geometry on the GPU and its culling structures.
@@ -86,9 +88,6 @@ pub struct FrameRecord {
     pub gpu: GpuTimes,
 }
 
-/// The phase of the single-pass modes (`brute`, `frustum`, `quadtree`, `lod`): the scene pass.
-pub const DRAW_PHASES: &[&str] = &["draw"];
-
 /// Why a benchmark run stopped.
 #[derive(Debug, thiserror::Error)]
 pub enum BenchError {
@@ -114,11 +113,11 @@ pub struct BenchRenderers {
     brute: BruteRenderer,
     selected: SelectedRenderer,
     oracle: Oracle,
-    /// The two-phase HiZ frame (`hzb`, `occluders`, `all`), with each mode's visible set
-    /// carried from frame to frame along a path.
-    culling: CullingRenderer,
+    /// Every mode with a frame plan runs through it, with each mode's visible set carried from
+    /// frame to frame along a path.
+    runner: FrameRunner,
     visibility: std::collections::HashMap<Mode, Visibility>,
-    /// Times the scene pass of the single-pass modes ([`DRAW_PHASES`]).
+    /// Times the scene pass of `oracle` and the test-only mode ([`DRAW_PHASES`]).
     timer: GpuTimer,
     /// The GPU times of the frame [`render_mode`] rendered last.
     last_gpu: GpuTimes,
@@ -130,7 +129,7 @@ impl BenchRenderers {
             brute: BruteRenderer::new(gpu, BruteRenderer::PNG_FORMAT),
             selected: SelectedRenderer::new(gpu, BruteRenderer::PNG_FORMAT),
             oracle: Oracle::new(gpu),
-            culling: CullingRenderer::new(gpu, BruteRenderer::PNG_FORMAT),
+            runner: FrameRunner::new(gpu, BruteRenderer::PNG_FORMAT),
             visibility: std::collections::HashMap::new(),
             timer: GpuTimer::new(gpu, "bench draw timer", DRAW_PHASES),
             last_gpu: GpuTimes::default(),
@@ -170,10 +169,12 @@ struct ModeFrame {
     triangles: u64,
 }
 
-/// Renders one frame of `mode` into `target`. For `lod` and `all`, a building counts as drawn
-/// when it is drawn itself or through a drawn cluster containing it, and triangles are the
-/// buildings' and clusters'. `visible` is the oracle's visible set of the frame, in id order
-/// (drawn by `oracle`). The frame's GPU times are left in `renderers.last_gpu`.
+/// Renders one frame of `mode` into `target`: through the frame runner with the mode's plan
+/// ([`Mode::plan`]), waiting for it, or, for `oracle` (`visible`: the oracle's visible set of the
+/// frame, in id order) and the test-only mode, as one plain pass of a selection. For `lod` and
+/// `all`, a building counts as drawn when it is drawn itself or through a drawn cluster
+/// containing it, and triangles are the buildings' and clusters'. The frame's GPU times are left
+/// in `renderers.last_gpu`.
 fn render_mode(
     gpu: &GpuContext,
     renderers: &mut BenchRenderers,
@@ -183,109 +184,102 @@ fn render_mode(
     visible: &[u32],
     target: &OffscreenTarget,
 ) -> Result<ModeFrame, BenchError> {
-    if mode == Mode::All {
-        return render_all(gpu, renderers, scene, camera, target);
-    }
-    renderers.last_gpu = GpuTimes::default();
-    if let Some(options) = culling_options(mode) {
-        return render_culled(gpu, renderers, scene, mode, &options, camera, target);
-    }
-    renderers.timer.begin_frame();
-    let aspect = target.width as f32 / target.height as f32;
-    let data = CullingData {
-        scene: &scene.gpu_scene,
-        blocks: &scene.blocks,
-        quadtree: &scene.quadtree,
+    let Some(plan) = mode.plan() else {
+        return render_selection(gpu, renderers, scene, mode, camera, visible, target);
     };
+    if plan.lod && scene.lod.is_none() {
+        return Err(BenchError::NoClusterTree(scene.name.clone()));
+    }
+    if plan.occluders && scene.occluders.is_none() {
+        return Err(BenchError::NoOccluders(scene.name.clone()));
+    }
+    let refs = SceneRefs {
+        scene: &scene.gpu_scene,
+        lod: scene.lod.as_ref(),
+        blocks: Some((&scene.blocks, &scene.quadtree)),
+        occluders: scene.occluders.as_ref(),
+    };
+    let visibility = renderers.visibility.entry(mode).or_default();
+    let report = renderers
+        .runner
+        .run(
+            gpu,
+            refs,
+            plan,
+            None,
+            visibility,
+            camera,
+            FrameTarget {
+                colour: &target.colour_view,
+                depth: &target.depth,
+                size: (target.width, target.height),
+            },
+            (Completion::Wait, true),
+        )?
+        .expect("a waited frame has its report");
+    renderers.last_gpu = report.gpu.clone();
+    Ok(ModeFrame {
+        drawn: report.drawn.unwrap_or_default(),
+        draw_calls: report.draw_calls,
+        clusters: report.clusters_drawn.unwrap_or(0) as usize,
+        select_ms: report.select_ms,
+        frame_ms: report.frame_ms,
+        cpu_ms: report.cpu_ms,
+        triangles: report.triangles,
+    })
+}
+
+/// One plain pass of a selection: `oracle` draws the oracle's `visible` set (the limit any
+/// culling could reach), the test-only mode brute force minus the first visible building.
+fn render_selection(
+    gpu: &GpuContext,
+    renderers: &mut BenchRenderers,
+    scene: &BenchScene,
+    mode: Mode,
+    camera: &Camera,
+    visible: &[u32],
+    target: &OffscreenTarget,
+) -> Result<ModeFrame, BenchError> {
+    renderers.timer.begin_frame();
     let start = Instant::now();
     let cpu = CpuClock::start();
+    let drawn: Vec<u32> = match mode {
+        Mode::Oracle => visible.to_vec(),
+        Mode::DropOneVisibleForTest => (0..scene.gpu_scene.building_count() as u32)
+            .filter(|&b| Some(b) != visible.first().copied())
+            .collect(),
+        _ => return Err(BenchError::ModeNotAvailable(mode)),
+    };
+    let select_ms = start.elapsed().as_secs_f64() * 1e3;
     let mut encoder = gpu
         .device
         .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-            label: Some("bench frame"),
+            label: Some("bench selection"),
         });
-    let building_triangles = |drawn: &[u32]| -> u64 {
-        drawn
-            .iter()
-            .filter_map(|&b| scene.gpu_scene.records.get(b as usize))
-            .map(|r| u64::from(r.index_count / 3))
-            .sum()
-    };
-    let (drawn, draw_calls, select_ms, triangles, clusters) = if mode == Mode::Lod {
-        // Screen-space LOD (Chang et al. 2008 §8) on top of B-Quadtree frustum culling.
-        let (lod, frame) = lod_select(scene, camera, target)?;
-        let select_ms = start.elapsed().as_secs_f64() * 1e3;
-        let calls = renderers.selected.encode_timed(
-            gpu,
-            &mut encoder,
-            &lod.gpu_scene,
-            camera,
-            &frame.draw_ids,
-            (&target.colour_view, &target.depth),
-            renderers.timer.render_pass_writes("draw"),
-        );
-        // Draw ids at or above the building count are cluster meshes (`lod::scene`).
-        let clusters = frame
-            .draw_ids
-            .iter()
-            .filter(|&&id| id >= lod.building_count)
-            .count();
-        (
-            lod.covered(&frame),
-            calls,
-            select_ms,
-            frame.triangles,
-            clusters,
-        )
-    } else if mode == Mode::Brute {
-        renderers.brute.encode_timed(
-            gpu,
-            &mut encoder,
-            &scene.gpu_scene,
-            camera,
-            &target.colour_view,
-            &target.depth,
-            renderers.timer.render_pass_writes("draw"),
-        );
-        let n = scene.gpu_scene.building_count() as u32;
-        let all: Vec<u32> = (0..n).collect();
-        let triangles = building_triangles(&all);
-        (all, n + 1, 0.0, triangles, 0)
-    } else {
-        let drawn = if mode == Mode::Oracle {
-            visible.to_vec()
-        } else {
-            select(
-                mode,
-                &data,
-                camera.view_proj(aspect),
-                visible.first().copied(),
-            )
-            .ok_or(BenchError::ModeNotAvailable(mode))?
-        };
-        let select_ms = start.elapsed().as_secs_f64() * 1e3;
-        let calls = renderers.selected.encode_timed(
-            gpu,
-            &mut encoder,
-            &scene.gpu_scene,
-            camera,
-            &drawn,
-            (&target.colour_view, &target.depth),
-            renderers.timer.render_pass_writes("draw"),
-        );
-        let triangles = building_triangles(&drawn);
-        (drawn, calls, select_ms, triangles, 0)
-    };
+    let draw_calls = renderers.selected.encode_timed(
+        gpu,
+        &mut encoder,
+        &scene.gpu_scene,
+        camera,
+        &drawn,
+        (&target.colour_view, &target.depth),
+        renderers.timer.render_pass_writes("draw"),
+    );
     renderers.timer.resolve(&mut encoder);
     gpu.queue.submit([encoder.finish()]);
     let cpu_ms = cpu.elapsed_ms();
     gpu.wait_idle();
     let frame_ms = start.elapsed().as_secs_f64() * 1e3;
     renderers.last_gpu = renderers.timer.read(gpu)?;
+    let triangles = drawn
+        .iter()
+        .filter_map(|&b| scene.gpu_scene.records.get(b as usize))
+        .map(|r| u64::from(r.index_count / 3))
+        .sum();
     Ok(ModeFrame {
         drawn,
         draw_calls,
-        clusters,
+        clusters: 0,
         select_ms,
         frame_ms,
         cpu_ms,
@@ -415,143 +409,4 @@ fn save_png(file: &std::path::Path, w: u32, h: u32, rgba: Vec<u8>) -> Result<(),
     };
     let image = image::RgbaImage::from_raw(w, h, rgba).ok_or_else(|| err("bad size".into()))?;
     image.save(file).map_err(|e| err(e.to_string()))
-}
-
-/// The options of the two-phase HiZ frame for `mode`, or `None` for a mode that is not one.
-fn culling_options(mode: Mode) -> Option<CullingOptions> {
-    match mode {
-        Mode::Hzb => Some(CullingOptions::default()),
-        Mode::Occluders => Some(CullingOptions {
-            occluders: true,
-            ..CullingOptions::default()
-        }),
-        _ => None,
-    }
-}
-
-/// One frame of `hzb` or `occluders` through [`CullingRenderer`]: the drawn set is the early
-/// pass's plus what the cull kept; draw calls count non-empty draws (ground, early buildings,
-/// occluders, late buildings). The culling runs on the GPU inside the frame, so `select_ms` is
-/// 0, `frame_ms` is the frame's wall time to GPU completion and `cpu_ms` the frame's own CPU
-/// time (recording and submission).
-fn render_culled(
-    gpu: &GpuContext,
-    renderers: &mut BenchRenderers,
-    scene: &BenchScene,
-    mode: Mode,
-    options: &CullingOptions,
-    camera: &Camera,
-    target: &OffscreenTarget,
-) -> Result<ModeFrame, BenchError> {
-    let occluders = if options.occluders {
-        Some(
-            scene
-                .occluders
-                .as_ref()
-                .ok_or_else(|| BenchError::NoOccluders(scene.name.clone()))?,
-        )
-    } else {
-        None
-    };
-    let visibility = renderers.visibility.entry(mode).or_default();
-    let out = renderers.culling.render(
-        gpu,
-        &scene.gpu_scene,
-        occluders,
-        options,
-        visibility,
-        camera,
-        &target.colour_view,
-        (target.width, target.height),
-    )?;
-    renderers.last_gpu = out.stats.gpu.clone();
-    let s = &out.stats;
-    Ok(ModeFrame {
-        draw_calls: s.draw_calls,
-        clusters: 0,
-        select_ms: 0.0,
-        frame_ms: s.frame_ms,
-        cpu_ms: s.cpu_ms,
-        triangles: s.triangles,
-        drawn: out.drawn,
-    })
-}
-
-/// The LOD cut of `scene` for `camera` after B-Quadtree culling of the urban blocks (the `lod`
-/// and `all` modes), under [`LodScene::default_criterion`].
-fn lod_select<'a>(
-    scene: &'a BenchScene,
-    camera: &Camera,
-    target: &OffscreenTarget,
-) -> Result<(&'a LodScene, LodFrame), BenchError> {
-    let lod = scene
-        .lod
-        .as_ref()
-        .ok_or_else(|| BenchError::NoClusterTree(scene.name.clone()))?;
-    let blocks = visible_blocks(
-        &scene.quadtree,
-        scene.blocks.blocks.len(),
-        camera,
-        target.width,
-        target.height,
-    );
-    let frame = lod.select(
-        camera,
-        target.width,
-        target.height,
-        lod.default_criterion(camera),
-        Some(&blocks),
-    );
-    Ok((lod, frame))
-}
-
-/// One frame of `all`: B-Quadtree + LOD cut on the CPU ([`lod_select`]), then the cut's
-/// buildings and clusters through the two-phase HiZ frame with the occluder pre-pass
-/// ([`CullingRenderer::render_lod`]). Drawn buildings are those drawn themselves or through a
-/// drawn cluster; triangles are the drawn buildings' and clusters'; `frame_ms` covers the cut
-/// and the frame, `cpu_ms` the cut's thread CPU time plus the frame's own.
-fn render_all(
-    gpu: &GpuContext,
-    renderers: &mut BenchRenderers,
-    scene: &BenchScene,
-    camera: &Camera,
-    target: &OffscreenTarget,
-) -> Result<ModeFrame, BenchError> {
-    let start = Instant::now();
-    let cpu = CpuClock::start();
-    let occluders = scene
-        .occluders
-        .as_ref()
-        .ok_or_else(|| BenchError::NoOccluders(scene.name.clone()))?;
-    let (lod, cut) = lod_select(scene, camera, target)?;
-    let select_ms = start.elapsed().as_secs_f64() * 1e3;
-    let select_cpu_ms = cpu.elapsed_ms();
-    let options = CullingOptions {
-        occluders: true,
-        ..CullingOptions::default()
-    };
-    let visibility = renderers.visibility.entry(Mode::All).or_default();
-    let out = renderers.culling.render_lod(
-        gpu,
-        lod,
-        &cut,
-        Some(occluders),
-        &options,
-        visibility,
-        camera,
-        &target.colour_view,
-        (target.width, target.height),
-    )?;
-    renderers.last_gpu = out.stats.gpu.clone();
-    let s = &out.stats;
-    Ok(ModeFrame {
-        draw_calls: s.draw_calls,
-        clusters: s.clusters_drawn as usize,
-        select_ms,
-        // The cut, then the frame to GPU completion (its report's statistics excluded).
-        frame_ms: select_ms + s.frame_ms,
-        cpu_ms: select_cpu_ms + s.cpu_ms,
-        triangles: s.triangles,
-        drawn: out.drawn,
-    })
 }

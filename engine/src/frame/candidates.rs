@@ -243,9 +243,15 @@ impl<'a> Candidates<'a> {
             .map(|i| self.draw_id(i))
             .collect();
         drawn_early.sort_unstable();
+        let drawn_themselves: Vec<u32> = (0..self.building_count)
+            .filter(|&b| itself[b])
+            .map(|b| b as u32)
+            .collect();
         FrameOutput {
             drawn,
             drawn_early,
+            drawn_themselves,
+            lod_cut: self.lod.is_some(),
             occluders: Vec::new(),
             status: if self.lod.is_none() {
                 status

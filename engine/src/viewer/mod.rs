@@ -26,7 +26,7 @@ use crate::controller::Mode;
 use crate::gpu::GpuError;
 
 pub use draw::ViewerScene;
-pub use settings::{CriterionKind, DebugView, LodSettings, RenderSettings, Stages};
+pub use settings::{CriterionKind, DebugView, FramePlan, LodSettings, RenderSettings};
 
 /// How to run the viewer.
 #[derive(Debug, Clone, PartialEq)]

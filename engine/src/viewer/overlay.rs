@@ -549,7 +549,7 @@ mod tests {
             quadtree: true,
         };
         let all = RenderSettings {
-            stages: super::super::settings::Stages::ALL,
+            stages: super::super::settings::FramePlan::ALL,
             debug_view: DebugView::Pyramid,
             mip_level: 3,
             ..plain
@@ -610,7 +610,7 @@ mod tests {
                 ..stats
             },
             &RenderSettings {
-                stages: super::super::settings::Stages::ALL,
+                stages: super::super::settings::FramePlan::ALL,
                 lod: LodSettings {
                     kind: CriterionKind::Yang,
                     ..LodSettings::default()

@@ -1,46 +1,10 @@
-//! What the viewer draws with: the culling stages switched on, the LOD criterion and its
-//! tolerances, and the debug view. Plain data, edited by the overlay panel and the keys, read by
-//! the next frame; [`RenderSettings::draw_path`] turns it into the frame to render for a scene.
+//! What the viewer draws with: the culling stages switched on (a [`FramePlan`]), the LOD
+//! criterion and its tolerances, and the debug view. Plain data, edited by the overlay panel and
+//! the keys, read by the next frame; [`RenderSettings::plan`] turns it into the plan the frame
+//! runner carries out for a scene.
 
 use crate::lod::LodCriterion;
-
-/// The culling stages, each switched on or off. All off is brute force.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Stages {
-    /// View-frustum culling on the CPU: the B-Quadtree of urban blocks (Pina et al. 2013) when
-    /// the scene has one, else per building; with LOD, also the cluster tree's own frustum test.
-    /// With HZB occlusion on the cull shader tests the frustum anyway.
-    pub frustum: bool,
-    /// Two-phase hierarchical-Z occlusion culling on the GPU ([`crate::frame`]).
-    pub hzb: bool,
-    /// The virtual-occluder pre-pass of the HZB frame (needs `hzb` and occluders).
-    pub occluders: bool,
-    /// The occluder gate of the pre-pass: last frame's visible set is drawn early only where the
-    /// occluders' own pyramid does not hide it ([`crate::frame::CullingOptions::occluder_gate`];
-    /// needs `occluders`).
-    pub occluder_gate: bool,
-    /// The screen-space LOD cut of the cluster tree (Chang et al. 2008 / Yang et al. 2011).
-    pub lod: bool,
-}
-
-impl Stages {
-    /// Every stage on (occluders and LOD where the scene has them).
-    pub const ALL: Stages = Stages {
-        frustum: true,
-        hzb: true,
-        occluders: true,
-        occluder_gate: true,
-        lod: true,
-    };
-    /// Every stage off: brute force.
-    pub const NONE: Stages = Stages {
-        frustum: false,
-        hzb: false,
-        occluders: false,
-        occluder_gate: false,
-        lod: false,
-    };
-}
+pub use crate::plan::{FramePlan, SceneFeatures};
 
 /// Which paper's criterion the LOD cut uses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -173,7 +137,9 @@ impl DebugView {
 /// Everything the next frame is drawn with.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RenderSettings {
-    pub stages: Stages,
+    /// The stages switched on (the viewer's frustum culling goes through the B-Quadtree when
+    /// the scene has one: [`RenderSettings::plan`]).
+    pub stages: FramePlan,
     pub lod: LodSettings,
     pub debug_view: DebugView,
     /// The pyramid level the pyramid view shows (clamped to the pyramid's last level).
@@ -184,9 +150,9 @@ impl Default for RenderSettings {
     /// Frustum, HZB and occluders on, LOD off (it changes the image), no debug view.
     fn default() -> Self {
         RenderSettings {
-            stages: Stages {
+            stages: FramePlan {
                 lod: false,
-                ..Stages::ALL
+                ..FramePlan::ALL
             },
             lod: LodSettings::default(),
             debug_view: DebugView::Off,
@@ -195,79 +161,16 @@ impl Default for RenderSettings {
     }
 }
 
-/// What the loaded scene offers.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct SceneFeatures {
-    /// Virtual occluders (scene packages).
-    pub occluders: bool,
-    /// A cluster tree (scene packages built with one).
-    pub cluster_tree: bool,
-    /// A B-Quadtree of urban blocks (scene packages).
-    pub quadtree: bool,
-}
-
-/// The frame the settings ask for, given what the scene offers.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum DrawPath {
-    /// Every building, no culling.
-    Brute,
-    /// CPU frustum culling: of urban blocks through the B-Quadtree, or per building.
-    Frustum { quadtree: bool },
-    /// The two-phase HZB frame over every building (the cull shader tests the frustum).
-    Hzb { occluders: bool },
-    /// The LOD cut drawn as it is (after B-Quadtree / frustum culling when `frustum`).
-    Lod { frustum: bool, quadtree: bool },
-    /// The LOD cut's candidates (after B-Quadtree / frustum culling when `frustum`) through
-    /// the two-phase HZB frame.
-    LodHzb {
-        occluders: bool,
-        frustum: bool,
-        quadtree: bool,
-    },
-}
-
-impl DrawPath {
-    /// A short description for the overlay.
-    pub fn describe(self) -> &'static str {
-        match self {
-            DrawPath::Brute => "brute force (no culling)",
-            DrawPath::Frustum { quadtree: true } => "B-Quadtree frustum culling",
-            DrawPath::Frustum { quadtree: false } => "frustum culling",
-            DrawPath::Hzb { occluders: false } => "two-phase HiZ culling",
-            DrawPath::Hzb { occluders: true } => "two-phase HiZ culling + occluders",
-            DrawPath::Lod { frustum: true, .. } => "LOD cut + frustum culling",
-            DrawPath::Lod { frustum: false, .. } => "LOD cut (no culling)",
-            DrawPath::LodHzb {
-                occluders: false, ..
-            } => "LOD cut + two-phase HiZ culling",
-            DrawPath::LodHzb {
-                occluders: true, ..
-            } => "LOD cut + HiZ culling + occluders",
-        }
-    }
-}
-
 impl RenderSettings {
-    /// The frame to draw: stages the scene cannot support (LOD without a cluster tree,
-    /// occluders without occluders or without HZB) count as off.
-    pub fn draw_path(&self, features: SceneFeatures) -> DrawPath {
-        let s = self.stages;
-        let occluders = s.occluders && s.hzb && features.occluders;
-        let quadtree = s.frustum && features.quadtree;
-        match (s.lod && features.cluster_tree, s.hzb) {
-            (true, true) => DrawPath::LodHzb {
-                occluders,
-                frustum: s.frustum,
-                quadtree,
-            },
-            (true, false) => DrawPath::Lod {
-                frustum: s.frustum,
-                quadtree,
-            },
-            (false, true) => DrawPath::Hzb { occluders },
-            (false, false) if s.frustum => DrawPath::Frustum { quadtree },
-            (false, false) => DrawPath::Brute,
+    /// The plan to run for a scene that offers `features`: the stages switched on, frustum
+    /// culling through the B-Quadtree where the scene has one, and what the scene cannot run
+    /// turned off ([`FramePlan::resolve`]).
+    pub fn plan(&self, features: SceneFeatures) -> FramePlan {
+        FramePlan {
+            quadtree: self.stages.frustum,
+            ..self.stages
         }
+        .resolve(features)
     }
 }
 
@@ -303,67 +206,32 @@ mod tests {
     }
 
     #[test]
-    fn the_draw_path_follows_the_stages_and_what_the_scene_has() {
-        let package = SceneFeatures {
-            occluders: true,
-            cluster_tree: true,
-            quadtree: true,
-        };
+    fn the_plan_follows_the_stages_and_what_the_scene_has() {
+        let package = SceneFeatures::ALL;
         let plain = SceneFeatures::default();
-        let with = |stages: Stages| RenderSettings {
+        let with = |stages: FramePlan| RenderSettings {
             stages,
             ..RenderSettings::default()
         };
-        assert_eq!(with(Stages::NONE).draw_path(package), DrawPath::Brute);
-        assert_eq!(
-            with(Stages::ALL).draw_path(package),
-            DrawPath::LodHzb {
-                occluders: true,
-                frustum: true,
-                quadtree: true
-            }
-        );
+        assert_eq!(with(FramePlan::NONE).plan(package), FramePlan::NONE);
+        assert_eq!(with(FramePlan::ALL).plan(package), FramePlan::ALL);
         // No cluster tree: LOD is off; no occluders: the pre-pass is off.
-        assert_eq!(
-            with(Stages::ALL).draw_path(plain),
-            DrawPath::Hzb { occluders: false }
-        );
-        let frustum_only = Stages {
+        let plain_all = with(FramePlan::ALL).plan(plain);
+        assert!(plain_all.hzb && !plain_all.lod && !plain_all.occluders && !plain_all.quadtree);
+        // Frustum culling goes through the B-Quadtree where there is one.
+        let frustum_only = FramePlan {
             frustum: true,
-            ..Stages::NONE
+            ..FramePlan::NONE
         };
-        assert_eq!(
-            with(frustum_only).draw_path(package),
-            DrawPath::Frustum { quadtree: true }
-        );
-        assert_eq!(
-            with(frustum_only).draw_path(plain),
-            DrawPath::Frustum { quadtree: false }
-        );
-        // Occluders need the HZB frame.
-        let no_hzb = Stages {
-            hzb: false,
-            ..Stages::ALL
-        };
-        assert_eq!(
-            with(no_hzb).draw_path(package),
-            DrawPath::Lod {
-                frustum: true,
-                quadtree: true
-            }
-        );
-        let lod_only = Stages {
+        assert!(with(frustum_only).plan(package).quadtree);
+        assert!(!with(frustum_only).plan(plain).quadtree);
+        let lod_only = FramePlan {
             lod: true,
-            ..Stages::NONE
+            ..FramePlan::NONE
         };
-        assert_eq!(
-            with(lod_only).draw_path(package),
-            DrawPath::Lod {
-                frustum: false,
-                quadtree: false
-            }
-        );
-        assert_eq!(with(lod_only).draw_path(plain), DrawPath::Brute);
+        let lod = with(lod_only).plan(package);
+        assert!(lod.lod && !lod.frustum && !lod.quadtree && !lod.hzb);
+        assert_eq!(with(lod_only).plan(plain), FramePlan::NONE);
     }
 
     #[test]

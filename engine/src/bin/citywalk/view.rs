@@ -7,7 +7,7 @@ use anyhow::Context;
 use citywalk_engine::camera_path_io::PlayEnd;
 use citywalk_engine::controller::Mode;
 use citywalk_engine::viewer::{
-    self, CriterionKind, DebugView, PlayRequest, RenderSettings, ScreenshotRequest, Stages,
+    self, CriterionKind, DebugView, FramePlan, PlayRequest, RenderSettings, ScreenshotRequest,
     ViewerOptions, ViewerScene,
 };
 use citywalk_scenes::package::ScenePackage;
@@ -101,7 +101,7 @@ fn parse_debug_view(s: &str) -> Result<DebugView, String> {
 fn start_settings(args: &Args) -> RenderSettings {
     let mut settings = RenderSettings::default();
     if args.no_culling {
-        settings.stages = Stages::NONE;
+        settings.stages = FramePlan::NONE;
     }
     settings.stages.lod = args.lod;
     settings.stages.occluder_gate &= !args.no_occluder_gate;

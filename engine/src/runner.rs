@@ -1,0 +1,447 @@
+//! The frame runner: carries out a [`FramePlan`] over a scene, the one place where a frame's
+//! stages are dispatched, for `render`, `view` and `bench` alike. As a script:
+//!
+//! ```text
+//! resolve       → the plan as the scene can run it (FramePlan::resolve)
+//! cpu_cull      → (frustum) urban blocks through the B-Quadtree, or buildings by their boxes
+//! lod_cut       → (lod) the screen-space LOD cut of the cluster tree over the visible blocks
+//! hzb frame     → (hzb) the two-phase occlusion-culled frame over every building or the cut
+//!                 (crate::frame: occluder gate, early, occluders, pyramid, cull, late)
+//! plain pass    → (no hzb) one pass drawing everything, the frustum's buildings or the cut
+//! report        → one FrameReport: counts, times, what was drawn
+//! ```
+//!
+//! Without the HZB frame the report is ready when the frame is submitted (its counts are the
+//! CPU's own); the HZB frame's report comes from the GPU a frame or more late
+//! ([`Completion::Poll`]) unless the caller waits for it ([`Completion::Wait`]).
+
+use std::time::Instant;
+
+use citywalk_scenes::blocks::UrbanBlocks;
+use citywalk_scenes::frustum::Frustum;
+use citywalk_scenes::quadtree::BQuadtree;
+
+use crate::camera::Camera;
+use crate::cpu_clock::CpuClock;
+use crate::frame::{
+    CullingOptions, CullingRenderer, FrameError, FrameOutput, FrameScene, OccluderMeshes,
+    Visibility,
+};
+use crate::gpu::GpuContext;
+use crate::gpu_timer::{GpuTimer, GpuTimes};
+use crate::hzb::HzbPyramid;
+use crate::lod::scene::{LodFrame, LodScene};
+use crate::lod::{LodCriterion, LodView};
+use crate::plan::{FramePlan, SceneFeatures};
+use crate::render::selected::SelectedRenderer;
+use crate::render::{BruteRenderer, DepthTarget};
+use crate::scene_gpu::SceneGpu;
+
+/// The phase of the plain (single-pass) frames: the scene pass.
+pub const DRAW_PHASES: &[&str] = &["draw"];
+
+/// What a frame draws from: the scene and the structures its stages need (each `None` when the
+/// scene has none).
+#[derive(Debug, Clone, Copy)]
+pub struct SceneRefs<'a> {
+    pub scene: &'a SceneGpu,
+    pub lod: Option<&'a LodScene>,
+    pub blocks: Option<(&'a UrbanBlocks, &'a BQuadtree)>,
+    pub occluders: Option<&'a OccluderMeshes>,
+}
+
+impl SceneRefs<'_> {
+    /// What the scene offers the stages.
+    pub fn features(&self) -> SceneFeatures {
+        SceneFeatures {
+            occluders: self.occluders.is_some_and(|o| !o.occluders.is_empty()),
+            cluster_tree: self.lod.is_some(),
+            quadtree: self.blocks.is_some(),
+        }
+    }
+}
+
+/// Whether the caller waits for the frame: the benchmark, tests and screenshots do (times to
+/// GPU completion, this frame's own HZB counts); the interactive viewer never does.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Completion {
+    Wait,
+    Poll,
+}
+
+/// Where a frame goes.
+#[derive(Debug, Clone, Copy)]
+pub struct FrameTarget<'a> {
+    pub colour: &'a wgpu::TextureView,
+    /// Depth for the plain passes (the HZB frame owns its own).
+    pub depth: &'a DepthTarget,
+    pub size: (u32, u32),
+}
+
+/// One frame's report, whatever its plan.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct FrameReport {
+    /// The plan as run (resolved against the scene).
+    pub plan: FramePlan,
+    /// The draw ids drawn index the LOD scene (buildings, then cluster meshes), not the plain
+    /// scene.
+    pub lod_scene: bool,
+    /// Draw ids drawn.
+    pub ids: Vec<u32>,
+    /// Buildings shown, themselves or through a drawn cluster, ascending: computed when the
+    /// caller asks ([`FrameRunner::run`]'s `drawn_set`; the HZB frame always has it).
+    pub drawn: Option<Vec<u32>>,
+    pub buildings_drawn: u32,
+    pub clusters_drawn: Option<u32>,
+    pub frustum_culled: Option<u32>,
+    pub occlusion_culled: Option<u32>,
+    pub occluders_drawn: Option<u32>,
+    pub gate_culled: Option<u32>,
+    pub triangles: u64,
+    pub draw_calls: u32,
+    /// CPU wall time of the CPU culling and the LOD cut (ms).
+    pub select_ms: f64,
+    /// Thread CPU time of the frame's own work: selection, recording, submission (ms).
+    pub cpu_ms: f64,
+    /// Wall time to GPU completion (ms; [`Completion::Wait`] only, else 0).
+    pub frame_ms: f64,
+    /// GPU time per pass, where timed ([`DRAW_PHASES`] or [`crate::gpu_timer::FRAME_PHASES`]).
+    pub gpu: GpuTimes,
+    /// The occluders the HZB frame drew into its pyramid (indices into
+    /// [`OccluderMeshes::occluders`]).
+    pub occluders: Vec<usize>,
+}
+
+/// Runs frames of any plan: the renderers a plan may need, made once.
+#[derive(Debug)]
+pub struct FrameRunner {
+    brute: BruteRenderer,
+    selected: SelectedRenderer,
+    culling: CullingRenderer,
+    timer: GpuTimer,
+}
+
+impl FrameRunner {
+    pub fn new(gpu: &GpuContext, format: wgpu::TextureFormat) -> FrameRunner {
+        FrameRunner {
+            brute: BruteRenderer::new(gpu, format),
+            selected: SelectedRenderer::new(gpu, format),
+            culling: CullingRenderer::new(gpu, format),
+            timer: GpuTimer::new(gpu, "plain frame timer", DRAW_PHASES),
+        }
+    }
+
+    /// The HZB frame's renderer (its pyramid and style, for debug views).
+    pub fn culling(&self) -> &CullingRenderer {
+        &self.culling
+    }
+
+    /// The pyramid of the last HZB frame.
+    pub fn pyramid(&self) -> Option<&HzbPyramid> {
+        self.culling.pyramid()
+    }
+
+    /// One frame of `plan` over `scene` from `camera` into `target`. `visibility` carries the HZB
+    /// frame's visible set along a camera stream (a frame without the HZB frame resets it:
+    /// the next culled frame starts from nothing). `criterion` is the LOD criterion (`None`:
+    /// [`LodScene::default_criterion`]). `drawn_set` asks for [`FrameReport::drawn`] (the
+    /// benchmark's oracle check; a LOD cut's set is as large as what its clusters stand for).
+    /// Returns `None` only for an HZB frame under [`Completion::Poll`] whose report is not
+    /// ready (the newest ready one of an earlier frame is returned instead when there is one).
+    #[expect(clippy::too_many_arguments, reason = "one frame, all inputs explicit")]
+    pub fn run(
+        &mut self,
+        gpu: &GpuContext,
+        scene: SceneRefs<'_>,
+        plan: FramePlan,
+        criterion: Option<LodCriterion>,
+        visibility: &mut Visibility,
+        camera: &Camera,
+        target: FrameTarget<'_>,
+        (completion, drawn_set): (Completion, bool),
+    ) -> Result<Option<FrameReport>, FrameError> {
+        let plan = plan.resolve(scene.features());
+        let start = Instant::now();
+        let cpu = CpuClock::start();
+        let (width, height) = target.size;
+        let cut = match (plan.lod, scene.lod) {
+            (true, Some(lod)) => Some((
+                lod,
+                lod_cut(lod, scene.blocks, camera, target.size, criterion, plan),
+            )),
+            _ => None,
+        };
+        if plan.hzb {
+            let select_ms = start.elapsed().as_secs_f64() * 1e3;
+            let select_cpu_ms = cpu.elapsed_ms();
+            return self.run_hzb(
+                gpu,
+                scene,
+                plan,
+                cut.as_ref().map(|(lod, cut)| (*lod, cut)),
+                visibility,
+                camera,
+                target,
+                completion,
+                (select_ms, select_cpu_ms),
+            );
+        }
+        visibility.reset();
+        let timed = completion == Completion::Wait;
+        self.timer.begin_frame();
+        let writes = || {
+            if timed {
+                self.timer.render_pass_writes("draw")
+            } else {
+                None
+            }
+        };
+        let n = scene.scene.building_count() as u32;
+        let mut encoder = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("plain frame"),
+            });
+        let mut report = FrameReport {
+            plan,
+            ..FrameReport::default()
+        };
+        match &cut {
+            Some((lod, cut)) => {
+                report.select_ms = start.elapsed().as_secs_f64() * 1e3;
+                report.draw_calls = self.selected.encode_timed(
+                    gpu,
+                    &mut encoder,
+                    &lod.gpu_scene,
+                    camera,
+                    &cut.draw_ids,
+                    (target.colour, target.depth),
+                    writes(),
+                );
+                let covered = cut.cut.covered_count(&lod.tree.tree) as u32;
+                report.lod_scene = true;
+                report.ids = cut.draw_ids.clone();
+                report.buildings_drawn = covered;
+                report.clusters_drawn = Some(cut.cut.clusters.len() as u32);
+                report.frustum_culled = plan.frustum.then(|| n.saturating_sub(covered));
+                report.triangles = cut.triangles;
+                if drawn_set {
+                    report.drawn = Some(lod.covered(cut));
+                }
+            }
+            None if plan.frustum => {
+                let frustum =
+                    Frustum::from_view_proj(camera.view_proj(width as f32 / height.max(1) as f32));
+                let ids = match scene.blocks.filter(|_| plan.quadtree) {
+                    Some((blocks, tree)) => buildings_of_visible_blocks(blocks, tree, &frustum),
+                    None => scene.scene.buildings_in_frustum(&frustum),
+                };
+                report.select_ms = start.elapsed().as_secs_f64() * 1e3;
+                report.draw_calls = self.selected.encode_timed(
+                    gpu,
+                    &mut encoder,
+                    scene.scene,
+                    camera,
+                    &ids,
+                    (target.colour, target.depth),
+                    writes(),
+                );
+                report.frustum_culled = Some(n.saturating_sub(ids.len() as u32));
+                report.buildings_drawn = ids.len() as u32;
+                report.triangles = building_triangles(scene.scene, &ids);
+                report.drawn = drawn_set.then(|| ids.clone());
+                report.ids = ids;
+            }
+            None => {
+                self.brute.encode_timed(
+                    gpu,
+                    &mut encoder,
+                    scene.scene,
+                    camera,
+                    target.colour,
+                    target.depth,
+                    writes(),
+                );
+                report.ids = (0..n).collect();
+                report.draw_calls = n + 1;
+                report.buildings_drawn = n;
+                report.triangles = scene.scene.triangle_count as u64;
+                report.drawn = drawn_set.then(|| report.ids.clone());
+            }
+        }
+        if timed {
+            self.timer.resolve(&mut encoder);
+        }
+        gpu.queue.submit([encoder.finish()]);
+        report.cpu_ms = cpu.elapsed_ms();
+        if timed {
+            gpu.wait_idle();
+            report.frame_ms = start.elapsed().as_secs_f64() * 1e3;
+            report.gpu = self.timer.read(gpu)?;
+        }
+        Ok(Some(report))
+    }
+
+    /// The HZB frame over every building or over the cut's candidates.
+    #[expect(clippy::too_many_arguments, reason = "one frame, all inputs explicit")]
+    fn run_hzb(
+        &mut self,
+        gpu: &GpuContext,
+        scene: SceneRefs<'_>,
+        plan: FramePlan,
+        cut: Option<(&LodScene, &LodFrame)>,
+        visibility: &mut Visibility,
+        camera: &Camera,
+        target: FrameTarget<'_>,
+        completion: Completion,
+        (select_ms, select_cpu_ms): (f64, f64),
+    ) -> Result<Option<FrameReport>, FrameError> {
+        let options = CullingOptions {
+            occluders: plan.occluders,
+            occluder_gate: plan.occluder_gate,
+            ..CullingOptions::default()
+        };
+        let occluders = scene.occluders.filter(|_| plan.occluders);
+        let frame = match cut {
+            Some((lod, cut)) => FrameScene::Lod(lod, &cut.draw_ids),
+            None => FrameScene::Buildings(scene.scene),
+        };
+        let ticket = self.culling.submit(
+            gpu,
+            frame,
+            occluders,
+            &options,
+            visibility,
+            camera,
+            target.colour,
+            target.size,
+        )?;
+        let scenes = (scene.scene, scene.lod);
+        let output = match completion {
+            Completion::Wait => Some(self.culling.wait_report(gpu, ticket, scenes, visibility)?),
+            Completion::Poll => self.culling.poll_report(gpu, scenes)?,
+        };
+        let Some(output) = output else {
+            return Ok(None);
+        };
+        let mut report = hzb_report(plan, output, scene);
+        report.select_ms = select_ms;
+        report.cpu_ms += select_cpu_ms;
+        if completion == Completion::Wait {
+            report.frame_ms += select_ms;
+        }
+        Ok(Some(report))
+    }
+}
+
+/// The report of an HZB frame from its output (this frame's, or with [`Completion::Poll`] an
+/// earlier one's). A LOD frame's draw ids are the buildings drawn themselves and the drawn
+/// clusters (offset by the building count).
+fn hzb_report(plan: FramePlan, output: FrameOutput, scene: SceneRefs<'_>) -> FrameReport {
+    let s = &output.stats;
+    let (lod_scene, ids) = match scene.lod {
+        Some(lod) if output.lod_cut => (
+            true,
+            output
+                .drawn_themselves
+                .iter()
+                .copied()
+                .chain(output.clusters.iter().map(|&c| lod.building_count + c))
+                .collect(),
+        ),
+        _ => (false, output.drawn.clone()),
+    };
+    FrameReport {
+        plan,
+        lod_scene,
+        ids,
+        buildings_drawn: s.drawn,
+        clusters_drawn: lod_scene.then_some(s.clusters_drawn),
+        frustum_culled: Some(s.frustum_culled),
+        occlusion_culled: Some(s.occlusion_culled),
+        occluders_drawn: plan.occluders.then_some(s.occluders_drawn),
+        gate_culled: plan.occluder_gate.then_some(s.gate_culled),
+        triangles: s.triangles,
+        draw_calls: s.draw_calls,
+        select_ms: 0.0,
+        cpu_ms: s.cpu_ms,
+        frame_ms: s.frame_ms,
+        gpu: s.gpu.clone(),
+        occluders: output.occluders.clone(),
+        drawn: Some(output.drawn),
+    }
+}
+
+/// Triangles of the buildings `ids` of `scene`.
+fn building_triangles(scene: &SceneGpu, ids: &[u32]) -> u64 {
+    ids.iter()
+        .filter_map(|&b| scene.records.get(b as usize))
+        .map(|r| u64::from(r.index_count / 3))
+        .sum()
+}
+
+/// The buildings of the urban blocks the B-Quadtree finds in `frustum`, ascending (Pina et al.
+/// 2013 §3-4: hierarchical frustum culling of whole blocks).
+pub fn buildings_of_visible_blocks(
+    blocks: &UrbanBlocks,
+    quadtree: &BQuadtree,
+    frustum: &Frustum,
+) -> Vec<u32> {
+    let mut out: Vec<u32> = quadtree
+        .cull(frustum)
+        .into_iter()
+        .filter_map(|block| blocks.blocks.get(block as usize))
+        .flat_map(|block| block.buildings.iter().map(|b| b.0))
+        .collect();
+    out.sort_unstable();
+    out
+}
+
+/// The urban blocks the B-Quadtree finds in the frustum of `camera` on a
+/// `width_px`×`height_px` viewport, one flag per block (Pina et al. 2013 §4): the
+/// `visible_blocks` argument of [`LodScene::select`].
+pub fn visible_blocks(
+    quadtree: &BQuadtree,
+    block_count: usize,
+    camera: &Camera,
+    width_px: u32,
+    height_px: u32,
+) -> Vec<bool> {
+    let aspect = width_px.max(1) as f32 / height_px.max(1) as f32;
+    let frustum = Frustum::from_view_proj(camera.view_proj(aspect));
+    let mut visible = vec![false; block_count];
+    for block in quadtree.cull(&frustum) {
+        if let Some(v) = visible.get_mut(block as usize) {
+            *v = true;
+        }
+    }
+    visible
+}
+
+/// The LOD cut of `plan` (resolved): after B-Quadtree culling of the urban blocks when
+/// `plan.quadtree`, with the tree's own frustum test when `plan.frustum`, under `criterion`
+/// (`None`: [`LodScene::default_criterion`]).
+pub fn lod_cut(
+    lod: &LodScene,
+    blocks: Option<(&UrbanBlocks, &BQuadtree)>,
+    camera: &Camera,
+    (width, height): (u32, u32),
+    criterion: Option<LodCriterion>,
+    plan: FramePlan,
+) -> LodFrame {
+    let criterion = criterion.unwrap_or_else(|| lod.default_criterion(camera));
+    if !plan.frustum {
+        let view = LodView::new(camera, width, height).without_culling();
+        let cut = lod.tree.cut(&view, criterion, None);
+        let draw_ids = lod.draw_ids(&cut);
+        return LodFrame {
+            triangles: lod.triangles(&draw_ids),
+            draw_ids,
+            cut,
+        };
+    }
+    let visible = blocks
+        .filter(|_| plan.quadtree)
+        .map(|(b, tree)| visible_blocks(tree, b.blocks.len(), camera, width, height));
+    lod.select(camera, width, height, criterion, visible.as_deref())
+}
