@@ -1,6 +1,7 @@
 //! citywalk engine: the runtime renderer (wgpu), culling, level of detail, cameras, the viewer
 //! and the benchmark. The `citywalk` binary is the command line for everything.
 
+pub mod auto;
 pub mod bench;
 pub mod camera;
 pub mod camera_path_io;

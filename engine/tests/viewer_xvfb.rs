@@ -259,9 +259,14 @@ fn viewer_switches_stages_lod_and_debug_views() {
             "clusters-coarse",
             [&coarse[..], &["--debug-view", "clusters"]].concat(),
         ),
-        ("pyramid", vec!["--debug-view", "pyramid"]),
-        ("pyramid-3", vec!["--debug-view", "pyramid", "--mip", "3"]),
-        ("occluders", vec!["--debug-view", "occluders"]),
+        // The frame's own pyramid and occluder selection: the stages as set, not the auto plan
+        // (which may be running a plan without them at the captured frame).
+        ("pyramid", vec!["--debug-view", "pyramid", "--no-auto"]),
+        (
+            "pyramid-3",
+            vec!["--debug-view", "pyramid", "--mip", "3", "--no-auto"],
+        ),
+        ("occluders", vec!["--debug-view", "occluders", "--no-auto"]),
     ];
     let mut shots = std::collections::HashMap::new();
     for (name, flags) in runs {

@@ -910,10 +910,11 @@ fn bench_modes_run_a_street_walk_with_no_false_cull() {
     let TestScene { city, package, .. } = generated(&gpu);
     let scene = bench_scene(&gpu, "generated", &city, package, false);
     let path = street_walk(&city, 10);
-    let config = bench_config(vec![Mode::Brute, Mode::Hzb, Mode::Occluders]);
+    // `auto` picks among its plans by cost, frame by frame; every pick is held to the oracle.
+    let config = bench_config(vec![Mode::Brute, Mode::Hzb, Mode::Occluders, Mode::Auto]);
     let mut renderers = BenchRenderers::new(&gpu);
     let records = run_path(&gpu, &mut renderers, &scene, &path, &config).expect("run");
-    assert_eq!(records.len(), 30);
+    assert_eq!(records.len(), 40);
     for r in &records {
         assert_eq!(
             r.false_culls, 0,

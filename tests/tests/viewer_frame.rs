@@ -86,6 +86,7 @@ fn every_stage_combination_and_debug_view_renders_and_reports_its_counts() {
     };
     let with = |stages: FramePlan| RenderSettings {
         stages,
+        auto: false,
         ..RenderSettings::default()
     };
 

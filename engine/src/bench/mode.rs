@@ -8,7 +8,8 @@
 //! `occluders` cull on the GPU inside the two-phase frame ([`crate::frame::CullingRenderer`]);
 //! `lod` cuts the cluster tree on the CPU after B-Quadtree culling; `all` feeds that cut's
 //! buildings and clusters through the two-phase frame with occluders. The pseudo-mode `oracle`
-//! draws exactly the buildings the ID-buffer oracle sees: no culler can draw less without a false
+//! The mode `auto` has no fixed plan: [`crate::auto::AutoPlanner`] picks one per frame. The
+//! pseudo-mode `oracle` draws exactly the buildings the ID-buffer oracle sees: no culler can draw less without a false
 //! cull, so its frame time is the floor every mode is measured against (`oracle_ratio` in
 //! `bench.json`).
 
@@ -33,6 +34,9 @@ pub enum Mode {
     Lod,
     /// Everything on.
     All,
+    /// The `auto` plan ([`crate::auto::AutoPlanner`]): the culling stages chosen frame by frame
+    /// from their measured cost, with the LOD cut as in `all`.
+    Auto,
     /// Exactly the oracle's visible set of the frame, in one plain pass: the fastest any
     /// culling could be.
     Oracle,
@@ -43,7 +47,7 @@ pub enum Mode {
 
 impl Mode {
     /// The modes the command line knows, in order.
-    pub const NAMED: [Mode; 8] = [
+    pub const NAMED: [Mode; 9] = [
         Mode::Brute,
         Mode::Frustum,
         Mode::Quadtree,
@@ -51,6 +55,7 @@ impl Mode {
         Mode::Occluders,
         Mode::Lod,
         Mode::All,
+        Mode::Auto,
         Mode::Oracle,
     ];
 
@@ -63,6 +68,7 @@ impl Mode {
             Mode::Occluders => "occluders",
             Mode::Lod => "lod",
             Mode::All => "all",
+            Mode::Auto => "auto",
             Mode::Oracle => "oracle",
             Mode::DropOneVisibleForTest => "drop-one-visible-for-test",
         }
@@ -123,7 +129,7 @@ impl Mode {
                 ..none
             },
             Mode::All => FramePlan::ALL,
-            Mode::Oracle | Mode::DropOneVisibleForTest => return None,
+            Mode::Auto | Mode::Oracle | Mode::DropOneVisibleForTest => return None,
         })
     }
 }

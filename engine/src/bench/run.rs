@@ -8,6 +8,7 @@ use citywalk_scenes::blocks::UrbanBlocks;
 use citywalk_scenes::camera_path::CameraPath;
 use citywalk_scenes::quadtree::BQuadtree;
 
+use crate::auto::AutoPlanner;
 use crate::bench::mode::Mode;
 use crate::bench::pixel_error::pixel_error;
 use crate::camera::Camera;
@@ -121,6 +122,8 @@ pub struct BenchRenderers {
     timer: GpuTimer,
     /// The GPU times of the frame [`render_mode`] rendered last.
     last_gpu: GpuTimes,
+    /// The `auto` mode's planner along the current path.
+    auto: Option<AutoPlanner>,
 }
 
 impl BenchRenderers {
@@ -133,6 +136,7 @@ impl BenchRenderers {
             visibility: std::collections::HashMap::new(),
             timer: GpuTimer::new(gpu, "bench draw timer", DRAW_PHASES),
             last_gpu: GpuTimes::default(),
+            auto: None,
         }
     }
 
@@ -184,8 +188,19 @@ fn render_mode(
     visible: &[u32],
     target: &OffscreenTarget,
 ) -> Result<ModeFrame, BenchError> {
-    let Some(plan) = mode.plan() else {
-        return render_selection(gpu, renderers, scene, mode, camera, visible, target);
+    let refs = SceneRefs {
+        scene: &scene.gpu_scene,
+        lod: scene.lod.as_ref(),
+        blocks: Some((&scene.blocks, &scene.quadtree)),
+        occluders: scene.occluders.as_ref(),
+    };
+    let plan = match (mode, mode.plan()) {
+        (Mode::Auto, _) => renderers
+            .auto
+            .get_or_insert_with(|| AutoPlanner::new(refs.features(), scene.lod.is_some()))
+            .plan(),
+        (_, Some(plan)) => plan,
+        (_, None) => return render_selection(gpu, renderers, scene, mode, camera, visible, target),
     };
     if plan.lod && scene.lod.is_none() {
         return Err(BenchError::NoClusterTree(scene.name.clone()));
@@ -193,12 +208,6 @@ fn render_mode(
     if plan.occluders && scene.occluders.is_none() {
         return Err(BenchError::NoOccluders(scene.name.clone()));
     }
-    let refs = SceneRefs {
-        scene: &scene.gpu_scene,
-        lod: scene.lod.as_ref(),
-        blocks: Some((&scene.blocks, &scene.quadtree)),
-        occluders: scene.occluders.as_ref(),
-    };
     let visibility = renderers.visibility.entry(mode).or_default();
     let report = renderers
         .runner
@@ -217,6 +226,9 @@ fn render_mode(
             (Completion::Wait, true),
         )?
         .expect("a waited frame has its report");
+    if let (Mode::Auto, Some(planner)) = (mode, &mut renderers.auto) {
+        planner.record(&report);
+    }
     renderers.last_gpu = report.gpu.clone();
     Ok(ModeFrame {
         drawn: report.drawn.unwrap_or_default(),
@@ -306,16 +318,24 @@ pub fn run_path(
     }
     let warm_camera = pose_camera(path, 0);
     let warm_visible = oracle_visible(gpu, renderers, scene, &warm_camera, w, h)?;
+    // A new path: `auto` learns its costs anew, trying each of its plans at the first pose
+    // before timing starts (as every mode warms up there).
+    renderers.auto = None;
     for &mode in &config.modes {
-        render_mode(
-            gpu,
-            renderers,
-            scene,
-            mode,
-            &warm_camera,
-            &warm_visible,
-            &target,
-        )?;
+        loop {
+            render_mode(
+                gpu,
+                renderers,
+                scene,
+                mode,
+                &warm_camera,
+                &warm_visible,
+                &target,
+            )?;
+            if mode != Mode::Auto || !renderers.auto.as_ref().is_some_and(AutoPlanner::exploring) {
+                break;
+            }
+        }
     }
     // Each path starts with nothing visible from a previous frame.
     renderers.reset_visibility();

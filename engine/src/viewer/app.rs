@@ -227,6 +227,10 @@ impl App {
                     tracing::info!("this scene has no occluders (they come with scene packages)");
                 }
             }
+            Command::ToggleAuto => {
+                self.settings.auto = !self.settings.auto;
+                tracing::info!(on = self.settings.auto, "auto plan");
+            }
             Command::ToggleOccluderGate => {
                 let stages = &mut self.settings.stages;
                 stages.occluder_gate = !stages.occluder_gate;

@@ -8,6 +8,7 @@ use citywalk_scenes::quadtree::BQuadtree;
 
 use super::overlay::StageCounts;
 use super::settings::{DebugView, RenderSettings};
+use crate::auto::AutoPlanner;
 use crate::camera::Camera;
 use crate::frame::{FrameError, OccluderMeshes, Visibility};
 use crate::gpu::GpuContext;
@@ -75,6 +76,8 @@ pub struct FrameDrawer {
     visibility: Visibility,
     /// The newest report read so far (an HZB frame's comes a frame or more late).
     last_report: Option<FrameReport>,
+    /// The `auto` plan's planner, for the LOD setting it was made with.
+    auto: Option<(bool, AutoPlanner)>,
     /// Wait for each frame's own report instead of showing the newest ready one: for
     /// screenshots and headless runs, whose counts must be the frame's. The interactive viewer
     /// never waits.
@@ -104,6 +107,7 @@ impl FrameDrawer {
                 .map(|set| OccluderMeshes::upload(gpu, set)),
             visibility: Visibility::default(),
             last_report: None,
+            auto: None,
             wait_for_reports: false,
             cluster_view: ClusterView::new(gpu, format),
             depth_pyramid: DepthPyramid::new(gpu),
@@ -130,7 +134,16 @@ impl FrameDrawer {
         settings: &RenderSettings,
         features: SceneFeatures,
     ) -> Result<Drawn, FrameError> {
-        let plan = settings.plan(features);
+        let lod = settings.stages.lod;
+        let planner = match &mut self.auto {
+            Some((made_for, planner)) if *made_for == lod => planner,
+            slot => &mut slot.insert((lod, AutoPlanner::new(features, lod))).1,
+        };
+        let plan = if settings.auto {
+            planner.plan()
+        } else {
+            settings.plan(features)
+        };
         let start = std::time::Instant::now();
         let refs = SceneRefs {
             scene: &self.scene,
@@ -160,6 +173,11 @@ impl FrameDrawer {
             (completion, false),
         )?;
         if let Some(report) = report {
+            if settings.auto
+                && let Some((_, planner)) = &mut self.auto
+            {
+                planner.record(&report);
+            }
             self.last_report = Some(report);
         }
         let mut drawn = Drawn {
@@ -185,7 +203,11 @@ impl FrameDrawer {
                 debug: None,
             };
         }
-        drawn.counts.renderer = plan.describe();
+        drawn.counts.renderer = if settings.auto {
+            format!("auto: {}", plan.describe())
+        } else {
+            plan.describe()
+        };
         drawn.counts.cpu_ms = start.elapsed().as_secs_f64() * 1e3;
         self.draw_debug(gpu, colour, size, camera, settings, &mut drawn)?;
         Ok(drawn)

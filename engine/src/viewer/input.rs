@@ -35,6 +35,8 @@ pub enum Command {
     ToggleOccluders,
     /// N: the occluder gate of the early set on / off (with the pre-pass).
     ToggleOccluderGate,
+    /// P: the `auto` plan on / off (stages chosen by their measured cost).
+    ToggleAuto,
     /// L: the LOD cut on / off (scene packages with a cluster tree).
     ToggleLod,
     /// K: LOD criterion Chang ↔ Yang.
@@ -59,6 +61,7 @@ impl Command {
             KeyCode::KeyC => Some(Command::ToggleCulling),
             KeyCode::KeyV => Some(Command::ToggleOccluders),
             KeyCode::KeyN => Some(Command::ToggleOccluderGate),
+            KeyCode::KeyP => Some(Command::ToggleAuto),
             KeyCode::KeyB => Some(Command::ToggleFrustum),
             KeyCode::KeyL => Some(Command::ToggleLod),
             KeyCode::KeyK => Some(Command::ToggleCriterion),
@@ -215,6 +218,7 @@ mod tests {
             Some(Command::ToggleOccluderGate)
         );
         for (key, command) in [
+            (KeyCode::KeyP, Command::ToggleAuto),
             (KeyCode::KeyB, Command::ToggleFrustum),
             (KeyCode::KeyL, Command::ToggleLod),
             (KeyCode::KeyK, Command::ToggleCriterion),

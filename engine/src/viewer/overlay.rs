@@ -184,20 +184,28 @@ fn stats_grid(ui: &mut egui::Ui, stats: &OverlayStats) {
 }
 
 fn stage_toggles(ui: &mut egui::Ui, features: SceneFeatures, settings: &mut RenderSettings) {
+    ui.checkbox(
+        &mut settings.auto,
+        "auto: stages by their measured cost (P)",
+    );
+    let manual = !settings.auto;
     let stages = &mut settings.stages;
     let frustum = if features.quadtree {
         "frustum / B-Quadtree (B)"
     } else {
         "frustum (B)"
     };
-    ui.checkbox(&mut stages.frustum, frustum);
-    ui.checkbox(&mut stages.hzb, "HZB occlusion culling (C)");
+    ui.add_enabled(manual, egui::Checkbox::new(&mut stages.frustum, frustum));
     ui.add_enabled(
-        stages.hzb && features.occluders,
+        manual,
+        egui::Checkbox::new(&mut stages.hzb, "HZB occlusion culling (C)"),
+    );
+    ui.add_enabled(
+        manual && stages.hzb && features.occluders,
         egui::Checkbox::new(&mut stages.occluders, "occluder pre-pass (V)"),
     );
     ui.add_enabled(
-        stages.hzb && stages.occluders && features.occluders,
+        manual && stages.hzb && stages.occluders && features.occluders,
         egui::Checkbox::new(
             &mut stages.occluder_gate,
             "occluder gate of the early set (N)",

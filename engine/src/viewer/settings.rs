@@ -140,6 +140,10 @@ pub struct RenderSettings {
     /// The stages switched on (the viewer's frustum culling goes through the B-Quadtree when
     /// the scene has one: [`RenderSettings::plan`]).
     pub stages: FramePlan,
+    /// The `auto` plan ([`crate::auto::AutoPlanner`]): the culling stages chosen by their
+    /// measured cost on this adapter and view; `stages` then only says whether the LOD cut is
+    /// on (a quality choice, the user's).
+    pub auto: bool,
     pub lod: LodSettings,
     pub debug_view: DebugView,
     /// The pyramid level the pyramid view shows (clamped to the pyramid's last level).
@@ -147,13 +151,15 @@ pub struct RenderSettings {
 }
 
 impl Default for RenderSettings {
-    /// Frustum, HZB and occluders on, LOD off (it changes the image), no debug view.
+    /// The `auto` plan over frustum, HZB and occluders, LOD off (it changes the image), no debug
+    /// view.
     fn default() -> Self {
         RenderSettings {
             stages: FramePlan {
                 lod: false,
                 ..FramePlan::ALL
             },
+            auto: true,
             lod: LodSettings::default(),
             debug_view: DebugView::Off,
             mip_level: 0,

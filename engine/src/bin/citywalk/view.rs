@@ -50,6 +50,10 @@ pub struct Args {
     /// Start drawing brute force, every culling stage off (B, C, V, L switch them on).
     #[arg(long)]
     pub no_culling: bool,
+    /// Start with the stages as the flags set them instead of the `auto` plan, which picks
+    /// them by their measured cost (P toggles).
+    #[arg(long)]
+    pub no_auto: bool,
     /// Start with the occluder gate off: last frame's visible set drawn early unculled (N
     /// toggles).
     #[arg(long)]
@@ -103,6 +107,8 @@ fn start_settings(args: &Args) -> RenderSettings {
     if args.no_culling {
         settings.stages = FramePlan::NONE;
     }
+    // Any flag that sets a culling stage asks for that stage, not for the auto plan.
+    settings.auto = !(args.no_auto || args.no_culling || args.no_occluder_gate);
     settings.stages.lod = args.lod;
     settings.stages.occluder_gate &= !args.no_occluder_gate;
     settings.lod.kind = args.criterion;
