@@ -22,7 +22,7 @@ fi
 if [ -n "${CITYWALK_BIN:-}" ]; then
   cw="$(realpath "$CITYWALK_BIN")" # a binary built elsewhere (for example copied to a GPU machine)
 else
-  cargo build --release -p citywalk-engine --bin citywalk
+  cargo build --release -p citywalk --bin citywalk
   cw="$root/target/release/citywalk"
 fi
 

@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use citywalk_engine::gpu::GpuContext;
+use citywalk_runtime::gpu::GpuContext;
 
 /// The headless GPU context for a test.
 ///

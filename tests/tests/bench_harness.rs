@@ -1,17 +1,17 @@
 //! The benchmark harness on a tiny scene: its oracle accounting, that it catches a broken
 //! culler, its JSON, the `oracle` pseudo-mode, and the decimated-city baseline.
 
-use citywalk_engine::bench::baseline::{DECIMATED_MODE, DecimatedBaseline};
-use citywalk_engine::bench::decimate::decimate_city;
-use citywalk_engine::bench::output::ENTRY_KEYS;
-use citywalk_engine::bench::run::pose_camera;
-use citywalk_engine::bench::{
+use citywalk_bench::baseline::{DECIMATED_MODE, DecimatedBaseline};
+use citywalk_bench::decimate::decimate_city;
+use citywalk_bench::output::ENTRY_KEYS;
+use citywalk_bench::run::pose_camera;
+use citywalk_bench::{
     AdapterSummary, BenchConfig, BenchRenderers, BenchReport, BenchScene, FrameRecord, Mode,
     run_path, summarise,
 };
-use citywalk_engine::gpu::GpuContext;
-use citywalk_engine::oracle::Oracle;
-use citywalk_engine::scene_gpu::{SceneGeometry, SceneGpu};
+use citywalk_runtime::gpu::GpuContext;
+use citywalk_runtime::oracle::Oracle;
+use citywalk_runtime::scene_gpu::{SceneGeometry, SceneGpu};
 use citywalk_scenes::City;
 use citywalk_scenes::blocks::UrbanBlocks;
 use citywalk_scenes::camera_path::{CameraPath, CameraPose};

@@ -4,15 +4,15 @@
 //! colours, nothing for entries not drawn); the occluder view blends the occluders where they
 //! project, highlighted when selected, and leaves the rest of the frame alone.
 
-use citywalk_engine::camera::Camera;
-use citywalk_engine::gpu::GpuContext;
-use citywalk_engine::render::debug::clusters::cluster_colour;
-use citywalk_engine::render::debug::pyramid::{GreyRange, pyramid_grey};
-use citywalk_engine::render::debug::{
+use citywalk_runtime::camera::Camera;
+use citywalk_runtime::gpu::GpuContext;
+use citywalk_runtime::render::debug::clusters::cluster_colour;
+use citywalk_runtime::render::debug::pyramid::{GreyRange, pyramid_grey};
+use citywalk_runtime::render::debug::{
     ClusterView, DepthPyramid, OccluderOverlay, OccluderOverlayMeshes, PyramidView,
 };
-use citywalk_engine::render::targets::OffscreenTarget;
-use citywalk_engine::scene_gpu::SceneGpu;
+use citywalk_runtime::render::targets::OffscreenTarget;
+use citywalk_runtime::scene_gpu::SceneGpu;
 use citywalk_scenes::BuildingId;
 use citywalk_scenes::extrude::building_mesh;
 use citywalk_scenes::occluder::{FacadeKind, Occluder, OccluderSet};

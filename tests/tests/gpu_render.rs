@@ -1,9 +1,9 @@
 //! GPU rendering tests: the brute-force renderer against a golden image, and sanity checks of
 //! the frame's content.
 
-use citywalk_engine::camera::Camera;
-use citywalk_engine::render::BruteRenderer;
-use citywalk_engine::scene_gpu::SceneGpu;
+use citywalk_runtime::camera::Camera;
+use citywalk_runtime::render::BruteRenderer;
+use citywalk_runtime::scene_gpu::SceneGpu;
 use citywalk_tests::city_builder::boxes;
 use citywalk_tests::gpu::{assert_matches_golden, gpu_or_skip};
 use glam::Vec3;

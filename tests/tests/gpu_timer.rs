@@ -2,14 +2,14 @@
 //! build and the cull, on whatever adapter the machine has (lavapipe in CI), and the path of a
 //! device without `TIMESTAMP_QUERY`.
 
-use citywalk_engine::camera::Camera;
-use citywalk_engine::frame::{CullingOptions, CullingRenderer, OccluderMeshes, Visibility};
-use citywalk_engine::gpu::{GpuContext, WANTED_FEATURES};
-use citywalk_engine::gpu_timer::{FRAME_PHASES, GpuTimer, GpuTimes};
-use citywalk_engine::hzb::{HzbCull, HzbPyramid};
-use citywalk_engine::render::{BruteRenderer, OffscreenTarget};
-use citywalk_engine::scene_gpu::SceneGpu;
 use citywalk_preprocess::occluders::{OccluderParams, build_occluders};
+use citywalk_runtime::camera::Camera;
+use citywalk_runtime::frame::{CullingOptions, CullingRenderer, OccluderMeshes, Visibility};
+use citywalk_runtime::gpu::{GpuContext, WANTED_FEATURES};
+use citywalk_runtime::gpu_timer::{FRAME_PHASES, GpuTimer, GpuTimes};
+use citywalk_runtime::hzb::{HzbCull, HzbPyramid};
+use citywalk_runtime::render::{BruteRenderer, OffscreenTarget};
+use citywalk_runtime::scene_gpu::SceneGpu;
 use citywalk_tests::gpu::gpu_or_skip;
 use glam::Vec3;
 

@@ -1,22 +1,22 @@
-//! The GPU hierarchical-Z passes against their CPU reference (`citywalk_engine::hzb::reference`):
+//! The GPU hierarchical-Z passes against their CPU reference (`citywalk_runtime::hzb::reference`):
 //! the pyramid texel for texel, the cull box for box, and the indirect draws it appends.
 //!
 //! Depth buffers are written by a fullscreen pass that copies a random `R32Float` texture into
 //! `frag_depth`, so the CPU knows every depth exactly; where the backend can copy depth to a
 //! buffer (not GL), the depth texture is also read back and must equal the input.
 
-use citywalk_engine::camera::Camera;
-use citywalk_engine::gpu::GpuContext;
-use citywalk_engine::hzb::cull::{
+use citywalk_runtime::camera::Camera;
+use citywalk_runtime::gpu::GpuContext;
+use citywalk_runtime::hzb::cull::{
     CULL_FRUSTUM_OUTSIDE, CULL_NOT_EARLY, CULL_OCCLUDED, CULL_VISIBLE, CullEntry, CullLinks,
     CullVisibility, NO_PARENT,
 };
-use citywalk_engine::hzb::reference::{
+use citywalk_runtime::hzb::reference::{
     BoxProjection, DepthPyramid, HullTest, RecordCull, box_corners, project_box, select_level,
 };
-use citywalk_engine::hzb::{CullResults, HzbCull, HzbPyramid};
-use citywalk_engine::render::targets::map_read;
-use citywalk_engine::render::{fragment_float_texture_entry, fullscreen_pipeline};
+use citywalk_runtime::hzb::{CullResults, HzbCull, HzbPyramid};
+use citywalk_runtime::render::targets::map_read;
+use citywalk_runtime::render::{fragment_float_texture_entry, fullscreen_pipeline};
 use citywalk_shaders::{BuildingRecord, CullPart, DrawIndexedIndirectArgs};
 use citywalk_tests::gpu::gpu_or_skip;
 use citywalk_tests::rng::Rng;
@@ -976,9 +976,9 @@ fn gpu_cull_of_a_rendered_city_never_hides_a_visible_building() {
     else {
         return;
     };
-    use citywalk_engine::oracle::Oracle;
-    use citywalk_engine::render::{BruteRenderer, OffscreenTarget};
-    use citywalk_engine::scene_gpu::SceneGpu;
+    use citywalk_runtime::oracle::Oracle;
+    use citywalk_runtime::render::{BruteRenderer, OffscreenTarget};
+    use citywalk_runtime::scene_gpu::SceneGpu;
 
     let mut rng = Rng(0x5eed_c17e);
     // A 20 × 20 grid of blocks 25 m apart, buildings 10–20 m wide and 4–60 m tall: streets at

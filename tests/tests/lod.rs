@@ -4,14 +4,14 @@
 
 use std::sync::OnceLock;
 
-use citywalk_engine::bench::Mode;
-use citywalk_engine::bench::run::{BenchConfig, BenchRenderers, BenchScene, pose_camera, run_path};
-use citywalk_engine::camera::Camera;
-use citywalk_engine::lod::scene::{LodFrame, LodScene};
-use citywalk_engine::lod::{LodCriterion, LodCut, LodTree, LodView, distance_to_box};
-use citywalk_engine::oracle::Oracle;
-use citywalk_engine::scene_gpu::SceneGpu;
+use citywalk_bench::Mode;
+use citywalk_bench::run::{BenchConfig, BenchRenderers, BenchScene, pose_camera, run_path};
 use citywalk_preprocess::pipeline::{NoProgress, PreprocessParams, preprocess};
+use citywalk_runtime::camera::Camera;
+use citywalk_runtime::lod::scene::{LodFrame, LodScene};
+use citywalk_runtime::lod::{LodCriterion, LodCut, LodTree, LodView, distance_to_box};
+use citywalk_runtime::oracle::Oracle;
+use citywalk_runtime::scene_gpu::SceneGpu;
 use citywalk_scenes::City;
 use citywalk_scenes::camera_path;
 use citywalk_scenes::cluster_tree::ClusterTree;
@@ -292,15 +292,15 @@ fn lod_cut_has_no_false_culls_and_saves_triangles_from_the_air() {
         );
     }
     // The combined scene renders: the LOD frame is not empty sky.
-    let mut renderer = citywalk_engine::render::selected::SelectedRenderer::new(
+    let mut renderer = citywalk_runtime::render::selected::SelectedRenderer::new(
         &gpu,
-        citywalk_engine::render::BruteRenderer::PNG_FORMAT,
+        citywalk_runtime::render::BruteRenderer::PNG_FORMAT,
     );
-    let target = citywalk_engine::render::targets::OffscreenTarget::new(
+    let target = citywalk_runtime::render::targets::OffscreenTarget::new(
         &gpu,
         320,
         240,
-        citywalk_engine::render::BruteRenderer::PNG_FORMAT,
+        citywalk_runtime::render::BruteRenderer::PNG_FORMAT,
     )
     .expect("target");
     let frame = lod.select(&overview, 320, 240, LodCriterion::YANG_PAPER, None);
@@ -451,9 +451,9 @@ fn landmarks_are_drawn_beside_their_clusters_under_tau() {
 #[test]
 fn cluster_cull_records_contain_their_buildings() {
     let (city, tree) = city_and_tree();
-    let geometry = citywalk_engine::lod::scene::lod_geometry(city, tree);
+    let geometry = citywalk_runtime::lod::scene::lod_geometry(city, tree);
     let n = city.buildings.len() as u32;
-    let records = citywalk_engine::lod::scene::cull_records(&geometry.records, n, tree);
+    let records = citywalk_runtime::lod::scene::cull_records(&geometry.records, n, tree);
     assert_eq!(records.len(), geometry.records.len());
     assert_eq!(records[..n as usize], geometry.records[..n as usize]);
     let mut grown = 0;

@@ -1,8 +1,8 @@
 //! The visibility oracle on hand-built scenes with known answers.
 
-use citywalk_engine::camera::Camera;
-use citywalk_engine::oracle::{Oracle, VisibleSet};
-use citywalk_engine::scene_gpu::{SceneGeometry, SceneGpu};
+use citywalk_runtime::camera::Camera;
+use citywalk_runtime::oracle::{Oracle, VisibleSet};
+use citywalk_runtime::scene_gpu::{SceneGeometry, SceneGpu};
 use citywalk_scenes::BuildingId;
 use citywalk_tests::city_builder::boxes;
 use citywalk_tests::gpu::gpu_or_skip;

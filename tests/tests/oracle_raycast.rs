@@ -2,9 +2,9 @@
 //! pixel centres, the first triangle hit must belong to the building the id image shows there,
 //! except at pixels on an id edge (where rasterisation and ray casting may round differently).
 
-use citywalk_engine::camera::Camera;
-use citywalk_engine::oracle::{IdImage, Oracle};
-use citywalk_engine::scene_gpu::{SceneGeometry, SceneGpu};
+use citywalk_runtime::camera::Camera;
+use citywalk_runtime::oracle::{IdImage, Oracle};
+use citywalk_runtime::scene_gpu::{SceneGeometry, SceneGpu};
 use citywalk_shaders::{GROUND_ID, ID_BACKGROUND, ID_OFFSET};
 use citywalk_tests::city_builder::boxes;
 use citywalk_tests::gpu::gpu_or_skip;
@@ -95,7 +95,7 @@ fn on_edge(image: &IdImage, x: u32, y: u32) -> bool {
 /// Compares the oracle's id image with ray casts at every `step`-th pixel; returns
 /// (interior samples, interior mismatches, edge samples, interior samples showing a building).
 fn cross_check(
-    gpu: &citywalk_engine::gpu::GpuContext,
+    gpu: &citywalk_runtime::gpu::GpuContext,
     geometry: &SceneGeometry,
     camera: &Camera,
     (width, height): (u32, u32),

@@ -1,4 +1,4 @@
-//! The two-phase HiZ frame (`citywalk_engine::frame`) against the exact ID-buffer oracle: every
+//! The two-phase HiZ frame (`citywalk_runtime::frame`) against the exact ID-buffer oracle: every
 //! building with a visible pixel is drawn in the same frame, with and without the virtual
 //! occluder pre-pass, over random street-level and aerial cameras, after a fast turn, at odd
 //! viewport sizes, and with boxes crossing the near plane; and at street level most of the city
@@ -10,22 +10,22 @@
 use std::path::PathBuf;
 use std::sync::OnceLock;
 
-use citywalk_engine::bench::pixel_error::pixel_error;
-use citywalk_engine::bench::{BenchConfig, BenchError, BenchRenderers, BenchScene, Mode, run_path};
-use citywalk_engine::camera::Camera;
-use citywalk_engine::frame::{
+use citywalk_bench::pixel_error::pixel_error;
+use citywalk_bench::{BenchConfig, BenchError, BenchRenderers, BenchScene, Mode, run_path};
+use citywalk_preprocess::pipeline::{NoProgress, PreprocessParams, preprocess};
+use citywalk_runtime::camera::Camera;
+use citywalk_runtime::frame::{
     CullingOptions, CullingRenderer, FrameOutput, OccluderMeshes, Visibility,
 };
-use citywalk_engine::gpu::GpuContext;
-use citywalk_engine::hzb::cull::CULL_VISIBLE;
-use citywalk_engine::lod::LodCriterion;
-use citywalk_engine::lod::scene::{LodFrame, LodScene};
-use citywalk_engine::oracle::{Oracle, VisibleSet};
-use citywalk_engine::render::BruteRenderer;
-use citywalk_engine::render::targets::OffscreenTarget;
-use citywalk_engine::runner::visible_blocks;
-use citywalk_engine::scene_gpu::SceneGpu;
-use citywalk_preprocess::pipeline::{NoProgress, PreprocessParams, preprocess};
+use citywalk_runtime::gpu::GpuContext;
+use citywalk_runtime::hzb::cull::CULL_VISIBLE;
+use citywalk_runtime::lod::LodCriterion;
+use citywalk_runtime::lod::scene::{LodFrame, LodScene};
+use citywalk_runtime::oracle::{Oracle, VisibleSet};
+use citywalk_runtime::render::BruteRenderer;
+use citywalk_runtime::render::targets::OffscreenTarget;
+use citywalk_runtime::runner::visible_blocks;
+use citywalk_runtime::scene_gpu::SceneGpu;
 use citywalk_scenes::City;
 use citywalk_scenes::camera_path::{flyover, street_walk};
 use citywalk_scenes::generate::{GenerateParams, generate_city};
@@ -1116,7 +1116,7 @@ fn empty_cut_and_devices_without_draw_count_stay_correct() {
 
     // The same sweeps on a device that lacks the draw-count feature.
     let gpu = GpuContext::headless_with_features(
-        citywalk_engine::gpu::WANTED_FEATURES - wgpu::Features::MULTI_DRAW_INDIRECT_COUNT,
+        citywalk_runtime::gpu::WANTED_FEATURES - wgpu::Features::MULTI_DRAW_INDIRECT_COUNT,
     )
     .expect("the adapter found above");
     assert!(!gpu.has(wgpu::Features::MULTI_DRAW_INDIRECT_COUNT));

@@ -4,16 +4,16 @@
 //! culled; from the overview camera a coarse LOD cut draws clusters and fewer triangles through
 //! both LOD paths; every debug view replaces or tints the frame and says what it shows.
 
-use citywalk_engine::camera::Camera;
-use citywalk_engine::controller::{CameraRig, CollisionWorld, Mode};
-use citywalk_engine::render::BruteRenderer;
-use citywalk_engine::render::targets::OffscreenTarget;
-use citywalk_engine::viewer::draw::{Drawn, FrameDrawer};
-use citywalk_engine::viewer::settings::SceneFeatures;
-use citywalk_engine::viewer::{DebugView, FramePlan, RenderSettings, ViewerScene};
 use citywalk_preprocess::pipeline::{NoProgress, PreprocessParams, preprocess};
+use citywalk_runtime::camera::Camera;
+use citywalk_runtime::controller::{CameraRig, CollisionWorld, Mode};
+use citywalk_runtime::render::BruteRenderer;
+use citywalk_runtime::render::targets::OffscreenTarget;
 use citywalk_scenes::generate::{GenerateParams, generate_city};
 use citywalk_tests::gpu::gpu_or_skip;
+use citywalk_viewer::draw::{Drawn, FrameDrawer};
+use citywalk_viewer::settings::SceneFeatures;
+use citywalk_viewer::{DebugView, FramePlan, RenderSettings, ViewerScene};
 use glam::Vec3;
 
 const SIZE: (u32, u32) = (192, 120);

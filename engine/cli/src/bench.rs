@@ -1,0 +1,272 @@
+//! `citywalk bench SCENE... --out DIR`: the occlusion benchmark. Every frame of every path and
+//! mode is checked against the exact visibility oracle; the process exits non-zero if any
+//! visible building was culled, after writing all outputs.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::Context;
+use citywalk_bench::baseline::{BaselineTarget, DecimatedBaseline};
+use citywalk_bench::decimate::decimate_city;
+use citywalk_bench::plots::write_plots;
+use citywalk_bench::{
+    AdapterSummary, BenchConfig, BenchRenderers, BenchReport, BenchScene, FrameRecord, Mode,
+    run_path, summarise, write_outputs,
+};
+use citywalk_runtime::gpu::GpuContext;
+use citywalk_runtime::lod::LodCriterion;
+use citywalk_runtime::lod::scene::LodScene;
+use citywalk_runtime::scene_gpu::{SceneGeometry, SceneGpu};
+use citywalk_scenes::camera_path::{self, CameraPath};
+
+use crate::path_arg::GENERATED;
+use crate::scene_input::load_scene;
+
+/// Arguments of `citywalk bench`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Scenes: packages (.cwk) or any loadable input (preprocessed on the fly).
+    #[arg(required_unless_present = "list_modes")]
+    pub scenes: Vec<PathBuf>,
+    /// Output folder for frames.csv, bench.json, summary.md, path files and PNG frames.
+    #[arg(long, required_unless_present = "list_modes")]
+    pub out: Option<PathBuf>,
+    /// Print the modes this build implements, comma-separated, and exit.
+    #[arg(long)]
+    pub list_modes: bool,
+    /// Camera paths generated per scene: street (the whole street route, frames spread over
+    /// it), walk (an interactive walkthrough: 3 m per frame from the route's middle), flyover,
+    /// dive.
+    #[arg(long, default_value = "street,walk,flyover,dive")]
+    pub paths: String,
+    /// Path files to replay in addition to (or, with --paths "", instead of) generated ones.
+    #[arg(long = "path-file")]
+    pub path_files: Vec<PathBuf>,
+    /// Culling modes: brute, frustum, quadtree, hzb, occluders, lod, all (quadtree + LOD + HZB +
+    /// occluders), oracle (exactly the oracle's visible set: the fastest any culling could be).
+    #[arg(long, default_value = "brute,frustum,quadtree")]
+    pub modes: String,
+    /// LOD criterion of the `lod` mode: auto (Chang ε = τ = 1 px at street level, 2 px above
+    /// the roofs), chang-walkthrough, chang-flyover, chang-paper (ε = 100, τ = 2 px),
+    /// yang-paper (δh = 20 px, δa = 200 px).
+    #[arg(long, default_value = "auto")]
+    pub lod_criterion: String,
+    /// Frames per generated path.
+    #[arg(long, default_value_t = 60)]
+    pub frames: usize,
+    /// Viewport in pixels, WIDTHxHEIGHT.
+    #[arg(long, default_value = "1280x720", value_parser = crate::cli_args::parse_size)]
+    pub size: (u32, u32),
+    /// Write a PNG of every N-th frame of each path and mode (0: none).
+    #[arg(long, default_value_t = 0)]
+    pub png_every: usize,
+    /// Print bench.json to standard output (alone: the summary table then goes to standard
+    /// error).
+    #[arg(long)]
+    pub json: bool,
+    /// Also measure the baseline a user would pick instead: the whole city decimated with
+    /// meshoptimizer and drawn unculled, as the pseudo-mode `decimated`. `decimate:N` (N
+    /// triangles), `decimate:P%` (P % of the city's triangles) or `decimate:MODE` (the mean
+    /// triangles per frame MODE drew on the scene; MODE must be among --modes).
+    #[arg(long, value_parser = BaselineTarget::parse)]
+    pub baseline: Option<BaselineTarget>,
+}
+
+/// The `--lod-criterion` of this run, set once by [`run`] (unset: auto), read where the scenes
+/// are loaded; kept out of the shared `run_benchmark_with` signature.
+static LOD_CRITERION: std::sync::OnceLock<Option<LodCriterion>> = std::sync::OnceLock::new();
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let lod_criterion = LodCriterion::parse(&args.lod_criterion).map_err(anyhow::Error::msg)?;
+    let _ = LOD_CRITERION.set(lod_criterion);
+    if args.list_modes {
+        println!("{}", Mode::NAMED.map(Mode::name).join(","));
+        return Ok(());
+    }
+    let out = args.out.clone().context("--out is required")?;
+    let modes = Mode::parse_list(&args.modes).map_err(anyhow::Error::msg)?;
+    let config = BenchConfig {
+        modes,
+        width: args.size.0,
+        height: args.size.1,
+        frames_dir: (args.png_every > 0).then(|| out.clone()),
+        png_every: args.png_every,
+    };
+    let path_kinds = parse_path_kinds(&args.paths)?;
+    let replayed: Vec<CameraPath> = args
+        .path_files
+        .iter()
+        .map(|p| CameraPath::read(p).with_context(|| format!("reading path {}", p.display())))
+        .collect::<Result<_, _>>()?;
+    if let Some(BaselineTarget::MeanOfMode(mode)) = args.baseline
+        && !config.modes.contains(&mode)
+    {
+        anyhow::bail!("--baseline decimate:{mode} needs mode '{mode}' in --modes");
+    }
+    let report = run_benchmark_with(
+        &args.scenes,
+        &out,
+        &path_kinds,
+        &replayed,
+        args.frames,
+        &config,
+        args.baseline,
+    )?;
+    let summary = citywalk_bench::output::summary_markdown(&report);
+    if args.json {
+        // Standard output holds the JSON alone (for pipes); the table goes to standard error.
+        eprint!("{summary}");
+        println!("{}", serde_json::to_string_pretty(&report)?);
+        eprintln!("wrote {}", out.display());
+    } else {
+        print!("{summary}");
+        println!("wrote {}", out.display());
+    }
+    let false_culls = report.false_culls();
+    if false_culls > 0 {
+        anyhow::bail!(
+            "{false_culls} false culls: visible buildings were culled (see {}/frames.csv)",
+            out.display()
+        );
+    }
+    Ok(())
+}
+
+/// The generated path kinds, in order.
+pub fn parse_path_kinds(list: &str) -> anyhow::Result<Vec<String>> {
+    let mut kinds = Vec::new();
+    for word in list.split(',').map(str::trim).filter(|w| !w.is_empty()) {
+        if !GENERATED.contains(&word) {
+            anyhow::bail!("unknown path '{word}' (paths: {})", GENERATED.join(", "));
+        }
+        kinds.push(word.to_string());
+    }
+    Ok(kinds)
+}
+
+/// Runs the benchmark over `scenes` and writes every output into `out`; returns the report.
+pub fn run_benchmark(
+    scenes: &[PathBuf],
+    out: &Path,
+    path_kinds: &[String],
+    replayed: &[CameraPath],
+    frames: usize,
+    config: &BenchConfig,
+) -> anyhow::Result<BenchReport> {
+    run_benchmark_with(scenes, out, path_kinds, replayed, frames, config, None)
+}
+
+/// [`run_benchmark`], plus the decimated-city baseline of each scene when `baseline` is given.
+pub fn run_benchmark_with(
+    scenes: &[PathBuf],
+    out: &Path,
+    path_kinds: &[String],
+    replayed: &[CameraPath],
+    frames: usize,
+    config: &BenchConfig,
+    baseline: Option<BaselineTarget>,
+) -> anyhow::Result<BenchReport> {
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    let gpu = GpuContext::headless()?;
+    eprintln!("adapter: {}", gpu.adapter_summary());
+    let mut renderers = BenchRenderers::new(&gpu);
+    let mut records: Vec<FrameRecord> = Vec::new();
+    for scene_path in scenes {
+        let started = Instant::now();
+        let package = load_scene(scene_path)?;
+        let city = package.city();
+        let name = scene_name(scene_path);
+        let scene = BenchScene {
+            name: name.clone(),
+            gpu_scene: SceneGpu::upload_city(&gpu, &city),
+            blocks: package.blocks.clone(),
+            quadtree: package.quadtree.clone(),
+            lod: package.cluster_tree.clone().map(|tree| LodScene {
+                criterion: LOD_CRITERION.get().copied().flatten(),
+                ..LodScene::upload(&gpu, &city, tree)
+            }),
+            occluders: package
+                .occluders
+                .as_ref()
+                .map(|set| citywalk_runtime::frame::OccluderMeshes::upload(&gpu, set)),
+        };
+        eprintln!(
+            "{name}: {} buildings, {} triangles, ready in {:.1} s",
+            scene.gpu_scene.building_count(),
+            scene.gpu_scene.triangle_count,
+            started.elapsed().as_secs_f64()
+        );
+        let mut paths: Vec<CameraPath> = path_kinds
+            .iter()
+            .map(|kind| match kind.as_str() {
+                "street" => camera_path::street_walk(&city, frames),
+                "walk" => camera_path::walkthrough(&city, frames),
+                "flyover" => camera_path::flyover(&city, frames),
+                _ => camera_path::dive(&city, frames),
+            })
+            .collect();
+        paths.extend(replayed.iter().cloned());
+        for path in &paths {
+            let file = out.join(format!("{name}-{}.path", path.name));
+            path.write(&file)
+                .with_context(|| format!("writing {}", file.display()))?;
+            let started = Instant::now();
+            let rows = run_path(&gpu, &mut renderers, &scene, path, config)
+                .with_context(|| format!("{name}, path {}", path.name))?;
+            let false_culls: usize = rows.iter().map(|r| r.false_culls).sum();
+            eprintln!(
+                "{name} / {}: {} frames × {} modes in {:.1} s, {false_culls} false culls",
+                path.name,
+                path.poses.len(),
+                config.modes.len(),
+                started.elapsed().as_secs_f64()
+            );
+            records.extend(rows);
+        }
+        if let Some(target) = baseline {
+            let started = Instant::now();
+            let geometry = SceneGeometry::from_city(&city);
+            let budget = target
+                .triangles(&name, geometry.building_triangle_count(), &records)
+                .with_context(|| format!("{name}: no frames to size the baseline by"))?;
+            let decimated = decimate_city(&geometry, budget);
+            let decimated_gpu = SceneGpu::upload(&gpu, &decimated.geometry(&geometry));
+            eprintln!(
+                "{name}: decimated to {} triangles (budget {budget}, {:?}) in {:.1} s",
+                decimated.triangles,
+                decimated.method,
+                started.elapsed().as_secs_f64()
+            );
+            let mut runner = DecimatedBaseline::new(&gpu);
+            for path in &paths {
+                let rows = runner
+                    .run_path(&gpu, &scene, &decimated_gpu, path, config)
+                    .with_context(|| format!("{name}, path {}, decimated", path.name))?;
+                records.extend(rows);
+            }
+        }
+    }
+    let info = &gpu.adapter_info;
+    let report = BenchReport {
+        adapter: AdapterSummary {
+            name: info.name.clone(),
+            backend: format!("{:?}", info.backend),
+            device_type: format!("{:?}", info.device_type),
+        },
+        size: [config.width, config.height],
+        entries: summarise(&records),
+    };
+    write_outputs(out, &records, &report)?;
+    let plots = write_plots(out, &records)?;
+    eprintln!("{} plots", plots.len());
+    Ok(report)
+}
+
+/// A short scene name from its file name: `chelsea.osm.pbf` → `chelsea`.
+pub fn scene_name(path: &Path) -> String {
+    let file = path
+        .file_name()
+        .map(|f| f.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "scene".into());
+    file.split('.').next().unwrap_or("scene").to_string()
+}

@@ -1,0 +1,178 @@
+//! `citywalk bench` end to end on a tiny GeoJSON city: its files (frames.csv, bench.json,
+//! summary.md, plots), the `oracle` pseudo-mode, the decimated baseline, `--json` on standard
+//! output, and the refusal of modes it does not know.
+//!
+//! Without a GPU adapter (software ones count) the run is skipped with a message, except under
+//! CI (env `CI` set), where it fails — the rule of `citywalk_tests::gpu::gpu_or_skip`.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+use citywalk_bench::Mode;
+use citywalk_bench::plots::PLOT_SIZE;
+use citywalk_runtime::gpu::GpuContext;
+
+#[path = "support/grid_scene.rs"]
+mod grid_scene;
+#[path = "support/scratch.rs"]
+mod scratch;
+use grid_scene::write_scene;
+use scratch::temp_dir;
+
+fn bench(scene: &Path, out: &Path, extra: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_citywalk"))
+        .arg("bench")
+        .arg(scene)
+        .arg("--out")
+        .arg(out)
+        .args(["--paths", "street", "--frames", "4", "--size", "96x64"])
+        .args(extra)
+        .output()
+        .expect("run citywalk bench")
+}
+
+fn gpu_available(test: &str) -> bool {
+    match GpuContext::headless() {
+        Ok(_) => true,
+        Err(e) if std::env::var_os("CI").is_some() => {
+            panic!("{test}: CI is set and no GPU context could be made: {e}")
+        }
+        Err(e) => {
+            eprintln!("{test}: SKIPPED (no GPU, CI unset): {e}");
+            false
+        }
+    }
+}
+
+#[test]
+fn bench_writes_its_files_and_plots() {
+    if !gpu_available("bench_cli") {
+        return;
+    }
+    let dir = temp_dir("bench-cli-run");
+    let scene = dir.join("tiny.geojson");
+    write_scene(&scene);
+    let out = dir.join("out");
+    let run = bench(
+        &scene,
+        &out,
+        &[
+            "--modes",
+            "brute,frustum,oracle",
+            "--baseline",
+            "decimate:25%",
+            "--json",
+        ],
+    );
+    let log = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "citywalk bench failed:\n{log}");
+    // With --json, standard output is the report alone, the same as bench.json.
+    let printed: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap_or_else(|e| {
+        panic!(
+            "stdout is not JSON ({e}):\n{}",
+            String::from_utf8_lossy(&run.stdout)
+        )
+    });
+    let csv = std::fs::read_to_string(out.join("frames.csv")).expect("frames.csv");
+    // Header + 4 frames × (3 modes + the decimated baseline).
+    assert_eq!(csv.lines().count(), 1 + 4 * 4, "{csv}");
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().expect("header").split(',').collect();
+    let column = |name: &str| header.iter().position(|h| *h == name).expect(name);
+    let mut oracle_rows = 0;
+    for row in lines.map(|l| l.split(',').collect::<Vec<&str>>()) {
+        let cpu_ms: f64 = row[column("cpu_ms")].parse().expect("cpu_ms");
+        assert!(cpu_ms.is_finite() && cpu_ms >= 0.0, "{row:?}");
+        if row[column("mode")] == "oracle" {
+            oracle_rows += 1;
+            assert_eq!(row[column("false_culls")], "0", "{row:?}");
+            assert_eq!(row[column("drawn")], row[column("visible")], "{row:?}");
+        }
+    }
+    assert_eq!(oracle_rows, 4);
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("bench.json")).expect("json"))
+            .expect("bench.json parses");
+    let modes: Vec<&str> = json["entries"]
+        .as_array()
+        .expect("entries")
+        .iter()
+        .filter_map(|e| e["mode"].as_str())
+        .collect();
+    assert_eq!(modes, ["brute", "frustum", "oracle", "decimated"]);
+    for e in json["entries"].as_array().expect("entries") {
+        let ratio = e["oracle_ratio"].as_f64().unwrap_or_else(|| panic!("{e}"));
+        let (median, oracle_median) = (
+            e["frame_ms_median"].as_f64().expect("median"),
+            json["entries"][2]["frame_ms_median"]
+                .as_f64()
+                .expect("oracle median"),
+        );
+        assert!(
+            (ratio - median / oracle_median).abs() <= 1e-9 * ratio,
+            "{e}"
+        );
+        for key in ["frame_ms_p95", "frame_ms_p99", "frame_ms_max"] {
+            assert!(e[key].as_f64().expect(key) >= median, "{key}: {e}");
+        }
+        let cpu = |key: &str| e[key].as_f64().unwrap_or_else(|| panic!("{key}: {e}"));
+        assert!(
+            cpu("cpu_ms_max") >= cpu("cpu_ms_p99") && cpu("cpu_ms_p99") >= cpu("cpu_ms_median")
+        );
+    }
+    assert_eq!(json["entries"][2]["false_culls"], 0);
+    assert_eq!(json["size"], serde_json::json!([96, 64]));
+    assert_eq!(printed, json);
+    let summary = std::fs::read_to_string(out.join("summary.md")).expect("summary.md");
+    assert!(
+        summary.contains("| tiny | street | decimated |"),
+        "{summary}"
+    );
+    assert!(
+        summary.contains("| tiny | street | oracle |") && summary.contains("÷ oracle"),
+        "{summary}"
+    );
+    for kind in ["frame-ms", "triangles", "pixel-error", "culled"] {
+        let file = out.join(format!("plot-tiny-street-{kind}.png"));
+        let image = image::open(&file)
+            .unwrap_or_else(|e| panic!("{}: {e}\n{log}", file.display()))
+            .to_rgb8();
+        assert_eq!(image.dimensions(), PLOT_SIZE);
+        let first = *image.get_pixel(0, 0);
+        assert!(image.pixels().any(|p| *p != first), "{kind} plot is blank");
+    }
+    std::fs::remove_dir_all(&dir).expect("clean up");
+}
+
+#[test]
+fn unknown_and_unbuilt_modes_are_refused() {
+    let dir = temp_dir("bench-cli-refuse");
+    let scene = dir.join("tiny.geojson");
+    write_scene(&scene);
+    let out = dir.join("out");
+    let run = bench(&scene, &out, &["--modes", "brute,warp-speed"]);
+    let log = String::from_utf8_lossy(&run.stderr);
+    assert!(!run.status.success());
+    assert!(log.contains("unknown mode 'warp-speed'"), "{log}");
+    assert!(!out.join("bench.json").exists());
+
+    let run = bench(&scene, &out, &["--baseline", "decimate:nothing"]);
+    assert!(!run.status.success());
+    assert!(
+        String::from_utf8_lossy(&run.stderr).contains("unknown mode 'nothing'"),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+
+    // `--list-modes` lists every mode the command line takes, in order.
+    let list = Command::new(env!("CARGO_BIN_EXE_citywalk"))
+        .args(["bench", "--list-modes"])
+        .output()
+        .expect("run citywalk bench --list-modes");
+    assert!(list.status.success());
+    assert_eq!(
+        String::from_utf8_lossy(&list.stdout).trim(),
+        Mode::NAMED.map(Mode::name).join(",")
+    );
+    std::fs::remove_dir_all(&dir).expect("clean up");
+}

@@ -1,0 +1,301 @@
+//! The viewer's frame: the scene drawn by the frame runner ([`citywalk_runtime::runner::FrameRunner`]) with
+//! the plan the settings ask for, then the debug view, if any, from what that frame drew.
+
+use citywalk_scenes::blocks::UrbanBlocks;
+use citywalk_scenes::cluster_tree::ClusterTree;
+use citywalk_scenes::occluder::OccluderSet;
+use citywalk_scenes::quadtree::BQuadtree;
+
+use super::overlay::StageCounts;
+use super::settings::{DebugView, RenderSettings};
+use citywalk_runtime::auto::AutoPlanner;
+use citywalk_runtime::camera::Camera;
+use citywalk_runtime::frame::{FrameError, OccluderMeshes, Visibility};
+use citywalk_runtime::gpu::GpuContext;
+use citywalk_runtime::lod::scene::LodScene;
+use citywalk_runtime::plan::SceneFeatures;
+use citywalk_runtime::render::DepthTarget;
+use citywalk_runtime::render::debug::pyramid::GreyRange;
+use citywalk_runtime::render::debug::{
+    ClusterView, DepthPyramid, OccluderOverlay, OccluderOverlayMeshes, PyramidView,
+};
+use citywalk_runtime::runner::{Completion, FrameReport, FrameRunner, FrameTarget, SceneRefs};
+use citywalk_runtime::scene_gpu::SceneGpu;
+
+/// What the viewer draws from, on the CPU.
+#[derive(Debug)]
+pub struct ViewerScene {
+    pub city: citywalk_scenes::City,
+    /// A scene package's virtual occluders.
+    pub occluders: Option<OccluderSet>,
+    /// A scene package's cluster tree (the LOD cut needs it).
+    pub cluster_tree: Option<ClusterTree>,
+    /// A scene package's urban blocks and B-Quadtree (frustum culling of whole blocks).
+    pub blocks: Option<(UrbanBlocks, BQuadtree)>,
+}
+
+impl ViewerScene {
+    /// What this scene offers to the settings.
+    pub fn features(&self) -> SceneFeatures {
+        SceneFeatures {
+            occluders: self
+                .occluders
+                .as_ref()
+                .is_some_and(|o| !o.occluders.is_empty()),
+            cluster_tree: self.cluster_tree.is_some(),
+            quadtree: self.blocks.is_some(),
+        }
+    }
+}
+
+/// What a frame drew, for the overlay and the debug views.
+#[derive(Debug, Clone, Default)]
+pub struct Drawn {
+    pub counts: StageCounts,
+    /// Draw ids drawn (into the LOD scene when `lod_scene`, else the plain scene).
+    pub ids: Vec<u32>,
+    pub lod_scene: bool,
+    /// The frame went through the two-phase HZB renderer (its pyramid is the frame's).
+    pub hzb: bool,
+    /// The occluders the pre-pass selected, indices into [`OccluderMeshes::occluders`] (the
+    /// rule of [`OccluderMeshes::select`], recomputed from the visible set the frame started
+    /// with).
+    pub selected_occluders: Vec<usize>,
+}
+
+/// Every renderer and GPU resource of the viewer's frame.
+#[derive(Debug)]
+pub struct FrameDrawer {
+    runner: FrameRunner,
+    scene: SceneGpu,
+    lod: Option<LodScene>,
+    blocks: Option<(UrbanBlocks, BQuadtree)>,
+    occluders: Option<OccluderMeshes>,
+    occluder_overlay_meshes: Option<OccluderOverlayMeshes>,
+    /// Last frame's visible buildings, carried along the camera stream.
+    visibility: Visibility,
+    /// The newest report read so far (an HZB frame's comes a frame or more late).
+    last_report: Option<FrameReport>,
+    /// The `auto` plan's planner, for the LOD setting it was made with.
+    auto: Option<(bool, AutoPlanner)>,
+    /// Wait for each frame's own report instead of showing the newest ready one: for
+    /// screenshots and headless runs, whose counts must be the frame's. The interactive viewer
+    /// never waits.
+    pub wait_for_reports: bool,
+    cluster_view: ClusterView,
+    depth_pyramid: DepthPyramid,
+    pyramid_view: PyramidView,
+    occluder_overlay: OccluderOverlay,
+}
+
+impl FrameDrawer {
+    /// Uploads `scene` and makes every pipeline for colour targets of `format`.
+    pub fn new(gpu: &GpuContext, format: wgpu::TextureFormat, scene: ViewerScene) -> FrameDrawer {
+        let occluders = scene.occluders.filter(|o| !o.occluders.is_empty());
+        FrameDrawer {
+            runner: FrameRunner::new(gpu, format),
+            scene: SceneGpu::upload_city(gpu, &scene.city),
+            lod: scene
+                .cluster_tree
+                .map(|tree| LodScene::upload(gpu, &scene.city, tree)),
+            blocks: scene.blocks,
+            occluder_overlay_meshes: occluders
+                .as_ref()
+                .map(|set| OccluderOverlayMeshes::upload(gpu, set)),
+            occluders: occluders
+                .as_ref()
+                .map(|set| OccluderMeshes::upload(gpu, set)),
+            visibility: Visibility::default(),
+            last_report: None,
+            auto: None,
+            wait_for_reports: false,
+            cluster_view: ClusterView::new(gpu, format),
+            depth_pyramid: DepthPyramid::new(gpu),
+            pyramid_view: PyramidView::new(gpu, format),
+            occluder_overlay: OccluderOverlay::new(gpu, format),
+        }
+    }
+
+    /// Buildings and their triangles in the scene.
+    pub fn scene_counts(&self) -> (usize, usize) {
+        (self.scene.building_count(), self.scene.triangle_count)
+    }
+
+    /// Draws one frame from `camera` into `colour` (`width × height`; `depth` of that size for
+    /// the passes that do not own theirs), then the debug view of `settings`.
+    #[expect(clippy::too_many_arguments, reason = "one frame, all inputs explicit")]
+    pub fn draw(
+        &mut self,
+        gpu: &GpuContext,
+        colour: &wgpu::TextureView,
+        depth: &DepthTarget,
+        size: (u32, u32),
+        camera: &Camera,
+        settings: &RenderSettings,
+        features: SceneFeatures,
+    ) -> Result<Drawn, FrameError> {
+        let lod = settings.stages.lod;
+        let planner = match &mut self.auto {
+            Some((made_for, planner)) if *made_for == lod => planner,
+            slot => &mut slot.insert((lod, AutoPlanner::new(features, lod))).1,
+        };
+        let plan = if settings.auto {
+            planner.plan()
+        } else {
+            settings.plan(features)
+        };
+        let start = std::time::Instant::now();
+        let refs = SceneRefs {
+            scene: &self.scene,
+            lod: self.lod.as_ref(),
+            blocks: self.blocks.as_ref().map(|(b, q)| (b, q)),
+            occluders: self.occluders.as_ref(),
+        };
+        // The cluster view colours what this very frame drew: it waits for the frame's report.
+        let wait = self.wait_for_reports || settings.debug_view == DebugView::Clusters;
+        let completion = if wait {
+            Completion::Wait
+        } else {
+            Completion::Poll
+        };
+        let report = self.runner.run(
+            gpu,
+            refs,
+            plan,
+            Some(settings.lod.criterion()),
+            &mut self.visibility,
+            camera,
+            FrameTarget {
+                colour,
+                depth,
+                size,
+            },
+            (completion, false),
+        )?;
+        if let Some(report) = report {
+            if settings.auto
+                && let Some((_, planner)) = &mut self.auto
+            {
+                planner.record(&report);
+            }
+            self.last_report = Some(report);
+        }
+        let mut drawn = Drawn {
+            hzb: plan.hzb,
+            ..Drawn::default()
+        };
+        if let Some(r) = &self.last_report {
+            drawn.ids = r.ids.clone();
+            drawn.lod_scene = r.lod_scene;
+            drawn.selected_occluders = r.occluders.clone();
+            drawn.counts = StageCounts {
+                renderer: plan.describe(),
+                frustum_culled: r.frustum_culled,
+                occlusion_culled: r.occlusion_culled,
+                buildings_drawn: r.buildings_drawn,
+                clusters_drawn: r.clusters_drawn,
+                triangles: r.triangles,
+                draw_calls: r.draw_calls,
+                occluders_drawn: r.occluders_drawn,
+                gate_culled: r.gate_culled,
+                cpu_ms: 0.0,
+                gpu_ms: r.gpu.timed().map(|(p, ms)| (p.to_string(), ms)).collect(),
+                debug: None,
+            };
+        }
+        drawn.counts.renderer = if settings.auto {
+            format!("auto: {}", plan.describe())
+        } else {
+            plan.describe()
+        };
+        drawn.counts.cpu_ms = start.elapsed().as_secs_f64() * 1e3;
+        self.draw_debug(gpu, colour, size, camera, settings, &mut drawn)?;
+        Ok(drawn)
+    }
+
+    /// The debug view of `settings` over (or instead of) the frame just drawn into `colour`.
+    fn draw_debug(
+        &mut self,
+        gpu: &GpuContext,
+        colour: &wgpu::TextureView,
+        size: (u32, u32),
+        camera: &Camera,
+        settings: &RenderSettings,
+        drawn: &mut Drawn,
+    ) -> Result<(), FrameError> {
+        let scene = match (drawn.lod_scene, self.lod.as_ref()) {
+            (true, Some(lod)) => &lod.gpu_scene,
+            _ => &self.scene,
+        };
+        let mut encoder = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("viewer debug view"),
+            });
+        match settings.debug_view {
+            DebugView::Off => return Ok(()),
+            DebugView::Pyramid => {
+                // The culling frame's own pyramid when it drew this frame; otherwise one built
+                // the same way from the depth of what was drawn.
+                let pyramid = match self.runner.pyramid().filter(|_| drawn.hzb) {
+                    Some(pyramid) => pyramid,
+                    None => self.depth_pyramid.encode(
+                        gpu,
+                        &mut encoder,
+                        scene,
+                        camera,
+                        &drawn.ids,
+                        size,
+                    )?,
+                };
+                let (min, max) = scene.bounds;
+                let range = GreyRange::for_bounds(camera.near_m, camera.position, min, max);
+                let level = self.pyramid_view.encode(
+                    gpu,
+                    &mut encoder,
+                    pyramid,
+                    settings.mip_level,
+                    &range,
+                    colour,
+                );
+                let (w, h) = pyramid.level_size(level);
+                drawn.counts.debug = Some(format!(
+                    "pyramid level {level} of {} ({w}×{h})",
+                    pyramid.level_count()
+                ));
+            }
+            DebugView::Clusters => {
+                let draws = self.cluster_view.encode(
+                    gpu,
+                    &mut encoder,
+                    scene,
+                    camera,
+                    &drawn.ids,
+                    colour,
+                    size,
+                );
+                drawn.counts.debug = Some(format!("{} entries coloured", draws - 1));
+            }
+            DebugView::Occluders => match &self.occluder_overlay_meshes {
+                Some(meshes) => {
+                    let highlighted = self.occluder_overlay.encode(
+                        gpu,
+                        &mut encoder,
+                        meshes,
+                        camera,
+                        &drawn.selected_occluders,
+                        colour,
+                        size,
+                    );
+                    drawn.counts.debug = Some(format!(
+                        "{} occluders, {highlighted} selected",
+                        meshes.ranges.len()
+                    ));
+                }
+                None => drawn.counts.debug = Some("this scene has no occluders".to_string()),
+            },
+        }
+        gpu.queue.submit([encoder.finish()]);
+        Ok(())
+    }
+}
