@@ -12,13 +12,16 @@
 //! ```
 //!
 //! Each payload is one value encoded with `postcard` (serde; varint integers, little-endian
-//! floats). Every byte of the file is covered by a checksum or checked to be zero, so any
+//! floats), except the GPU scene's: raw arrays laid out as the GPU reads them
+//! ([`super::gpu_scene`]). Every byte of the file is covered by a checksum or checked to be zero, so any
 //! corruption is reported as an error.
+
+use std::sync::Arc;
 
 use serde::Serialize;
 use serde::de::DeserializeOwned;
 
-use super::{PackageError, ScenePackage, StageTiming, WriteOptions};
+use super::{GpuScene, PackageError, ScenePackage, StageTiming, WriteOptions};
 
 /// The first four bytes of every package.
 pub const MAGIC: [u8; 4] = *b"CWK\0";
@@ -27,7 +30,9 @@ pub const MAGIC: [u8; 4] = *b"CWK\0";
 /// - 2: the cluster tree's `ClusterStats` gained `merge_fallback_log` (each merge whose first
 ///   construction failed, with its reason); mesh cities (CityJSON, glTF) rest on the ground:
 ///   their frame's origin height is the lowest building base, heights are above it.
-pub const FORMAT_VERSION: u32 = 2;
+/// - 3: the GPU-ready scene section ([`super::GpuScene`]: vertices, indices, records, cull
+///   parts of buildings and cluster meshes, as raw little-endian arrays read in place).
+pub const FORMAT_VERSION: u32 = 3;
 /// Sections start at multiples of this (a cache line, and enough for any scalar type).
 pub const SECTION_ALIGN: u64 = 64;
 /// The most sections a package may have.
@@ -58,10 +63,12 @@ pub enum SectionKind {
     ClusterTree = 8,
     /// `Vec<StageTiming>` (optional, not deterministic).
     Timings = 9,
+    /// [`super::GpuScene`]: raw arrays, not postcard.
+    GpuScene = 10,
 }
 
 impl SectionKind {
-    pub const ALL: [SectionKind; 9] = [
+    pub const ALL: [SectionKind; 10] = [
         SectionKind::Frame,
         SectionKind::Buildings,
         SectionKind::Streets,
@@ -71,6 +78,7 @@ impl SectionKind {
         SectionKind::Occluders,
         SectionKind::ClusterTree,
         SectionKind::Timings,
+        SectionKind::GpuScene,
     ];
 
     pub fn from_u32(v: u32) -> Option<SectionKind> {
@@ -88,11 +96,12 @@ impl SectionKind {
             SectionKind::Occluders => "occluders",
             SectionKind::ClusterTree => "cluster tree",
             SectionKind::Timings => "timings",
+            SectionKind::GpuScene => "gpu scene",
         }
     }
 
     fn required(self) -> bool {
-        (self as u32) <= SectionKind::Provenance as u32
+        (self as u32) <= SectionKind::Provenance as u32 || self == SectionKind::GpuScene
     }
 }
 
@@ -136,6 +145,7 @@ pub fn encode(pkg: &ScenePackage, options: WriteOptions) -> Result<Vec<u8>, Pack
     if options.include_timings {
         payloads.push(encode_one(SectionKind::Timings, &pkg.timings)?);
     }
+    payloads.push((SectionKind::GpuScene, pkg.gpu_scene.bytes().to_vec()));
 
     let table_end = (HEADER_LEN + ENTRY_LEN * payloads.len()) as u64;
     let mut entries = Vec::with_capacity(payloads.len());
@@ -174,7 +184,7 @@ pub fn encode(pkg: &ScenePackage, options: WriteOptions) -> Result<Vec<u8>, Pack
 
 /// CRC-32 of the header's first 12 bytes and the section table (`bytes` starts at the header
 /// and holds at least the table).
-fn header_crc(bytes: &[u8]) -> u32 {
+pub(super) fn header_crc(bytes: &[u8]) -> u32 {
     let count = u32_at(bytes, 8).unwrap_or(0) as usize;
     let mut hasher = crc32fast::Hasher::new();
     hasher.update(&bytes[..12]);
@@ -216,6 +226,7 @@ pub fn verify(bytes: &[u8]) -> Result<Vec<SectionEntry>, PackageError> {
         && version != FORMAT_VERSION
     {
         return Err(PackageError::Version {
+            path: None,
             found: version,
             supported: FORMAT_VERSION,
         });
@@ -351,10 +362,48 @@ fn required<T>(value: Option<T>, kind: SectionKind) -> Result<T, PackageError> {
     value.ok_or_else(|| PackageError::Malformed(format!("missing section {}", kind.name())))
 }
 
-/// Decodes the sections of bytes already [`verify`]-ed.
+/// Decodes the sections of bytes already [`verify`]-ed, copying the GPU scene out of them.
 pub fn decode_verified(
     bytes: &[u8],
     entries: &[SectionEntry],
+) -> Result<ScenePackage, PackageError> {
+    let gpu_scene = gpu_scene_entry(entries).and_then(|e| {
+        let payload = &bytes[e.offset as usize..(e.offset + e.length) as usize];
+        GpuScene::from_payload(payload).map_err(gpu_scene_error)
+    })?;
+    decode_with(bytes, entries, gpu_scene)
+}
+
+/// [`decode_verified`] for a memory map: the GPU scene stays in the mapping.
+pub(super) fn decode_mapped(
+    map: &Arc<memmap2::Mmap>,
+    entries: &[SectionEntry],
+) -> Result<ScenePackage, PackageError> {
+    let gpu_scene = gpu_scene_entry(entries).and_then(|e| {
+        GpuScene::mapped(map, e.offset as usize, e.length as usize).map_err(gpu_scene_error)
+    })?;
+    decode_with(map, entries, gpu_scene)
+}
+
+fn gpu_scene_entry(entries: &[SectionEntry]) -> Result<&SectionEntry, PackageError> {
+    let kind = SectionKind::GpuScene;
+    entries
+        .iter()
+        .find(|e| e.kind == kind as u32)
+        .ok_or_else(|| PackageError::Malformed(format!("missing section {}", kind.name())))
+}
+
+fn gpu_scene_error(reason: String) -> PackageError {
+    PackageError::Decode {
+        section: SectionKind::GpuScene.name().into(),
+        reason,
+    }
+}
+
+fn decode_with(
+    bytes: &[u8],
+    entries: &[SectionEntry],
+    gpu_scene: GpuScene,
 ) -> Result<ScenePackage, PackageError> {
     use SectionKind as K;
     let pkg = ScenePackage {
@@ -367,6 +416,19 @@ pub fn decode_verified(
         occluders: decode_one(bytes, entries, K::Occluders)?,
         cluster_tree: decode_one(bytes, entries, K::ClusterTree)?,
         timings: decode_one::<Vec<StageTiming>>(bytes, entries, K::Timings)?.unwrap_or_default(),
+        gpu_scene,
     };
+    let (buildings, nodes) = (
+        pkg.buildings.len(),
+        pkg.cluster_tree.as_ref().map_or(0, |t| t.nodes.len()),
+    );
+    let view = pkg.gpu_scene.view();
+    if view.building_count as usize != buildings || view.cluster_count() != nodes {
+        return Err(gpu_scene_error(format!(
+            "{} buildings and {} clusters, the package has {buildings} and {nodes}",
+            view.building_count,
+            view.cluster_count()
+        )));
+    }
     Ok(pkg)
 }
