@@ -180,7 +180,9 @@ impl GpuScene {
             padding: 0,
         };
         let layout = Layout::of(header).expect("a scene that fits in memory fits its layout");
-        let mut bytes = vec![0u8; layout.len];
+        // Written straight into the `u32`s the scene keeps (the length is a multiple of 16).
+        let mut words = vec![0u32; layout.len / 4];
+        let bytes: &mut [u8] = bytemuck::cast_slice_mut(&mut words);
         let mut put = |(start, end): (usize, usize), data: &[u8]| {
             bytes[start..end].copy_from_slice(data);
         };
@@ -206,7 +208,7 @@ impl GpuScene {
         };
         put(layout.parents, bytemuck::cast_slice(parents));
         GpuScene {
-            storage: Storage::Owned(bytemuck::pod_collect_to_vec(&bytes)),
+            storage: Storage::Owned(words),
             layout,
         }
     }

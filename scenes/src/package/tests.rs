@@ -386,7 +386,8 @@ fn an_inconsistent_gpu_scene_is_refused() {
         pkg
     );
     let u32_at = |p: &[u8], at: usize| u32::from_le_bytes(p[at..at + 4].try_into().unwrap());
-    let cases: [(&str, Box<dyn Fn(&mut Vec<u8>)>); 5] = [
+    type Edit = Box<dyn Fn(&mut Vec<u8>)>;
+    let cases: [(&str, Edit); 5] = [
         ("cut short", Box::new(|p| p.truncate(p.len() - 16))),
         // Header field 3: the index count, one triangle more than the arrays hold.
         (
