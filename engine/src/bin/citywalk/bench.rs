@@ -202,6 +202,8 @@ pub fn run_benchmark_with(
             criterion: LOD_CRITERION.get().copied().flatten(),
             ..LodScene::upload_package(&gpu, &gpu_buildings, &view, tree)
         });
+        // Uploaded: unmap the package before the occluders grow the heap.
+        drop(gpu_scene);
         let scene = BenchScene {
             name: name.clone(),
             gpu_scene: gpu_buildings,
@@ -213,7 +215,6 @@ pub fn run_benchmark_with(
                 .map(|set| citywalk_engine::frame::OccluderMeshes::upload(&gpu, set)),
         };
         drop(occluders);
-        drop(gpu_scene);
         eprintln!(
             "{name}: {} buildings, {} triangles, ready in {:.1} s",
             scene.gpu_scene.building_count(),
