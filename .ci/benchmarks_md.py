@@ -42,7 +42,7 @@ rows = [
     ("Chelsea (OSM)", "chelsea"),
     ("Den Haag (CityJSON LoD2)", "denhaag"),
 ]
-stages = ["blocks", "occluders", "cluster tree", "quadtree", "package"]
+stages = ["blocks", "occluders", "cluster tree", "quadtree", "gpu scene", "package"]
 print("| input | buildings loaded / found | load | " + " | ".join(stages)
       + " | write | total | buildings/s | package | peak memory |")
 print("|---|---:|" + "---:|" * (len(stages) + 7))

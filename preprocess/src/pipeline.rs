@@ -13,7 +13,7 @@ use std::time::Instant;
 use citywalk_scenes::blocks::{UrbanBlock, UrbanBlocks};
 use citywalk_scenes::cluster_tree::{ClusterParams, ClusterTree};
 use citywalk_scenes::package::{
-    InputFile, PackageError, Provenance, ScenePackage, StageTiming, sha256_file,
+    GpuScene, InputFile, PackageError, Provenance, ScenePackage, StageTiming, sha256_file,
 };
 use citywalk_scenes::{BuildingId, City};
 use serde::{Deserialize, Serialize};
@@ -30,15 +30,18 @@ pub enum Stage {
     Occluders,
     ClusterTree,
     Quadtree,
+    /// The GPU-ready scene the runtime uploads in place ([`GpuScene::build`]).
+    GpuScene,
     Package,
 }
 
 impl Stage {
-    pub const ALL: [Stage; 5] = [
+    pub const ALL: [Stage; 6] = [
         Stage::Blocks,
         Stage::Occluders,
         Stage::ClusterTree,
         Stage::Quadtree,
+        Stage::GpuScene,
         Stage::Package,
     ];
 
@@ -48,6 +51,7 @@ impl Stage {
             Stage::Occluders => "occluders",
             Stage::ClusterTree => "cluster tree",
             Stage::Quadtree => "quadtree",
+            Stage::GpuScene => "gpu scene",
             Stage::Package => "package",
         }
     }
@@ -218,6 +222,23 @@ pub fn preprocess(
         )
     });
 
+    let mut gpu_scene = None;
+    run(Stage::GpuScene, &mut || {
+        let scene = GpuScene::build(&city, cluster_tree.as_ref());
+        let view = scene.view();
+        let s = format!(
+            "{} records, {} vertices, {} triangles, {} cull parts, {} MB",
+            view.records.len(),
+            view.vertices.len(),
+            view.indices.len() / 3,
+            view.parts.len(),
+            scene.bytes().len() >> 20
+        );
+        gpu_scene = Some(scene);
+        s
+    });
+    let gpu_scene = gpu_scene.expect("the gpu scene stage ran");
+
     let mut inputs = Vec::new();
     run(Stage::Package, &mut || {
         inputs = city
@@ -285,6 +306,7 @@ pub fn preprocess(
         cluster_tree,
         provenance,
         timings,
+        gpu_scene,
     })
 }
 

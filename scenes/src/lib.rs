@@ -8,6 +8,7 @@ pub mod blocks;
 pub mod camera_path;
 pub mod city;
 pub mod cluster_tree;
+pub mod cull_parts;
 pub mod extrude;
 pub mod frame;
 pub mod frustum;
@@ -18,6 +19,7 @@ pub mod occluder;
 pub mod package;
 pub mod quadtree;
 pub mod report;
+pub mod scene_geometry;
 pub mod validate;
 
 pub use city::{

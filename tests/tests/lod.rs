@@ -490,3 +490,68 @@ fn cluster_cull_records_contain_their_buildings() {
     // Cluster meshes at the mean height are lower than their tallest building somewhere.
     assert!(grown > 0, "no cluster box had to grow above its mesh");
 }
+
+/// The scene the runtime uploads from a package's GPU scene, read in place from the file's
+/// mapping, is the one it would build from the city and tree: records, cull parts, index
+/// counts, cull records and parents.
+#[test]
+fn the_package_scene_equals_the_scene_built_from_the_city() {
+    use citywalk_runtime::lod::scene::{cull_records, draw_id_parents, lod_geometry};
+    use citywalk_runtime::scene_gpu::SceneGeometry;
+    use citywalk_scenes::package::WriteOptions;
+
+    let (city, tree, package) = prepared();
+    let dir = std::env::temp_dir().join(format!("citywalk-lod-package-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let path = dir.join("city.cwk");
+    package
+        .write(&path, WriteOptions::default())
+        .expect("write");
+    let read = ScenePackage::read(&path).expect("read");
+    assert!(read.gpu_scene.is_mapped());
+    let view = read.gpu_scene.view();
+
+    // CPU: the stored arrays are the ones built from the city and tree.
+    let n = city.buildings.len();
+    let lod = lod_geometry(city, tree);
+    assert_eq!(read.gpu_scene.geometry(), lod);
+    assert_eq!(
+        view.cull_records,
+        cull_records(&lod.records, n as u32, tree)
+    );
+    assert_eq!(view.parents, draw_id_parents(tree, n as u32));
+    let plain = SceneGeometry::from_city(city);
+    assert_eq!(view.records[..n], plain.records[..]);
+    assert_eq!(view.parts, plain.parts);
+    assert_eq!(
+        view.indices[..plain.building_triangle_count() * 3],
+        plain.indices[..plain.building_triangle_count() * 3]
+    );
+    assert_eq!(view.check_invariants(n, tree.nodes.len()), Ok(()));
+
+    // GPU: the uploaded scenes' CPU copies and counts match the ones made from the city.
+    let Some(gpu) = gpu_or_skip("the_package_scene_equals_the_scene_built_from_the_city") else {
+        std::fs::remove_dir_all(&dir).ok();
+        return;
+    };
+    let from_city = SceneGpu::upload_city(&gpu, city);
+    let from_package = SceneGpu::upload_package(&gpu, &view);
+    assert_eq!(from_package.records, from_city.records);
+    assert_eq!(from_package.parts, from_city.parts);
+    assert_eq!(from_package.triangle_count, from_city.triangle_count);
+    assert_eq!(from_package.bounds, from_city.bounds);
+    let lod_from_city = LodScene::upload(&gpu, city, tree.clone());
+    let lod_from_package = LodScene::upload_package(&gpu, &from_package, &view, tree.clone());
+    assert_eq!(lod_from_package.gpu_scene.records, lod.records);
+    assert_eq!(
+        lod_from_package.gpu_scene.records,
+        lod_from_city.gpu_scene.records
+    );
+    assert_eq!(lod_from_package.cull_records, lod_from_city.cull_records);
+    assert_eq!(
+        lod_from_package.gpu_scene.triangle_count,
+        lod_from_city.gpu_scene.triangle_count
+    );
+    assert_eq!(lod_from_package.building_count, n as u32);
+    std::fs::remove_dir_all(&dir).ok();
+}

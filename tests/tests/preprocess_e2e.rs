@@ -30,7 +30,14 @@ fn chelsea_preprocesses_into_a_package_that_reads_back_identically() {
         Some(64),
         "the input is hashed"
     );
-    for stage in ["blocks", "occluders", "cluster tree", "quadtree", "package"] {
+    for stage in [
+        "blocks",
+        "occluders",
+        "cluster tree",
+        "quadtree",
+        "gpu scene",
+        "package",
+    ] {
         assert!(
             pkg.timings.iter().any(|t| t.stage == stage),
             "no timing for {stage}"
@@ -49,10 +56,12 @@ fn chelsea_preprocesses_into_a_package_that_reads_back_identically() {
         SectionKind::Quadtree,
         SectionKind::Occluders,
         SectionKind::ClusterTree,
+        SectionKind::GpuScene,
     ] {
         assert!(file.section(kind).is_some(), "no {} section", kind.name());
     }
     let back = file.decode().expect("decode");
+    assert!(back.gpu_scene.is_mapped(), "the gpu scene is read in place");
     let mut expected = pkg;
     expected.timings.clear();
     assert!(back == expected, "the package read back differs");

@@ -15,9 +15,17 @@ pub enum PackageError {
     /// The file does not start with the package magic.
     #[error("not a citywalk scene package (no `CWK` magic)")]
     NotAPackage,
-    /// The file is a package of another format version.
-    #[error("package format version {found}; this citywalk reads version {supported}")]
-    Version { found: u32, supported: u32 },
+    /// The file is a package of another format version (`path` when read from a file).
+    #[error(
+        "{}package format version {found}; this citywalk reads version {supported}: re-run \
+         `citywalk preprocess` on its input to rebuild it",
+        path.as_ref().map(|p| format!("{}: ", p.display())).unwrap_or_default()
+    )]
+    Version {
+        path: Option<PathBuf>,
+        found: u32,
+        supported: u32,
+    },
     /// The file ends before the data its header announces.
     #[error("truncated package: {what} needs {needed} bytes, the file has {len}")]
     Truncated { what: String, needed: u64, len: u64 },

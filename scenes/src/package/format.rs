@@ -12,13 +12,16 @@
 //! ```
 //!
 //! Each payload is one value encoded with `postcard` (serde; varint integers, little-endian
-//! floats). Every byte of the file is covered by a checksum or checked to be zero, so any
+//! floats), except the GPU scene's: raw arrays laid out as the GPU reads them
+//! ([`super::gpu_scene`]). Every byte of the file is covered by a checksum or checked to be zero, so any
 //! corruption is reported as an error.
+
+use std::sync::Arc;
 
 use serde::Serialize;
 use serde::de::DeserializeOwned;
 
-use super::{PackageError, ScenePackage, StageTiming, WriteOptions};
+use super::{GpuScene, PackageError, ScenePackage, StageTiming, WriteOptions};
 
 /// The first four bytes of every package.
 pub const MAGIC: [u8; 4] = *b"CWK\0";
@@ -27,7 +30,9 @@ pub const MAGIC: [u8; 4] = *b"CWK\0";
 /// - 2: the cluster tree's `ClusterStats` gained `merge_fallback_log` (each merge whose first
 ///   construction failed, with its reason); mesh cities (CityJSON, glTF) rest on the ground:
 ///   their frame's origin height is the lowest building base, heights are above it.
-pub const FORMAT_VERSION: u32 = 2;
+/// - 3: the GPU-ready scene section ([`super::GpuScene`]: vertices, indices, records, cull
+///   parts of buildings and cluster meshes, as raw little-endian arrays read in place).
+pub const FORMAT_VERSION: u32 = 3;
 /// Sections start at multiples of this (a cache line, and enough for any scalar type).
 pub const SECTION_ALIGN: u64 = 64;
 /// The most sections a package may have.
@@ -58,10 +63,12 @@ pub enum SectionKind {
     ClusterTree = 8,
     /// `Vec<StageTiming>` (optional, not deterministic).
     Timings = 9,
+    /// [`super::GpuScene`]: raw arrays, not postcard.
+    GpuScene = 10,
 }
 
 impl SectionKind {
-    pub const ALL: [SectionKind; 9] = [
+    pub const ALL: [SectionKind; 10] = [
         SectionKind::Frame,
         SectionKind::Buildings,
         SectionKind::Streets,
@@ -71,6 +78,7 @@ impl SectionKind {
         SectionKind::Occluders,
         SectionKind::ClusterTree,
         SectionKind::Timings,
+        SectionKind::GpuScene,
     ];
 
     pub fn from_u32(v: u32) -> Option<SectionKind> {
@@ -88,11 +96,12 @@ impl SectionKind {
             SectionKind::Occluders => "occluders",
             SectionKind::ClusterTree => "cluster tree",
             SectionKind::Timings => "timings",
+            SectionKind::GpuScene => "gpu scene",
         }
     }
 
     fn required(self) -> bool {
-        (self as u32) <= SectionKind::Provenance as u32
+        (self as u32) <= SectionKind::Provenance as u32 || self == SectionKind::GpuScene
     }
 }
 
@@ -136,6 +145,7 @@ pub fn encode(pkg: &ScenePackage, options: WriteOptions) -> Result<Vec<u8>, Pack
     if options.include_timings {
         payloads.push(encode_one(SectionKind::Timings, &pkg.timings)?);
     }
+    payloads.push((SectionKind::GpuScene, pkg.gpu_scene.bytes().to_vec()));
 
     let table_end = (HEADER_LEN + ENTRY_LEN * payloads.len()) as u64;
     let mut entries = Vec::with_capacity(payloads.len());
@@ -174,12 +184,48 @@ pub fn encode(pkg: &ScenePackage, options: WriteOptions) -> Result<Vec<u8>, Pack
 
 /// CRC-32 of the header's first 12 bytes and the section table (`bytes` starts at the header
 /// and holds at least the table).
-fn header_crc(bytes: &[u8]) -> u32 {
+pub(super) fn header_crc(bytes: &[u8]) -> u32 {
     let count = u32_at(bytes, 8).unwrap_or(0) as usize;
     let mut hasher = crc32fast::Hasher::new();
     hasher.update(&bytes[..12]);
     hasher.update(&bytes[HEADER_LEN..HEADER_LEN + ENTRY_LEN * count]);
     hasher.finalize()
+}
+
+/// Packages at least this large decode their large sections in parallel.
+const PARALLEL_DECODE_BYTES: usize = 16 << 20;
+/// Bytes per checksum chunk hashed on a thread of its own.
+const CRC_CHUNK: usize = 64 << 20;
+
+/// Starts hashing `payload` (chunks of [`CRC_CHUNK`] on scoped threads, combined in order; a
+/// payload of one chunk on the caller's) and returns the function that gives its CRC-32.
+fn payload_crc<'scope>(
+    scope: &'scope std::thread::Scope<'scope, '_>,
+    payload: &'scope [u8],
+) -> Box<dyn FnOnce() -> u32 + 'scope> {
+    if payload.len() <= CRC_CHUNK {
+        return Box::new(move || crc32fast::hash(payload));
+    }
+    let chunks: Vec<_> = payload
+        .chunks(CRC_CHUNK)
+        .map(|chunk| {
+            scope.spawn(move || {
+                let mut h = crc32fast::Hasher::new();
+                h.update(chunk);
+                h
+            })
+        })
+        .collect();
+    Box::new(move || {
+        let mut total = crc32fast::Hasher::new();
+        for chunk in chunks {
+            let h = chunk
+                .join()
+                .unwrap_or_else(|e| std::panic::resume_unwind(e));
+            total.combine(&h);
+        }
+        total.finalize()
+    })
 }
 
 fn u32_at(bytes: &[u8], at: usize) -> Option<u32> {
@@ -216,6 +262,7 @@ pub fn verify(bytes: &[u8]) -> Result<Vec<SectionEntry>, PackageError> {
         && version != FORMAT_VERSION
     {
         return Err(PackageError::Version {
+            path: None,
             found: version,
             supported: FORMAT_VERSION,
         });
@@ -298,14 +345,24 @@ pub fn verify(bytes: &[u8]) -> Result<Vec<SectionEntry>, PackageError> {
             len as u64 - previous_end
         )));
     }
-    for e in &entries {
-        let payload = &bytes[e.offset as usize..(e.offset + e.length) as usize];
-        if crc32fast::hash(payload) != e.crc32 {
-            let name = SectionKind::from_u32(e.kind).map_or("?", SectionKind::name);
-            return Err(PackageError::Checksum {
-                section: name.into(),
-            });
-        }
+    let bad = std::thread::scope(|scope| {
+        // Every section's checksum, in parallel in chunks (gigabytes at a million buildings).
+        let checks: Vec<_> = entries
+            .iter()
+            .map(|e| {
+                let payload = &bytes[e.offset as usize..(e.offset + e.length) as usize];
+                (e, payload_crc(scope, payload))
+            })
+            .collect();
+        checks
+            .into_iter()
+            .find_map(|(e, crc)| (crc() != e.crc32).then_some(e.kind))
+    });
+    if let Some(kind) = bad {
+        let name = SectionKind::from_u32(kind).map_or("?", SectionKind::name);
+        return Err(PackageError::Checksum {
+            section: name.into(),
+        });
     }
     for kind in SectionKind::ALL.into_iter().filter(|k| k.required()) {
         if !entries.iter().any(|e| e.kind == kind as u32) {
@@ -351,22 +408,107 @@ fn required<T>(value: Option<T>, kind: SectionKind) -> Result<T, PackageError> {
     value.ok_or_else(|| PackageError::Malformed(format!("missing section {}", kind.name())))
 }
 
-/// Decodes the sections of bytes already [`verify`]-ed.
+/// Decodes the sections of bytes already [`verify`]-ed, copying the GPU scene out of them.
 pub fn decode_verified(
     bytes: &[u8],
     entries: &[SectionEntry],
 ) -> Result<ScenePackage, PackageError> {
+    let gpu_scene = gpu_scene_entry(entries).and_then(|e| {
+        let payload = &bytes[e.offset as usize..(e.offset + e.length) as usize];
+        GpuScene::from_payload(payload).map_err(gpu_scene_error)
+    })?;
+    decode_with(bytes, entries, gpu_scene)
+}
+
+/// [`decode_verified`] for a memory map: the GPU scene stays in the mapping.
+pub(super) fn decode_mapped(
+    map: &Arc<memmap2::Mmap>,
+    entries: &[SectionEntry],
+) -> Result<ScenePackage, PackageError> {
+    let gpu_scene = gpu_scene_entry(entries).and_then(|e| {
+        GpuScene::mapped(map, e.offset as usize, e.length as usize).map_err(gpu_scene_error)
+    })?;
+    decode_with(map, entries, gpu_scene)
+}
+
+fn gpu_scene_entry(entries: &[SectionEntry]) -> Result<&SectionEntry, PackageError> {
+    let kind = SectionKind::GpuScene;
+    entries
+        .iter()
+        .find(|e| e.kind == kind as u32)
+        .ok_or_else(|| PackageError::Malformed(format!("missing section {}", kind.name())))
+}
+
+fn gpu_scene_error(reason: String) -> PackageError {
+    PackageError::Decode {
+        section: SectionKind::GpuScene.name().into(),
+        reason,
+    }
+}
+
+fn decode_with(
+    bytes: &[u8],
+    entries: &[SectionEntry],
+    gpu_scene: GpuScene,
+) -> Result<ScenePackage, PackageError> {
     use SectionKind as K;
+    // The three large sections decode on threads of their own in a large package (a million
+    // buildings take seconds each); the result does not depend on the order.
+    let (buildings, occluders, cluster_tree) = if bytes.len() < PARALLEL_DECODE_BYTES {
+        (
+            decode_one(bytes, entries, K::Buildings),
+            decode_one(bytes, entries, K::Occluders),
+            decode_one(bytes, entries, K::ClusterTree),
+        )
+    } else {
+        std::thread::scope(|scope| {
+            let occluders = scope.spawn(|| decode_one(bytes, entries, K::Occluders));
+            let cluster_tree = scope.spawn(|| decode_one(bytes, entries, K::ClusterTree));
+            let buildings = decode_one(bytes, entries, K::Buildings);
+            fn join<T>(r: std::thread::Result<T>) -> T {
+                r.unwrap_or_else(|e| std::panic::resume_unwind(e))
+            }
+            (buildings, join(occluders.join()), join(cluster_tree.join()))
+        })
+    };
     let pkg = ScenePackage {
         frame: required(decode_one(bytes, entries, K::Frame)?, K::Frame)?,
-        buildings: required(decode_one(bytes, entries, K::Buildings)?, K::Buildings)?,
+        buildings: required(buildings?, K::Buildings)?,
         streets: required(decode_one(bytes, entries, K::Streets)?, K::Streets)?,
         blocks: required(decode_one(bytes, entries, K::Blocks)?, K::Blocks)?,
         quadtree: required(decode_one(bytes, entries, K::Quadtree)?, K::Quadtree)?,
         provenance: required(decode_one(bytes, entries, K::Provenance)?, K::Provenance)?,
-        occluders: decode_one(bytes, entries, K::Occluders)?,
-        cluster_tree: decode_one(bytes, entries, K::ClusterTree)?,
+        occluders: occluders?,
+        cluster_tree: cluster_tree?,
         timings: decode_one::<Vec<StageTiming>>(bytes, entries, K::Timings)?.unwrap_or_default(),
+        gpu_scene,
     };
+    let (buildings, nodes) = (
+        pkg.buildings.len(),
+        pkg.cluster_tree.as_ref().map_or(0, |t| t.nodes.len()),
+    );
+    let view = pkg.gpu_scene.view();
+    if view.building_count as usize != buildings || view.cluster_count() != nodes {
+        return Err(gpu_scene_error(format!(
+            "{} buildings and {} clusters, the package has {buildings} and {nodes}",
+            view.building_count,
+            view.cluster_count()
+        )));
+    }
     Ok(pkg)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_payload_hashed_in_parallel_chunks_has_the_whole_payloads_crc() {
+        let len = CRC_CHUNK * 2 + CRC_CHUNK / 3;
+        let payload: Vec<u8> = (0..len as u32)
+            .map(|i| (i.wrapping_mul(2_654_435_761) >> 13) as u8)
+            .collect();
+        let crc = std::thread::scope(|scope| payload_crc(scope, &payload)());
+        assert_eq!(crc, crc32fast::hash(&payload));
+    }
 }

@@ -1,6 +1,7 @@
 //! Reading a package through a memory map.
 
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use super::{PackageError, ScenePackage, format};
 
@@ -9,7 +10,7 @@ use super::{PackageError, ScenePackage, format};
 #[derive(Debug)]
 pub struct PackageFile {
     path: PathBuf,
-    map: memmap2::Mmap,
+    map: Arc<memmap2::Mmap>,
     sections: Vec<format::SectionEntry>,
 }
 
@@ -22,10 +23,21 @@ impl PackageFile {
         };
         let file = std::fs::File::open(path).map_err(io)?;
         let map = map_read_only(&file).map_err(io)?;
-        let sections = format::verify(&map)?;
+        let sections = format::verify(&map).map_err(|e| match e {
+            PackageError::Version {
+                path: None,
+                found,
+                supported,
+            } => PackageError::Version {
+                path: Some(path.to_path_buf()),
+                found,
+                supported,
+            },
+            e => e,
+        })?;
         Ok(PackageFile {
             path: path.to_path_buf(),
-            map,
+            map: Arc::new(map),
             sections,
         })
     }
@@ -61,9 +73,9 @@ impl PackageFile {
         format::decode_one(&self.map, &self.sections, kind)
     }
 
-    /// Decodes the whole package.
+    /// Decodes the whole package; its GPU scene stays in the mapping (which it keeps alive).
     pub fn decode(&self) -> Result<ScenePackage, PackageError> {
-        format::decode_verified(&self.map, &self.sections)
+        format::decode_mapped(&self.map, &self.sections)
     }
 }
 
@@ -74,10 +86,11 @@ impl PackageFile {
               while it is mapped; this is the only unsafe call of the package reader"
 )]
 fn map_read_only(file: &std::fs::File) -> std::io::Result<memmap2::Mmap> {
-    // SAFETY: the mapping is read-only and only ever read as `&[u8]`: every section is
-    // checksummed before it is decoded and decoding validates every byte, so a file changed
-    // underneath us can at worst produce a checksum or decode error, not undefined behaviour
-    // in our code (no bytes are reinterpreted as typed data). Truncation of the file while
+    // SAFETY: the mapping is read-only and only ever read as `&[u8]`, or through
+    // `bytemuck::cast_slice` as `Pod` arrays (for which every bit pattern is valid): every
+    // section is checksummed before it is decoded and decoding validates it, so a file changed
+    // underneath us can at worst produce a checksum or decode error or wrong numbers, not
+    // undefined behaviour in our code. Truncation of the file while
     // mapped (SIGBUS) is the documented hazard of memory maps that callers accept by
     // reading packages they own.
     unsafe { memmap2::Mmap::map(file) }

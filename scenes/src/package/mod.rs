@@ -23,10 +23,12 @@ use crate::report::LoadReport;
 
 mod error;
 pub mod format;
+pub mod gpu_scene;
 mod map;
 
 pub use error::PackageError;
 pub use format::{FORMAT_VERSION, MAGIC, SectionKind};
+pub use gpu_scene::{GpuScene, GpuSceneView};
 pub use map::PackageFile;
 
 /// One input file of the preprocessing.
@@ -80,6 +82,9 @@ pub struct ScenePackage {
     pub provenance: Provenance,
     /// Stage timings; written only with [`WriteOptions::include_timings`].
     pub timings: Vec<StageTiming>,
+    /// The GPU-ready buildings and cluster meshes ([`GpuScene::build`] of the buildings and
+    /// the tree), read in place from a mapped package.
+    pub gpu_scene: GpuScene,
 }
 
 /// Options of [`ScenePackage::to_bytes`] / [`ScenePackage::write`].
@@ -123,7 +128,8 @@ impl ScenePackage {
         Ok(bytes.len() as u64)
     }
 
-    /// Reads a package from `path` through a memory map.
+    /// Reads a package from `path` through a memory map (kept open while the package's GPU
+    /// scene is alive).
     pub fn read(path: &Path) -> Result<ScenePackage, PackageError> {
         PackageFile::open(path)?.decode()
     }
@@ -173,6 +179,12 @@ impl ScenePackage {
                     occ.per_building.len()
                 ));
             }
+        }
+        let nodes = self.cluster_tree.as_ref().map_or(0, |t| t.nodes.len());
+        if let Err(e) = self.gpu_scene.view().check_invariants(n, nodes) {
+            errors.push(format!("gpu scene: {e}"));
+        } else if GpuScene::build(&self.city(), self.cluster_tree.as_ref()) != self.gpu_scene {
+            errors.push("gpu scene: differs from the one built from the buildings and tree".into());
         }
         if let Some(tree) = &self.cluster_tree {
             if let Err(e) = tree.check_invariants(&self.city()) {

@@ -9,6 +9,7 @@ use super::*;
 use crate::blocks::UrbanBlock;
 use crate::city::{BuildingId, BuildingPart, HeightSource, StreetClass, TriangleMesh};
 use crate::quadtree::{Aabb, QuadNode, QuadNodeKind};
+use crate::scene_geometry::SceneGeometry;
 
 fn building(i: u32, x: f64) -> Building {
     let footprint = MultiPolygon::new(vec![polygon![
@@ -71,6 +72,7 @@ pub(crate) fn small_package() -> ScenePackage {
     };
     let mut counts = BTreeMap::new();
     counts.insert("blocks".to_string(), 1);
+    let gpu_scene = GpuScene::build(&city_of(&buildings), None);
     ScenePackage {
         frame: Frame::wgs84(-8.61, 41.15),
         buildings,
@@ -102,6 +104,16 @@ pub(crate) fn small_package() -> ScenePackage {
             warnings: vec!["a warning".into()],
         },
         timings: vec![],
+        gpu_scene,
+    }
+}
+
+fn city_of(buildings: &[Building]) -> City {
+    City {
+        frame: Frame::wgs84(-8.61, 41.15),
+        buildings: buildings.to_vec(),
+        streets: vec![],
+        report: LoadReport::default(),
     }
 }
 
@@ -192,6 +204,7 @@ fn other_files_and_versions_are_refused() {
     assert!(matches!(
         ScenePackage::from_bytes(b"CWK\0\x07\0\0\0"),
         Err(PackageError::Version {
+            path: None,
             found: 7,
             supported: FORMAT_VERSION
         })
@@ -202,7 +215,8 @@ fn other_files_and_versions_are_refused() {
         ScenePackage::from_bytes(&bytes),
         Err(PackageError::Version {
             found,
-            supported: FORMAT_VERSION
+            supported: FORMAT_VERSION,
+            ..
         }) if found == next
     ));
 }
@@ -276,6 +290,163 @@ fn the_package_checker_reports_broken_structures() {
     let errors = moved.check_invariants().expect_err("boxes disagree");
     assert!(
         errors.iter().any(|e| e.starts_with("quadtree:")),
+        "{errors:?}"
+    );
+}
+
+#[test]
+fn the_gpu_scene_round_trips_and_is_read_in_place_from_the_mapping() {
+    let pkg = small_package();
+    let city = pkg.city();
+    let view = pkg.gpu_scene.view();
+    assert_eq!(view.building_count, 2);
+    assert_eq!(view.cluster_count(), 0);
+    assert_eq!(pkg.gpu_scene.geometry(), SceneGeometry::from_city(&city));
+    assert_eq!(view.cull_records, view.records);
+    assert!(
+        view.parents
+            .iter()
+            .all(|&p| p == citywalk_shaders::constants::NO_PARENT)
+    );
+    assert_eq!(view.check_invariants(2, 0), Ok(()));
+
+    let bytes = pkg.to_bytes(WriteOptions::default()).expect("encode");
+    let back = ScenePackage::from_bytes(&bytes).expect("decode");
+    assert!(!back.gpu_scene.is_mapped());
+    assert_eq!(back.gpu_scene, pkg.gpu_scene);
+
+    let dir = std::env::temp_dir().join(format!("citywalk-gpu-scene-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let path = dir.join("small.cwk");
+    pkg.write(&path, WriteOptions::default()).expect("write");
+    let file = PackageFile::open(&path).expect("open");
+    let payload = file
+        .section(SectionKind::GpuScene)
+        .expect("gpu scene section");
+    assert_eq!(payload, pkg.gpu_scene.bytes());
+    let mapped = file.decode().expect("decode mapped");
+    drop(file);
+    // The scene's arrays are the mapping's bytes, alive after the file handle is gone.
+    assert!(mapped.gpu_scene.is_mapped());
+    assert_eq!(mapped.gpu_scene.view(), view);
+    assert_eq!(mapped, pkg);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn an_old_package_is_refused_naming_the_file_and_the_fix() {
+    let mut bytes = small_package()
+        .to_bytes(WriteOptions::default())
+        .expect("encode");
+    bytes[4..8].copy_from_slice(&2u32.to_le_bytes());
+    let dir = std::env::temp_dir().join(format!("citywalk-old-package-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let path = dir.join("old.cwk");
+    std::fs::write(&path, &bytes).expect("write");
+    let error = ScenePackage::read(&path).expect_err("version 2 is refused");
+    assert!(
+        matches!(&error, PackageError::Version { path: Some(p), found: 2, .. } if *p == path),
+        "{error:?}"
+    );
+    let message = error.to_string();
+    assert!(message.contains(&path.display().to_string()), "{message}");
+    assert!(
+        message.contains("re-run `citywalk preprocess`"),
+        "{message}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// `bytes` with the GPU scene's payload (the last section) replaced by `edit` of it, the
+/// checksums made to match: what a faulty writer could produce.
+fn with_gpu_payload(bytes: &[u8], edit: impl FnOnce(&mut Vec<u8>)) -> Vec<u8> {
+    let entries = format::verify(bytes).expect("verify");
+    let (i, e) = (entries.iter().enumerate())
+        .find(|(_, e)| e.kind == SectionKind::GpuScene as u32)
+        .expect("gpu scene section");
+    assert_eq!(i, entries.len() - 1, "the gpu scene is the last section");
+    let mut payload = bytes[e.offset as usize..].to_vec();
+    edit(&mut payload);
+    let mut out = bytes[..e.offset as usize].to_vec();
+    let entry = 16 + 32 * i;
+    out[entry + 16..entry + 24].copy_from_slice(&(payload.len() as u64).to_le_bytes());
+    out[entry + 24..entry + 28].copy_from_slice(&crc32fast::hash(&payload).to_le_bytes());
+    let crc = format::header_crc(&out);
+    out[12..16].copy_from_slice(&crc.to_le_bytes());
+    out.extend_from_slice(&payload);
+    out
+}
+
+#[test]
+fn an_inconsistent_gpu_scene_is_refused() {
+    let pkg = small_package();
+    let bytes = pkg.to_bytes(WriteOptions::default()).expect("encode");
+    assert_eq!(
+        ScenePackage::from_bytes(&with_gpu_payload(&bytes, |_| {})).expect("unchanged"),
+        pkg
+    );
+    let u32_at = |p: &[u8], at: usize| u32::from_le_bytes(p[at..at + 4].try_into().unwrap());
+    type Edit = Box<dyn Fn(&mut Vec<u8>)>;
+    let cases: [(&str, Edit); 5] = [
+        ("cut short", Box::new(|p| p.truncate(p.len() - 16))),
+        // Header field 3: the index count, one triangle more than the arrays hold.
+        (
+            "counts",
+            Box::new(move |p| {
+                let n = u32_at(p, 12) + 3;
+                p[12..16].copy_from_slice(&n.to_le_bytes());
+            }),
+        ),
+        ("reserved", Box::new(|p| p[20] = 1)),
+        ("padding", Box::new(|p| *p.last_mut().unwrap() = 1)),
+        // The first draw record (after the header, the vertices and the indices, padded to 16
+        // bytes): its index count (at 28 in the record) past the index array.
+        (
+            "record",
+            Box::new(move |p| {
+                let (vertices, indices) = (u32_at(p, 8) as usize, u32_at(p, 12) as usize);
+                let record = 96 + 16 * vertices + (4 * indices).next_multiple_of(16);
+                p[record + 28..record + 32].copy_from_slice(&1000u32.to_le_bytes());
+            }),
+        ),
+    ];
+    for (what, edit) in cases {
+        match ScenePackage::from_bytes(&with_gpu_payload(&bytes, edit)) {
+            Err(PackageError::Decode { section, .. }) if section == "gpu scene" => {}
+            other => panic!("{what}: {other:?}"),
+        }
+    }
+
+    // A scene of other buildings than the package's.
+    let mut other = small_package();
+    other.gpu_scene = GpuScene::build(&city_of(&other.buildings[..1]), None);
+    let bytes = other.to_bytes(WriteOptions::default()).expect("encode");
+    match ScenePackage::from_bytes(&bytes) {
+        Err(PackageError::Decode { section, reason }) if section == "gpu scene" => {
+            assert!(reason.contains("1 buildings"), "{reason}");
+        }
+        other => panic!("{other:?}"),
+    }
+
+    // Well-formed but not the buildings' geometry: the checker finds it.
+    let mut moved = small_package();
+    let mut geometry = moved.gpu_scene.geometry();
+    geometry.vertices[0].position_m[2] += 1.0;
+    moved.gpu_scene = GpuScene::from_arrays(2, &geometry, &geometry.records, &[]);
+    let errors = moved.check_invariants().expect_err("moved vertex");
+    assert!(
+        errors.iter().any(|e| e.starts_with("gpu scene:")),
+        "{errors:?}"
+    );
+    let mut relabelled = small_package();
+    let mut geometry = relabelled.gpu_scene.geometry();
+    geometry.vertices[0].building_id = 1;
+    relabelled.gpu_scene = GpuScene::from_arrays(2, &geometry, &geometry.records, &[]);
+    let errors = relabelled
+        .check_invariants()
+        .expect_err("vertex of another building");
+    assert!(
+        errors.iter().any(|e| e.contains("another id")),
         "{errors:?}"
     );
 }

@@ -267,7 +267,7 @@ fn print_summary(s: &Summary) {
     if let Some(check) = &s.check {
         if check.is_empty() {
             println!(
-                "check: all invariants hold (city, blocks, quadtree, occluders, cluster tree)"
+                "check: all invariants hold (city, blocks, quadtree, occluders, cluster tree, gpu scene)"
             );
         } else {
             for e in check {

@@ -5,26 +5,27 @@
 //! clusters by [`LodScene::cull_records`]).
 //!
 //! Layout: draw ids `0..building_count` are the buildings (the same ids and geometry as
-//! [`SceneGeometry::from_city`]), then id `building_count + n` is the cluster mesh of tree node
+//! [`crate::scene_gpu::SceneGeometry::from_city`]), then id `building_count + n` is the cluster mesh of tree node
 //! `n` (empty for leaves, which draw nothing under that id). One combined scene was chosen
 //! over two scenes drawn into the same targets because the selected renderer clears its
-//! targets at the start of its pass; the cost is a second copy of the building geometry.
+//! targets at the start of its pass. The plain scene's buildings are the combined scene's first
+//! `building_count` records, so [`LodScene::upload_package`] shares the vertex, index and part
+//! buffers with it: the building geometry is on the GPU once.
 
 use bytemuck::Zeroable;
-use citywalk_scenes::TriangleMesh;
-use citywalk_scenes::city::Building;
 use citywalk_scenes::cluster_tree::ClusterTree;
-use citywalk_scenes::extrude::building_mesh;
+use citywalk_scenes::package::{GpuScene, GpuSceneView};
 use citywalk_scenes::{BuildingId, City};
 use citywalk_shaders::BuildingRecord;
 use citywalk_shaders::constants::NO_PARENT;
-use glam::Vec3;
 use wgpu::util::DeviceExt;
 
 use crate::camera::Camera;
 use crate::gpu::GpuContext;
 use crate::lod::{LodCriterion, LodCut, LodTree, LodView};
-use crate::scene_gpu::{SceneGeometry, SceneGpu};
+use crate::scene_gpu::SceneGpu;
+
+pub use citywalk_scenes::scene_geometry::{cull_records, draw_id_parents, lod_geometry};
 
 /// The combined scene of buildings and cluster meshes, with the tree the cut walks.
 #[derive(Debug)]
@@ -96,88 +97,24 @@ pub fn covered_by(tree: &ClusterTree, building_count: u32, id: u32) -> Covered<'
     Covered::Cluster(range.iter())
 }
 
-/// The combined geometry on the CPU (see the module documentation for the id layout).
-pub fn lod_geometry(city: &City, tree: &ClusterTree) -> SceneGeometry {
-    let mut meshes: Vec<TriangleMesh> = city.buildings.iter().map(building_mesh).collect();
-    let mut fallback: Vec<(Vec3, Vec3)> = city.buildings.iter().map(Building::bounds).collect();
-    for node in &tree.nodes {
-        meshes.push(node.mesh.clone());
-        fallback.push((
-            Vec3::from_array(node.bounds_min),
-            Vec3::from_array(node.bounds_max),
-        ));
-    }
-    // Cluster meshes are culled by the box of everything under them (`cull_records`): no parts.
-    SceneGeometry::from_meshes_with_parts(&meshes, &fallback, city.buildings.len())
-}
-
-/// The occlusion cull's record of every draw id, from `geometry_records` (the records of
-/// [`lod_geometry`] of `tree`, whose first `building_count` are the buildings): the same records,
-/// each cluster's bounds grown to the union of its mesh's, its node's and the records of the
-/// buildings under it, and culled by those bounds alone (no parts).
-pub fn cull_records(
-    geometry_records: &[BuildingRecord],
-    building_count: u32,
-    tree: &ClusterTree,
-) -> Vec<BuildingRecord> {
-    let mut out = geometry_records.to_vec();
-    let buildings = geometry_records
-        .get(..building_count as usize)
-        .unwrap_or(&[]);
-    for (n, node) in tree.nodes.iter().enumerate() {
-        let Some(record) = out.get_mut(building_count as usize + n) else {
-            continue;
-        };
-        let mut lo = Vec3::from_array(record.bounds_min_m).min(Vec3::from_array(node.bounds_min));
-        let mut hi = Vec3::from_array(record.bounds_max_m).max(Vec3::from_array(node.bounds_max));
-        let (s, e) = node.buildings;
-        for b in tree
-            .building_order
-            .get(s as usize..e as usize)
-            .unwrap_or(&[])
-        {
-            if let Some(r) = buildings.get(b.index()) {
-                lo = lo.min(Vec3::from_array(r.bounds_min_m));
-                hi = hi.max(Vec3::from_array(r.bounds_max_m));
-            }
-        }
-        record.bounds_min_m = lo.to_array();
-        record.bounds_max_m = hi.to_array();
-        // The parts of the cluster mesh alone do not hold its buildings: the box only.
-        record.part_count = 0;
-    }
-    out
-}
-
-/// Per draw id of the combined scene (see the module documentation), the draw id of the cluster
-/// above it, or [`NO_PARENT`]: a building's is its leaf node's, a node's its parent node's. A
-/// building was visible last frame when it or a draw id up this chain was kept (a drawn cluster
-/// shows every building under it).
-pub fn draw_id_parents(tree: &ClusterTree, building_count: u32) -> Vec<u32> {
-    let nodes = tree.nodes.len();
-    let mut parents = vec![NO_PARENT; building_count as usize + nodes];
-    for (n, node) in tree.nodes.iter().enumerate() {
-        for &c in &node.children {
-            if (c as usize) < nodes {
-                parents[building_count as usize + c as usize] = building_count + n as u32;
-            }
-        }
-        if node.is_leaf()
-            && let Some(b) = tree.building_order.get(node.buildings.0 as usize)
-            && b.0 < building_count
-        {
-            parents[b.index()] = building_count + n as u32;
-        }
-    }
-    parents
-}
-
 impl LodScene {
-    /// Uploads the buildings of `city` and the cluster meshes of `tree` (built from `city`).
+    /// Meshes and uploads the buildings of `city` and the cluster meshes of `tree` (built from
+    /// `city`), as preprocessing does for a package ([`GpuScene::build`]).
     pub fn upload(gpu: &GpuContext, city: &City, tree: ClusterTree) -> LodScene {
-        let geometry = lod_geometry(city, &tree);
-        let building_count = city.buildings.len() as u32;
-        let cull_records = cull_records(&geometry.records, building_count, &tree);
+        let scene = GpuScene::build(city, Some(&tree));
+        let view = scene.view();
+        Self::upload_package(gpu, &SceneGpu::upload_package(gpu, &view), &view, tree)
+    }
+
+    /// The combined scene of a package's GPU scene `view` (with the package's `tree`), over the
+    /// buffers of `buildings`, the plain scene [`SceneGpu::upload_package`] made of the same
+    /// view: only the records, cull records and parents are uploaded here.
+    pub fn upload_package(
+        gpu: &GpuContext,
+        buildings: &SceneGpu,
+        view: &GpuSceneView<'_>,
+        tree: ClusterTree,
+    ) -> LodScene {
         let storage = |label, contents: &[u8]| {
             gpu.device
                 .create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -189,22 +126,24 @@ impl LodScene {
         let one_record = [BuildingRecord::zeroed()];
         let cull_records_buffer = storage(
             "lod cull records",
-            bytemuck::cast_slice(if cull_records.is_empty() {
+            bytemuck::cast_slice(if view.cull_records.is_empty() {
                 &one_record
             } else {
-                &cull_records
+                view.cull_records
             }),
         );
-        let mut parents = draw_id_parents(&tree, building_count);
-        if parents.is_empty() {
-            parents.push(NO_PARENT);
-        }
+        let no_parent = [NO_PARENT];
+        let parents = if view.parents.is_empty() {
+            &no_parent[..]
+        } else {
+            view.parents
+        };
         LodScene {
-            parents_buffer: storage("lod draw-id parents", bytemuck::cast_slice(&parents)),
+            parents_buffer: storage("lod draw-id parents", bytemuck::cast_slice(parents)),
             cull_records_buffer,
-            cull_records,
-            gpu_scene: SceneGpu::upload(gpu, &geometry),
-            building_count,
+            cull_records: view.cull_records.to_vec(),
+            gpu_scene: SceneGpu::sharing(gpu, buildings, view.records, view.bounds),
+            building_count: view.building_count,
             tree: LodTree::new(tree),
             criterion: None,
         }

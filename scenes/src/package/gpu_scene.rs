@@ -1,0 +1,437 @@
+//! The GPU-ready scene section: the combined LOD scene of buildings and cluster meshes
+//! ([`lod_geometry`]) as the GPU reads it — vertices, indices, draw records, cull parts, the
+//! occlusion cull's records ([`cull_records`]) and the draw-id parents ([`draw_id_parents`]) —
+//! computed once by preprocessing, so that opening a package uploads these arrays straight
+//! from the memory map instead of extruding and measuring every building again.
+//!
+//! Payload layout (little-endian; every array starts at a multiple of [`ARRAY_ALIGN`] bytes
+//! from the payload's start, which lies at a multiple of the section alignment; gaps are zero):
+//!
+//! ```text
+//! Header (96 bytes)
+//! [SceneVertex; vertex_count]    buildings' vertices, then clusters', then the ground's 4
+//! [u32; index_count]             relative to each record's base_vertex, the ground's 6 last
+//! [BuildingRecord; record_count] draw records: building_count buildings, then one per node
+//! [CullPart; part_count]         the buildings' cull parts (clusters have none)
+//! [BuildingRecord; record_count] the occlusion cull's records (cluster boxes widened)
+//! [u32; record_count]            per draw id, the draw id of the cluster above it
+//! ```
+//!
+//! Without a cluster tree the scene is the buildings alone (`record_count == building_count`,
+//! cull records equal to the draw records, no parents).
+
+use std::fmt;
+use std::sync::Arc;
+
+use bytemuck::{Pod, Zeroable};
+use citywalk_shaders::constants::NO_PARENT;
+use citywalk_shaders::{BuildingRecord, CullPart, DrawIndexedIndirectArgs, SceneVertex};
+use glam::Vec3;
+
+use crate::City;
+use crate::cluster_tree::ClusterTree;
+use crate::scene_geometry::{SceneGeometry, cull_records, draw_id_parents, lod_geometry};
+
+// The arrays are the GPU's little-endian layout, read in place.
+#[cfg(target_endian = "big")]
+compile_error!("scene packages store little-endian GPU arrays read in place");
+
+/// Alignment of each array inside the payload (the widest GPU vector, `vec4<f32>`).
+pub const ARRAY_ALIGN: usize = 16;
+
+/// The fixed start of the payload.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+struct Header {
+    building_count: u32,
+    record_count: u32,
+    vertex_count: u32,
+    index_count: u32,
+    part_count: u32,
+    /// Zero: room for later counts without moving the rest.
+    reserved: [u32; 7],
+    ground: DrawIndexedIndirectArgs,
+    bounds_min_m: [f32; 3],
+    bounds_max_m: [f32; 3],
+    padding: u32,
+}
+
+const HEADER_LEN: usize = size_of::<Header>();
+const _: () = assert!(HEADER_LEN == 96 && HEADER_LEN.is_multiple_of(ARRAY_ALIGN));
+
+/// Byte ranges of the arrays inside the payload.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Layout {
+    header: Header,
+    vertices: (usize, usize),
+    indices: (usize, usize),
+    records: (usize, usize),
+    parts: (usize, usize),
+    cull_records: (usize, usize),
+    parents: (usize, usize),
+    len: usize,
+}
+
+impl Layout {
+    /// The ranges the header's counts imply (`None` on overflow).
+    fn of(header: Header) -> Option<Layout> {
+        let mut at = HEADER_LEN;
+        let mut array = |count: u32, size: usize| -> Option<(usize, usize)> {
+            let start = at;
+            let end = start.checked_add((count as usize).checked_mul(size)?)?;
+            at = end.checked_next_multiple_of(ARRAY_ALIGN)?;
+            Some((start, end))
+        };
+        let h = header;
+        let vertices = array(h.vertex_count, size_of::<SceneVertex>())?;
+        let indices = array(h.index_count, 4)?;
+        let records = array(h.record_count, size_of::<BuildingRecord>())?;
+        let parts = array(h.part_count, size_of::<CullPart>())?;
+        let cull_records = array(h.record_count, size_of::<BuildingRecord>())?;
+        let parents = array(h.record_count, 4)?;
+        Some(Layout {
+            header,
+            vertices,
+            indices,
+            records,
+            parts,
+            cull_records,
+            parents,
+            len: at,
+        })
+    }
+}
+
+/// Where the payload's bytes live.
+#[derive(Clone)]
+enum Storage {
+    /// Built in memory, or copied out of bytes that were not mapped (`u32`s, so the arrays,
+    /// all of 4-byte alignment, can be viewed in place).
+    Owned(Vec<u32>),
+    /// A range of the package's memory map (starting at a multiple of the section alignment).
+    Mapped {
+        map: Arc<memmap2::Mmap>,
+        offset: usize,
+    },
+}
+
+/// The GPU-ready scene of a package (see the module documentation), owned or in the mapping.
+#[derive(Clone)]
+pub struct GpuScene {
+    storage: Storage,
+    layout: Layout,
+}
+
+/// The arrays of a [`GpuScene`], borrowed from its bytes (no copy).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GpuSceneView<'a> {
+    /// Draw ids below this are buildings; draw id `building_count + n` is tree node `n`.
+    pub building_count: u32,
+    pub vertices: &'a [SceneVertex],
+    pub indices: &'a [u32],
+    /// One per draw id.
+    pub records: &'a [BuildingRecord],
+    pub parts: &'a [CullPart],
+    /// One per draw id.
+    pub cull_records: &'a [BuildingRecord],
+    /// One per draw id, [`NO_PARENT`] at the top (every draw id without a tree).
+    pub parents: &'a [u32],
+    pub ground: DrawIndexedIndirectArgs,
+    /// Bounds of every record (buildings and cluster meshes).
+    pub bounds: (Vec3, Vec3),
+}
+
+impl GpuScene {
+    /// Meshes the buildings of `city` and the cluster meshes of `tree` (built from `city`), with
+    /// cull parts and records: what the runtime would otherwise compute at load.
+    pub fn build(city: &City, tree: Option<&ClusterTree>) -> GpuScene {
+        let n = city.buildings.len() as u32;
+        match tree {
+            Some(tree) => {
+                let geometry = lod_geometry(city, tree);
+                let cull = cull_records(&geometry.records, n, tree);
+                GpuScene::from_arrays(n, &geometry, &cull, &draw_id_parents(tree, n))
+            }
+            None => {
+                let geometry = SceneGeometry::from_city(city);
+                GpuScene::from_arrays(n, &geometry, &geometry.records, &[])
+            }
+        }
+    }
+
+    /// Lays out `geometry` (whose first `building_count` records are buildings) with its cull
+    /// records and parents (one per record, or none without a tree).
+    pub fn from_arrays(
+        building_count: u32,
+        geometry: &SceneGeometry,
+        cull_records: &[BuildingRecord],
+        parents: &[u32],
+    ) -> GpuScene {
+        let header = Header {
+            building_count,
+            record_count: geometry.records.len() as u32,
+            vertex_count: geometry.vertices.len() as u32,
+            index_count: geometry.indices.len() as u32,
+            part_count: geometry.parts.len() as u32,
+            reserved: [0; 7],
+            ground: geometry.ground,
+            bounds_min_m: geometry.bounds.0.to_array(),
+            bounds_max_m: geometry.bounds.1.to_array(),
+            padding: 0,
+        };
+        let layout = Layout::of(header).expect("a scene that fits in memory fits its layout");
+        // Written straight into the `u32`s the scene keeps (the length is a multiple of 16).
+        let mut words = vec![0u32; layout.len / 4];
+        let bytes: &mut [u8] = bytemuck::cast_slice_mut(&mut words);
+        let mut put = |(start, end): (usize, usize), data: &[u8]| {
+            bytes[start..end].copy_from_slice(data);
+        };
+        put((0, HEADER_LEN), bytemuck::bytes_of(&header));
+        put(layout.vertices, bytemuck::cast_slice(&geometry.vertices));
+        put(layout.indices, bytemuck::cast_slice(&geometry.indices));
+        put(layout.records, bytemuck::cast_slice(&geometry.records));
+        put(layout.parts, bytemuck::cast_slice(&geometry.parts));
+        // Without a tree: the draw records, and no parents (every draw id a building at the
+        // top), stored as such so the layout has one shape.
+        let cull = if cull_records.len() == geometry.records.len() {
+            cull_records
+        } else {
+            &geometry.records
+        };
+        put(layout.cull_records, bytemuck::cast_slice(cull));
+        let no_parents;
+        let parents = if parents.len() == geometry.records.len() {
+            parents
+        } else {
+            no_parents = vec![NO_PARENT; geometry.records.len()];
+            &no_parents
+        };
+        put(layout.parents, bytemuck::cast_slice(parents));
+        GpuScene {
+            storage: Storage::Owned(words),
+            layout,
+        }
+    }
+
+    /// Checks the payload's structure (header, lengths, padding, every record's ranges inside
+    /// its arrays) and copies it.
+    pub fn from_payload(payload: &[u8]) -> Result<GpuScene, String> {
+        let layout = validate(payload)?;
+        Ok(GpuScene {
+            storage: Storage::Owned(bytemuck::pod_collect_to_vec(payload)),
+            layout,
+        })
+    }
+
+    /// Checks the payload at `map[offset..offset + len]` as [`GpuScene::from_payload`] does and
+    /// keeps it in the mapping.
+    pub(super) fn mapped(
+        map: &Arc<memmap2::Mmap>,
+        offset: usize,
+        len: usize,
+    ) -> Result<GpuScene, String> {
+        let payload = map
+            .get(offset..offset + len)
+            .ok_or("section outside the file")?;
+        if !(payload.as_ptr() as usize).is_multiple_of(4) {
+            return Err("payload not aligned to 4 bytes".into());
+        }
+        let layout = validate(payload)?;
+        Ok(GpuScene {
+            storage: Storage::Mapped {
+                map: Arc::clone(map),
+                offset,
+            },
+            layout,
+        })
+    }
+
+    /// The payload's bytes.
+    pub fn bytes(&self) -> &[u8] {
+        match &self.storage {
+            Storage::Owned(words) => &bytemuck::cast_slice(words)[..self.layout.len],
+            Storage::Mapped { map, offset } => &map[*offset..*offset + self.layout.len],
+        }
+    }
+
+    /// Whether the arrays are read in place from a package's memory map.
+    pub fn is_mapped(&self) -> bool {
+        matches!(self.storage, Storage::Mapped { .. })
+    }
+
+    /// The arrays, borrowed.
+    pub fn view(&self) -> GpuSceneView<'_> {
+        let bytes = self.bytes();
+        let l = &self.layout;
+        // Validated at construction: the ranges are in the payload and the payload is 4-byte
+        // aligned (a `Vec<u32>` or a mapping at a section boundary), so the casts hold.
+        fn cast<T: Pod>(bytes: &[u8], (start, end): (usize, usize)) -> &[T] {
+            bytemuck::cast_slice(&bytes[start..end])
+        }
+        GpuSceneView {
+            building_count: l.header.building_count,
+            vertices: cast(bytes, l.vertices),
+            indices: cast(bytes, l.indices),
+            records: cast(bytes, l.records),
+            parts: cast(bytes, l.parts),
+            cull_records: cast(bytes, l.cull_records),
+            parents: cast(bytes, l.parents),
+            ground: l.header.ground,
+            bounds: (
+                Vec3::from_array(l.header.bounds_min_m),
+                Vec3::from_array(l.header.bounds_max_m),
+            ),
+        }
+    }
+
+    /// An owned copy of the geometry (the draw records, with the ground and bounds).
+    pub fn geometry(&self) -> SceneGeometry {
+        let v = self.view();
+        SceneGeometry {
+            vertices: v.vertices.to_vec(),
+            indices: v.indices.to_vec(),
+            records: v.records.to_vec(),
+            parts: v.parts.to_vec(),
+            ground: v.ground,
+            bounds: v.bounds,
+        }
+    }
+}
+
+impl GpuSceneView<'_> {
+    /// Number of cluster-node draw ids after the buildings.
+    pub fn cluster_count(&self) -> usize {
+        self.records.len() - self.building_count as usize
+    }
+
+    /// Checks everything [`validate`] does not: the layout of the records
+    /// ([`crate::scene_geometry::check_layout`]), that the cull records keep the draw records'
+    /// ranges, the parents point up to cluster draw ids, and that `building_count` buildings and
+    /// `nodes` tree nodes make the records.
+    pub fn check_invariants(&self, buildings: usize, nodes: usize) -> Result<(), String> {
+        if self.building_count as usize != buildings || self.cluster_count() != nodes {
+            return Err(format!(
+                "{} buildings and {} clusters, the package has {buildings} and {nodes}",
+                self.building_count,
+                self.cluster_count()
+            ));
+        }
+        crate::scene_geometry::check_layout(
+            self.vertices,
+            self.indices,
+            self.records,
+            self.parts,
+            self.ground,
+        )?;
+        for (i, (r, c)) in self.records.iter().zip(self.cull_records).enumerate() {
+            let same_draw = (r.first_index, r.index_count, r.base_vertex, r.vertex_count)
+                == (c.first_index, c.index_count, c.base_vertex, c.vertex_count);
+            let parts_ok = c.first_part == r.first_part && c.part_count <= r.part_count;
+            if !same_draw || !parts_ok {
+                return Err(format!("cull record {i} does not match its draw record"));
+            }
+        }
+        let n = self.building_count;
+        if let Some((i, p)) = (self.parents.iter().enumerate()).find(|&(i, &p)| {
+            p != NO_PARENT && (p < n || p as usize >= self.records.len() || p as usize == i)
+        }) {
+            return Err(format!("draw id {i}: parent {p} is not a cluster above it"));
+        }
+        Ok(())
+    }
+}
+
+/// Checks a payload's structure; O(records), not O(indices) (that is
+/// [`GpuSceneView::check_invariants`]), so opening a package stays fast.
+fn validate(payload: &[u8]) -> Result<Layout, String> {
+    let header: Header = payload
+        .get(..HEADER_LEN)
+        .map(bytemuck::pod_read_unaligned)
+        .ok_or_else(|| format!("{} bytes, shorter than the header", payload.len()))?;
+    if header.reserved != [0; 7] || header.padding != 0 {
+        return Err("reserved header fields set".into());
+    }
+    if header.building_count > header.record_count {
+        return Err(format!(
+            "{} buildings but {} records",
+            header.building_count, header.record_count
+        ));
+    }
+    let layout = Layout::of(header).ok_or("counts overflow")?;
+    if layout.len != payload.len() {
+        return Err(format!(
+            "the counts need {} bytes, the section has {}",
+            layout.len,
+            payload.len()
+        ));
+    }
+    let arrays = [
+        layout.vertices,
+        layout.indices,
+        layout.records,
+        layout.parts,
+        layout.cull_records,
+        layout.parents,
+    ];
+    let mut end = HEADER_LEN;
+    for (start, stop) in arrays {
+        if payload[end..start].iter().any(|&b| b != 0) {
+            return Err("non-zero padding between arrays".into());
+        }
+        end = stop;
+    }
+    if payload[end..].iter().any(|&b| b != 0) {
+        return Err("non-zero padding after the arrays".into());
+    }
+    let h = header;
+    let records = |(start, end): (usize, usize)| {
+        payload[start..end]
+            .chunks_exact(size_of::<BuildingRecord>())
+            .map(bytemuck::pod_read_unaligned::<BuildingRecord>)
+    };
+    for (i, r) in records(layout.records)
+        .chain(records(layout.cull_records))
+        .enumerate()
+    {
+        let inside = |first: u64, count: u64, len: u32| first + count <= u64::from(len);
+        let base =
+            u64::try_from(r.base_vertex).map_err(|_| format!("record {i}: negative base"))?;
+        if !inside(r.first_index.into(), r.index_count.into(), h.index_count)
+            || !inside(base, r.vertex_count.into(), h.vertex_count)
+            || !inside(r.first_part.into(), r.part_count.into(), h.part_count)
+        {
+            return Err(format!(
+                "record {}: ranges past the arrays",
+                i % h.record_count.max(1) as usize
+            ));
+        }
+    }
+    let g = h.ground;
+    if u64::from(g.first_index) + u64::from(g.index_count) > u64::from(h.index_count)
+        || g.base_vertex < 0
+        || g.base_vertex as u64 + 4 > u64::from(h.vertex_count)
+    {
+        return Err("ground draw past the arrays".into());
+    }
+    Ok(layout)
+}
+
+impl PartialEq for GpuScene {
+    fn eq(&self, other: &GpuScene) -> bool {
+        self.bytes() == other.bytes()
+    }
+}
+
+impl fmt::Debug for GpuScene {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let h = &self.layout.header;
+        f.debug_struct("GpuScene")
+            .field("buildings", &h.building_count)
+            .field("records", &h.record_count)
+            .field("vertices", &h.vertex_count)
+            .field("indices", &h.index_count)
+            .field("parts", &h.part_count)
+            .field("mapped", &self.is_mapped())
+            .finish()
+    }
+}

@@ -1,0 +1,380 @@
+//! The scene's GPU-ready geometry on the CPU, in exactly the layout uploaded: one vertex array,
+//! one index array with a contiguous index range per building, per-building records (bounds,
+//! index range, cull parts) laid out so that a culling pass can emit one `DrawIndexedIndirect`
+//! per building ([`BuildingRecord::draw_args`]), and the combined LOD layout of buildings and
+//! cluster meshes ([`lod_geometry`]).
+//!
+//! It lives here, not in the runtime, because preprocessing computes it once into the package
+//! ([`crate::package::GpuScene`]) and the runtime computes the same for inputs loaded on the fly.
+//! Vertices carry position and building id only; the scene shader computes flat normals from
+//! screen-space derivatives, so vertices are shared between triangles.
+
+use std::borrow::Cow;
+
+use citywalk_shaders::constants::NO_PARENT;
+use citywalk_shaders::{BuildingRecord, CullPart, DrawIndexedIndirectArgs, GROUND_ID, SceneVertex};
+use glam::Vec3;
+
+use crate::cluster_tree::ClusterTree;
+use crate::cull_parts;
+use crate::extrude::building_mesh;
+use crate::{City, TriangleMesh};
+
+/// The scene's geometry on the CPU, in exactly the layout uploaded to the GPU.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SceneGeometry {
+    /// All buildings' vertices, building after building, then the ground's 4.
+    pub vertices: Vec<SceneVertex>,
+    /// Indices relative to each building's `base_vertex`.
+    pub indices: Vec<u32>,
+    /// One record per building, indexed by building id.
+    pub records: Vec<BuildingRecord>,
+    /// The buildings' cull parts, building after building (each record names its range).
+    pub parts: Vec<CullPart>,
+    /// The ground plane's draw (a quad well beyond the city, at the lowest base height).
+    pub ground: DrawIndexedIndirectArgs,
+    /// Bounds of all buildings `(min, max)`; a 1 m cube at the origin for an empty scene.
+    pub bounds: (Vec3, Vec3),
+}
+
+impl SceneGeometry {
+    /// Meshes every building of `city` ([`building_mesh`]: its own mesh, else extruded parts).
+    pub fn from_city(city: &City) -> SceneGeometry {
+        let n = city.buildings.len();
+        Self::from_mesh_iter(
+            city.buildings
+                .iter()
+                .map(|b| (Cow::Owned(building_mesh(b)), b.bounds())),
+            n,
+        )
+    }
+
+    /// One building per mesh, with id = position. `fallback_bounds[i]` is used for a building
+    /// whose mesh is empty (it then draws nothing).
+    pub fn from_meshes(meshes: &[TriangleMesh], fallback_bounds: &[(Vec3, Vec3)]) -> SceneGeometry {
+        Self::from_meshes_with_parts(meshes, fallback_bounds, meshes.len())
+    }
+
+    /// As [`SceneGeometry::from_meshes`], with cull parts for the first `with_parts` meshes only
+    /// (the others are culled by their boxes, as cluster meshes are: [`cull_records`]).
+    pub fn from_meshes_with_parts(
+        meshes: &[TriangleMesh],
+        fallback_bounds: &[(Vec3, Vec3)],
+        with_parts: usize,
+    ) -> SceneGeometry {
+        Self::from_mesh_iter(
+            meshes.iter().enumerate().map(|(i, m)| {
+                let fallback = fallback_bounds.get(i).copied();
+                (
+                    Cow::Borrowed(m),
+                    fallback.unwrap_or((Vec3::ZERO, Vec3::ZERO)),
+                )
+            }),
+            with_parts,
+        )
+    }
+
+    /// [`SceneGeometry::from_meshes_with_parts`] over meshes made one at a time, so a million
+    /// extruded buildings are never held as meshes all at once.
+    pub fn from_mesh_iter<'m>(
+        meshes: impl Iterator<Item = (Cow<'m, TriangleMesh>, (Vec3, Vec3))>,
+        with_parts: usize,
+    ) -> SceneGeometry {
+        let mut g = SceneGeometry::default();
+        let mut lo = Vec3::splat(f32::INFINITY);
+        let mut hi = Vec3::splat(f32::NEG_INFINITY);
+        for (i, (mesh, fallback)) in meshes.enumerate() {
+            let (bmin, bmax) = mesh.bounds().unwrap_or(fallback);
+            // Indices that point outside the mesh would read other buildings' vertices: drop
+            // those triangles.
+            let n = mesh.positions.len() as u32;
+            let first_index = g.indices.len() as u32;
+            for t in mesh.indices.chunks_exact(3) {
+                if t.iter().all(|&v| v < n) {
+                    g.indices.extend_from_slice(t);
+                }
+            }
+            let first_part = g.parts.len() as u32;
+            if i < with_parts {
+                g.parts.extend(cull_parts::cull_parts(
+                    &mesh.positions,
+                    &g.indices[first_index as usize..],
+                ));
+            }
+            g.records.push(BuildingRecord {
+                bounds_min_m: bmin.to_array(),
+                first_index,
+                bounds_max_m: bmax.to_array(),
+                index_count: g.indices.len() as u32 - first_index,
+                base_vertex: g.vertices.len() as i32,
+                vertex_count: n,
+                first_part,
+                part_count: g.parts.len() as u32 - first_part,
+            });
+            g.vertices
+                .extend(mesh.positions.iter().map(|p| SceneVertex {
+                    position_m: p.to_array(),
+                    building_id: i as u32,
+                }));
+            if bmin.cmple(bmax).all() {
+                lo = lo.min(bmin);
+                hi = hi.max(bmax);
+            }
+        }
+        if !lo.cmple(hi).all() {
+            (lo, hi) = (Vec3::ZERO, Vec3::ONE);
+        }
+        g.bounds = (lo, hi);
+        g.push_ground();
+        g.vertices.shrink_to_fit();
+        g.indices.shrink_to_fit();
+        g
+    }
+
+    /// A ground quad reaching well past the city (so the horizon is ground, not sky), at the
+    /// lowest base height (at most 0).
+    fn push_ground(&mut self) {
+        let (lo, hi) = self.bounds;
+        let centre = (lo + hi) * 0.5;
+        let half_m = ((hi - lo).truncate().max_element() * 0.5).max(100.0) * 50.0 + 5_000.0;
+        let z = lo.z.min(0.0);
+        let base_vertex = self.vertices.len() as i32;
+        for (dx, dy) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
+            self.vertices.push(SceneVertex {
+                position_m: [centre.x + dx * half_m, centre.y + dy * half_m, z],
+                building_id: GROUND_ID,
+            });
+        }
+        let first_index = self.indices.len() as u32;
+        self.indices.extend_from_slice(&[0, 1, 2, 0, 2, 3]);
+        self.ground = DrawIndexedIndirectArgs {
+            index_count: 6,
+            instance_count: 1,
+            first_index,
+            base_vertex,
+            first_instance: 0,
+        };
+    }
+
+    /// Number of buildings.
+    pub fn building_count(&self) -> usize {
+        self.records.len()
+    }
+
+    /// Total triangles of all buildings (the ground excluded).
+    pub fn building_triangle_count(&self) -> usize {
+        self.records
+            .iter()
+            .map(|r| r.index_count as usize / 3)
+            .sum()
+    }
+
+    /// Checks the layout ([`check_layout`]).
+    pub fn check_invariants(&self) -> Result<(), String> {
+        check_layout(
+            &self.vertices,
+            &self.indices,
+            &self.records,
+            &self.parts,
+            self.ground,
+        )
+    }
+}
+
+/// Checks a scene layout: index ranges are contiguous, in record order, inside the index array,
+/// every index of a record stays within its own vertices, which carry its id; part ranges are
+/// contiguous and inside `parts`; the ground follows the last record.
+pub fn check_layout(
+    vertices: &[SceneVertex],
+    indices: &[u32],
+    records: &[BuildingRecord],
+    parts: &[CullPart],
+    ground: DrawIndexedIndirectArgs,
+) -> Result<(), String> {
+    let mut next_index = 0u32;
+    let mut next_vertex = 0i32;
+    let mut next_part = 0u32;
+    for (i, r) in records.iter().enumerate() {
+        if r.first_index != next_index || r.base_vertex != next_vertex {
+            return Err(format!(
+                "record {i}: range does not follow the previous one"
+            ));
+        }
+        if r.first_part != next_part {
+            return Err(format!("record {i}: parts do not follow the previous ones"));
+        }
+        let end = r.first_index as usize + r.index_count as usize;
+        let range = indices
+            .get(r.first_index as usize..end)
+            .ok_or_else(|| format!("record {i}: index range past the buffer"))?;
+        if let Some(bad) = range.iter().find(|&&v| v >= r.vertex_count) {
+            return Err(format!(
+                "record {i}: index {bad} ≥ vertex count {}",
+                r.vertex_count
+            ));
+        }
+        let verts = vertices
+            .get(r.base_vertex as usize..r.base_vertex as usize + r.vertex_count as usize)
+            .ok_or_else(|| format!("record {i}: vertex range past the buffer"))?;
+        if verts.iter().any(|v| v.building_id != i as u32) {
+            return Err(format!("record {i}: vertex with another id"));
+        }
+        next_index += r.index_count;
+        next_vertex += r.vertex_count as i32;
+        next_part += r.part_count;
+    }
+    if next_part as usize != parts.len() {
+        return Err(format!(
+            "records name {next_part} cull parts, there are {}",
+            parts.len()
+        ));
+    }
+    if ground.first_index != next_index
+        || ground.base_vertex != next_vertex
+        || ground.index_count != 6
+        || indices.len() != next_index as usize + 6
+        || vertices.len() != next_vertex as usize + 4
+    {
+        return Err("ground does not follow the records, or arrays continue past it".into());
+    }
+    if vertices[next_vertex as usize..]
+        .iter()
+        .any(|v| v.building_id != GROUND_ID)
+        || indices[next_index as usize..].iter().any(|&v| v >= 4)
+    {
+        return Err("ground vertices or indices out of place".into());
+    }
+    Ok(())
+}
+
+/// The combined geometry of buildings and cluster meshes, so a LOD cut is one draw list. Draw
+/// ids `0..building_count` are the buildings (the same ids and geometry as
+/// [`SceneGeometry::from_city`]), then id `building_count + n` is the cluster mesh of tree node
+/// `n` (empty for leaves, which draw nothing under that id).
+pub fn lod_geometry(city: &City, tree: &ClusterTree) -> SceneGeometry {
+    let buildings = city
+        .buildings
+        .iter()
+        .map(|b| (Cow::Owned(building_mesh(b)), b.bounds()));
+    let clusters = tree.nodes.iter().map(|node| {
+        let bounds = (
+            Vec3::from_array(node.bounds_min),
+            Vec3::from_array(node.bounds_max),
+        );
+        (Cow::Borrowed(&node.mesh), bounds)
+    });
+    // Cluster meshes are culled by the box of everything under them (`cull_records`): no parts.
+    SceneGeometry::from_mesh_iter(buildings.chain(clusters), city.buildings.len())
+}
+
+/// The occlusion cull's record of every draw id, from `geometry_records` (the records of
+/// [`lod_geometry`] of `tree`, whose first `building_count` are the buildings): the same records,
+/// each cluster's bounds grown to the union of its mesh's, its node's and the records of the
+/// buildings under it, and culled by those bounds alone (no parts).
+pub fn cull_records(
+    geometry_records: &[BuildingRecord],
+    building_count: u32,
+    tree: &ClusterTree,
+) -> Vec<BuildingRecord> {
+    let mut out = geometry_records.to_vec();
+    let buildings = geometry_records
+        .get(..building_count as usize)
+        .unwrap_or(&[]);
+    for (n, node) in tree.nodes.iter().enumerate() {
+        let Some(record) = out.get_mut(building_count as usize + n) else {
+            continue;
+        };
+        let mut lo = Vec3::from_array(record.bounds_min_m).min(Vec3::from_array(node.bounds_min));
+        let mut hi = Vec3::from_array(record.bounds_max_m).max(Vec3::from_array(node.bounds_max));
+        let (s, e) = node.buildings;
+        for b in tree
+            .building_order
+            .get(s as usize..e as usize)
+            .unwrap_or(&[])
+        {
+            if let Some(r) = buildings.get(b.index()) {
+                lo = lo.min(Vec3::from_array(r.bounds_min_m));
+                hi = hi.max(Vec3::from_array(r.bounds_max_m));
+            }
+        }
+        record.bounds_min_m = lo.to_array();
+        record.bounds_max_m = hi.to_array();
+        // The parts of the cluster mesh alone do not hold its buildings: the box only.
+        record.part_count = 0;
+    }
+    out
+}
+
+/// Per draw id of the combined scene (see the module documentation), the draw id of the cluster
+/// above it, or [`NO_PARENT`]: a building's is its leaf node's, a node's its parent node's. A
+/// building was visible last frame when it or a draw id up this chain was kept (a drawn cluster
+/// shows every building under it).
+pub fn draw_id_parents(tree: &ClusterTree, building_count: u32) -> Vec<u32> {
+    let nodes = tree.nodes.len();
+    let mut parents = vec![NO_PARENT; building_count as usize + nodes];
+    for (n, node) in tree.nodes.iter().enumerate() {
+        for &c in &node.children {
+            if (c as usize) < nodes {
+                parents[building_count as usize + c as usize] = building_count + n as u32;
+            }
+        }
+        if node.is_leaf()
+            && let Some(b) = tree.building_order.get(node.buildings.0 as usize)
+            && b.0 < building_count
+        {
+            parents[b.index()] = building_count + n as u32;
+        }
+    }
+    parents
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tetra(offset: Vec3) -> TriangleMesh {
+        TriangleMesh {
+            positions: vec![offset, offset + Vec3::X, offset + Vec3::Y, offset + Vec3::Z],
+            indices: vec![0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3],
+        }
+    }
+
+    #[test]
+    fn ranges_are_per_building_and_checked() {
+        let mut bad = tetra(Vec3::new(5.0, 0.0, 0.0));
+        bad.indices.extend_from_slice(&[0, 1, 9]); // points past the mesh: dropped
+        let meshes = [tetra(Vec3::ZERO), TriangleMesh::default(), bad];
+        let fallback = [(Vec3::ZERO, Vec3::ONE); 3];
+        let g = SceneGeometry::from_meshes(&meshes, &fallback);
+        g.check_invariants().expect("valid layout");
+        assert_eq!(g.building_count(), 3);
+        assert_eq!(g.records[1].index_count, 0);
+        assert_eq!(g.records[2].index_count, 12);
+        assert_eq!(g.records[2].base_vertex, 4);
+        assert_eq!(g.records[2].first_index, 12);
+        assert_eq!(g.records[2].bounds_min_m, [5.0, 0.0, 0.0]);
+        assert_eq!(g.building_triangle_count(), 8);
+        let args = g.records[2].draw_args();
+        assert_eq!(
+            (args.first_index, args.index_count, args.base_vertex),
+            (12, 12, 4)
+        );
+        // The ground lies under the city and reaches far beyond it.
+        let ground = &g.vertices[g.ground.base_vertex as usize..];
+        assert!(
+            ground
+                .iter()
+                .all(|v| v.building_id == GROUND_ID && v.position_m[2] <= 0.0)
+        );
+        assert!(ground.iter().any(|v| v.position_m[0] < -1000.0));
+        assert_eq!(g.bounds, (Vec3::ZERO, Vec3::new(6.0, 1.0, 1.0)));
+
+        // A corrupted layout is reported.
+        let mut broken = g.clone();
+        broken.records[2].first_index += 3;
+        assert!(broken.check_invariants().is_err());
+        let mut broken = g;
+        broken.vertices[0].building_id = 2;
+        assert!(broken.check_invariants().is_err());
+    }
+}
