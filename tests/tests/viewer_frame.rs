@@ -40,6 +40,8 @@ fn every_stage_combination_and_debug_view_renders_and_reports_its_counts() {
         occluders: package.occluders.clone(),
         cluster_tree: package.cluster_tree.clone(),
         blocks: Some((package.blocks.clone(), package.quadtree.clone())),
+        // As `citywalk view` opens a package: the geometry uploaded from its GPU section.
+        gpu_scene: Some(package.gpu_scene.clone()),
     };
     let features = scene.features();
     assert_eq!(

@@ -178,6 +178,7 @@ fn load_scene(path: &Path) -> anyhow::Result<ViewerScene> {
             occluders: package.occluders,
             cluster_tree: package.cluster_tree,
             blocks: Some((package.blocks, package.quadtree)),
+            gpu_scene: Some(package.gpu_scene),
         }
     } else {
         ViewerScene {
@@ -185,6 +186,7 @@ fn load_scene(path: &Path) -> anyhow::Result<ViewerScene> {
             occluders: None,
             cluster_tree: None,
             blocks: None,
+            gpu_scene: None,
         }
     };
     let city = &scene.city;

@@ -4,6 +4,7 @@
 use citywalk_scenes::blocks::UrbanBlocks;
 use citywalk_scenes::cluster_tree::ClusterTree;
 use citywalk_scenes::occluder::OccluderSet;
+use citywalk_scenes::package::GpuScene;
 use citywalk_scenes::quadtree::BQuadtree;
 
 use super::overlay::StageCounts;
@@ -32,6 +33,9 @@ pub struct ViewerScene {
     pub cluster_tree: Option<ClusterTree>,
     /// A scene package's urban blocks and B-Quadtree (frustum culling of whole blocks).
     pub blocks: Option<(UrbanBlocks, BQuadtree)>,
+    /// A scene package's GPU-ready geometry (uploaded from the mapping; `None`: built from the
+    /// city at load).
+    pub gpu_scene: Option<GpuScene>,
 }
 
 impl ViewerScene {
@@ -92,12 +96,26 @@ impl FrameDrawer {
     /// Uploads `scene` and makes every pipeline for colour targets of `format`.
     pub fn new(gpu: &GpuContext, format: wgpu::TextureFormat, scene: ViewerScene) -> FrameDrawer {
         let occluders = scene.occluders.filter(|o| !o.occluders.is_empty());
+        let (plain, lod) = match &scene.gpu_scene {
+            Some(package) => {
+                let view = package.view();
+                let plain = SceneGpu::upload_package(gpu, &view);
+                let lod = scene
+                    .cluster_tree
+                    .map(|tree| LodScene::upload_package(gpu, &plain, &view, tree));
+                (plain, lod)
+            }
+            None => (
+                SceneGpu::upload_city(gpu, &scene.city),
+                scene
+                    .cluster_tree
+                    .map(|tree| LodScene::upload(gpu, &scene.city, tree)),
+            ),
+        };
         FrameDrawer {
             runner: FrameRunner::new(gpu, format),
-            scene: SceneGpu::upload_city(gpu, &scene.city),
-            lod: scene
-                .cluster_tree
-                .map(|tree| LodScene::upload(gpu, &scene.city, tree)),
+            scene: plain,
+            lod,
             blocks: scene.blocks,
             occluder_overlay_meshes: occluders
                 .as_ref()
