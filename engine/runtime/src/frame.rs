@@ -312,7 +312,6 @@ pub struct CullingRenderer {
     draw_ids: GrowBuffer,
     /// One [`NO_PARENT`] word: the parents of a scene without a cluster tree.
     no_parents: wgpu::Buffer,
-    early_draws: GrowBuffer,
     occluder_draws: GrowBuffer,
     reports: ReportRing<PendingFrame>,
     frames: u64,
@@ -370,7 +369,6 @@ impl CullingRenderer {
                 contents: bytemuck::bytes_of(&NO_PARENT),
                 usage: wgpu::BufferUsages::STORAGE,
             }),
-            early_draws: GrowBuffer::new(device, "early draws", indirect),
             occluder_draws: GrowBuffer::new(device, "occluder draws", indirect),
             reports: ReportRing::new(device),
             frames: 0,
@@ -510,7 +508,7 @@ impl CullingRenderer {
                 view_proj,
             )?,
         }
-        self.early_pass(gpu, &mut encoder, frame.geometry, n as u32, colour);
+        self.early_pass(&mut encoder, frame.geometry, n as u32, colour);
         if let Some(meshes) = occluder_meshes {
             self.occluder_pass(gpu, &mut encoder, meshes, &occluders_drawn, gated);
         }
@@ -647,12 +645,7 @@ impl CullingRenderer {
             pass.set_pipeline(&self.depth_pipeline);
             pass.set_bind_group(0, &self.view_group, &[]);
             scene.bind(&mut pass);
-            let g = scene.ground;
-            pass.draw_indexed(
-                g.first_index..g.first_index + g.index_count,
-                g.base_vertex,
-                0..g.instance_count,
-            );
+            scene.draw_ground(&mut pass);
             self.draw_occluders(&mut pass, meshes, selected.len());
         }
         let targets = self.targets.as_ref().expect("fit_targets ran");
@@ -695,16 +688,12 @@ impl CullingRenderer {
     /// Clears colour and depth, draws the ground and the early entry point's commands (at most
     /// one per candidate of `n`).
     fn early_pass(
-        &mut self,
-        gpu: &GpuContext,
+        &self,
         encoder: &mut wgpu::CommandEncoder,
         scene: &SceneGpu,
         n: u32,
         colour: &wgpu::TextureView,
     ) {
-        let bytes: &[u8] = bytemuck::bytes_of(&scene.ground);
-        self.early_draws.reserve(&gpu.device, bytes.len() as u64);
-        gpu.queue.write_buffer(&self.early_draws.buffer, 0, bytes);
         let targets = self.targets.as_ref().expect("fit_targets ran");
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("early_pass"),
@@ -725,7 +714,7 @@ impl CullingRenderer {
         pass.set_pipeline(&self.scene_pipeline);
         pass.set_bind_group(0, &self.view_group, &[]);
         scene.bind(&mut pass);
-        pass.multi_draw_indexed_indirect(&self.early_draws.buffer, 0, 1);
+        scene.draw_ground(&mut pass);
         if n > 0 {
             self.indirect_draws(&mut pass, &self.early, n);
         }

@@ -221,22 +221,9 @@ impl GpuTimer {
     /// Records the resolve of the written phases and the copy to the readback buffer, after the
     /// frame's last timed pass.
     pub fn resolve(&self, encoder: &mut wgpu::CommandEncoder) {
-        let Some(q) = &self.queries else {
-            return;
-        };
-        if !self.any_written() {
-            return;
+        if let Some(q) = &self.queries {
+            self.resolve_to(encoder, &q.readback, 0);
         }
-        for i in (0..self.phases.len()).filter(|&i| self.was_written(i)) {
-            let first = i as u32 * 2;
-            encoder.resolve_query_set(
-                &q.set,
-                first..first + 2,
-                &q.resolve,
-                i as u64 * PHASE_STRIDE_BYTES,
-            );
-        }
-        encoder.copy_buffer_to_buffer(&q.resolve, 0, &q.readback, 0, q.resolve.size());
     }
 
     /// Bytes [`GpuTimer::resolve_to`] copies (0 when disabled).
