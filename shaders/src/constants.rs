@@ -81,6 +81,53 @@ pub const DEBUG_OCCLUDER_SELECTED_RGB: [f32; 3] = [1.0, 0.45, 0.05];
 /// Opacity of the occluders blended over the frame.
 pub const DEBUG_OCCLUDER_ALPHA: f32 = 0.6;
 
+/// Tree cull (engine `hzb::tree_cull`): the LOD criterion of `TreeCullParams::criterion`.
+pub const TREE_CRITERION_CHANG: u32 = 0;
+pub const TREE_CRITERION_YANG: u32 = 1;
+
+/// Tree cull: what the early entry point does with last frame's kept draw ids.
+pub const TREE_EARLY_NONE: u32 = 0;
+pub const TREE_EARLY_FRUSTUM: u32 = 1;
+pub const TREE_EARLY_GATE: u32 = 2;
+
+/// Tree cull: the deepest tree it walks (levels below the root, plus one).
+pub const TREE_MAX_LEVELS: u32 = 64;
+
+/// Tree cull: workgroups of each early and level dispatch, which stride over their entries.
+/// A fixed count rather than an indirect dispatch sized by the previous level: on lavapipe the
+/// dispatch that writes the arguments and the barrier before the indirect read cost about 8 ms
+/// per tree level, the fixed dispatches 0.05 ms.
+pub const TREE_WALK_WORKGROUPS: u32 = 64;
+
+/// Tree cull: word indices of its counters buffer. The level being walked; draws appended
+/// by the early entry and by the levels (the indirect draw counts); entries of the early list;
+/// buildings culled by the frustum and by occlusion (whole subtrees); overflow (a queue or list
+/// ran out: the frame is incomplete, an error); early candidates the gate kept out; nodes
+/// visited; last frame's kept entries the early entry reads; per level, queue entries and the
+/// first entry.
+pub const TREE_C_LEVEL: u32 = 8;
+pub const TREE_C_EARLY_DRAWS: u32 = 9;
+pub const TREE_C_LATE_DRAWS: u32 = 10;
+pub const TREE_C_EARLY_LISTED: u32 = 11;
+pub const TREE_C_FRUSTUM_CULLED: u32 = 12;
+pub const TREE_C_OCCLUSION_CULLED: u32 = 13;
+pub const TREE_C_OVERFLOW: u32 = 14;
+pub const TREE_C_GATE_CULLED: u32 = 15;
+pub const TREE_C_VISITED: u32 = 16;
+/// Tree cull: entries of last frame's kept list the early entry point reads (0 without an early
+/// set).
+pub const TREE_C_LAST_KEPT: u32 = 17;
+/// Tree cull: workgroups of the current level dispatch that have finished (the last one moves
+/// the walk to the next level).
+pub const TREE_C_DONE: u32 = 18;
+pub const TREE_C_QUEUE_LEN: u32 = 32;
+pub const TREE_C_QUEUE_START: u32 = TREE_C_QUEUE_LEN + TREE_MAX_LEVELS;
+pub const TREE_C_WORDS: u32 = TREE_C_QUEUE_START + TREE_MAX_LEVELS;
+
+/// Tree cull: the kept lists' header words (the two halves' counts, then padding) before the
+/// halves.
+pub const TREE_LIST_HEADER: u32 = 4;
+
 /// Every `u32` constant emitted into WGSL, by name.
 pub const WGSL_U32: &[(&str, u32)] = &[
     ("GROUND_ID", GROUND_ID),
@@ -96,6 +143,28 @@ pub const WGSL_U32: &[(&str, u32)] = &[
     ("CULL_FLAG_VISIBILITY", CULL_FLAG_VISIBILITY),
     ("NO_PARENT", NO_PARENT),
     ("HZB_FINE_SPAN", HZB_FINE_SPAN),
+    ("TREE_CRITERION_CHANG", TREE_CRITERION_CHANG),
+    ("TREE_CRITERION_YANG", TREE_CRITERION_YANG),
+    ("TREE_EARLY_NONE", TREE_EARLY_NONE),
+    ("TREE_EARLY_FRUSTUM", TREE_EARLY_FRUSTUM),
+    ("TREE_EARLY_GATE", TREE_EARLY_GATE),
+    ("TREE_MAX_LEVELS", TREE_MAX_LEVELS),
+    ("TREE_WALK_WORKGROUPS", TREE_WALK_WORKGROUPS),
+    ("TREE_C_DONE", TREE_C_DONE),
+    ("TREE_C_LEVEL", TREE_C_LEVEL),
+    ("TREE_C_EARLY_DRAWS", TREE_C_EARLY_DRAWS),
+    ("TREE_C_LATE_DRAWS", TREE_C_LATE_DRAWS),
+    ("TREE_C_EARLY_LISTED", TREE_C_EARLY_LISTED),
+    ("TREE_C_FRUSTUM_CULLED", TREE_C_FRUSTUM_CULLED),
+    ("TREE_C_OCCLUSION_CULLED", TREE_C_OCCLUSION_CULLED),
+    ("TREE_C_OVERFLOW", TREE_C_OVERFLOW),
+    ("TREE_C_GATE_CULLED", TREE_C_GATE_CULLED),
+    ("TREE_C_VISITED", TREE_C_VISITED),
+    ("TREE_C_LAST_KEPT", TREE_C_LAST_KEPT),
+    ("TREE_C_QUEUE_LEN", TREE_C_QUEUE_LEN),
+    ("TREE_C_QUEUE_START", TREE_C_QUEUE_START),
+    ("TREE_C_WORDS", TREE_C_WORDS),
+    ("TREE_LIST_HEADER", TREE_LIST_HEADER),
 ];
 
 /// Every `f32` constant emitted into WGSL, by name.

@@ -15,7 +15,7 @@ mod types;
 
 pub use constants::{GROUND_ID, ID_BACKGROUND, ID_OFFSET};
 pub use debug::PyramidViewParams;
-pub use hzb::HzbCullParams;
+pub use hzb::{HzbCullParams, TreeCullParams, TreeLandmark, TreeNode};
 pub use types::{BuildingRecord, CullPart, DrawIndexedIndirectArgs, SceneVertex, ViewUniforms};
 
 /// Flat-shaded scene pass (`wgsl/scene.wgsl`): entry points `vs_main`, `fs_main`; group 0

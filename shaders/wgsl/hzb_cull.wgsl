@@ -407,3 +407,322 @@ fn covering_texels(rect: vec4<u32>, level: i32) -> vec4<u32> {
     let hi = min(rect.zw >> vec2<u32>(u32(level)), last);
     return vec4<u32>(lo, hi);
 }
+
+// ---- Tree cull: the LOD cut of the cluster tree on the GPU, with hierarchical occlusion ----
+//
+// Engine `hzb::tree_cull`; CPU reference `hzb::reference::tree_cull`. The cut of
+// Chang et al. 2008 §8 / Yang et al. 2011 §4 (engine `lod`), walked top-down one tree level per
+// dispatch (`tree_advance` sizes the next level's indirect dispatch from the queue), with each
+// node's box (its cull record, which holds every building under it) tested against the frustum
+// and the pyramid before its children are looked at: a hidden node hides its whole subtree, so
+// the walk visits what is visible and its neighbours, not every node in the frustum. A node is in
+// the cut when it is a leaf (its building, tested part by part) or its error projected at the
+// nearest point of its bounds is within tolerance (its cluster mesh; with Chang's τ, each
+// landmark rising more than τ above it too). The errors are monotone, so a node is in the cut
+// exactly when its parent refines and it does not (the early entry's test).
+//
+// Kept draw ids go to this frame's half of the kept lists; the next frame's `tree_early` draws
+// those of them that are buildings still in the cut and in the frustum (or, with the gate, not
+// hidden by the occluders' pyramid) before the pyramid is built, and marks them in
+// `early_marks` so that the walk appends no second draw. Clusters are never drawn early (their
+// meshes are not contained in their buildings, so they must not feed the pyramid).
+
+struct TreeCullParams {
+    eye_m: vec3<f32>,
+    px_per_m_at_1m: f32,
+    criterion: u32,
+    tolerance_a: f32,
+    tolerance_b: f32,
+    root: u32,
+    list_capacity: u32,
+    last_half: u32,
+    early: u32,
+    queue_capacity: u32,
+    early_mark: u32,
+    node_count: u32,
+    building_count: u32,
+    _pad: u32,
+}
+
+struct TreeNode {
+    bounds_min_m: vec3<f32>,
+    first_child: u32,
+    bounds_max_m: vec3<f32>,
+    child_count: u32,
+    parent: u32,
+    building: u32,
+    building_count: u32,
+    first_landmark: u32,
+    landmark_count: u32,
+    height_m: f32,
+    chang_area_m2: f32,
+    delta_h_m: f32,
+    delta_a_m2: f32,
+    has_error: u32,
+    _pad: vec2<u32>,
+}
+
+struct TreeLandmark {
+    building: u32,
+    top_m: f32,
+}
+
+// Two halves of kept draw ids (last frame's, this frame's), their counts in the header.
+struct TreeLists {
+    counts: array<atomic<u32>, TREE_LIST_HEADER>,
+    ids: array<u32>,
+}
+
+@group(0) @binding(11) var<uniform> tree: TreeCullParams;
+@group(0) @binding(12) var<storage, read> nodes: array<TreeNode>;
+@group(0) @binding(13) var<storage, read> children: array<u32>;
+@group(0) @binding(14) var<storage, read> landmarks: array<TreeLandmark>;
+@group(0) @binding(15) var<storage, read> leaf_of: array<u32>;
+@group(0) @binding(16) var<storage, read_write> queue: array<u32>;
+@group(0) @binding(17) var<storage, read_write> counters: array<atomic<u32>>;
+@group(0) @binding(18) var<storage, read_write> lists: TreeLists;
+@group(0) @binding(19) var<storage, read_write> early_ids: array<u32>;
+@group(0) @binding(20) var<storage, read_write> early_commands: array<DrawIndexedIndirectArgs>;
+@group(0) @binding(21) var<storage, read_write> late_commands: array<DrawIndexedIndirectArgs>;
+@group(0) @binding(22) var<storage, read_write> early_marks: array<u32>;
+
+// Pixels per metre at the nearest point of `node`'s bounds (engine `lod::LodView::px_per_m`);
+// 0 when the eye is inside them (the caller treats that as infinitely close).
+fn tree_px_per_m(node: TreeNode) -> f32 {
+    let d = length(max(max(node.bounds_min_m - tree.eye_m, tree.eye_m - node.bounds_max_m), vec3<f32>(0.0)));
+    if d <= 0.0 {
+        return 0.0;
+    }
+    return tree.px_per_m_at_1m / d;
+}
+
+// Whether inner node `node` is refined (engine `lod::refine`).
+fn tree_refines(node: TreeNode) -> bool {
+    let ppm = tree_px_per_m(node);
+    if ppm <= 0.0 {
+        return node.has_error != 0u;
+    }
+    if tree.criterion == TREE_CRITERION_CHANG {
+        return node.chang_area_m2 * ppm * ppm > tree.tolerance_a;
+    }
+    return node.delta_h_m > tree.tolerance_a / ppm || node.delta_a_m2 > tree.tolerance_b / (ppm * ppm);
+}
+
+fn tree_record(id: u32) -> BuildingRecord {
+    return records[min(id, arrayLength(&records) - 1u)];
+}
+
+fn tree_overflow() {
+    atomicOr(&counters[TREE_C_OVERFLOW], 1u);
+}
+
+// A visible draw id of the cut: its late draw unless the early entry drew it, and its entry in
+// this frame's kept list.
+fn tree_keep(id: u32, record: BuildingRecord) {
+    let drawn_early = id < arrayLength(&early_marks) && early_marks[id] == tree.early_mark;
+    if !drawn_early && record.index_count > 0u {
+        let slot = atomicAdd(&counters[TREE_C_LATE_DRAWS], 1u);
+        if slot < arrayLength(&late_commands) {
+            late_commands[slot] = DrawIndexedIndirectArgs(record.index_count, 1u, record.first_index, record.base_vertex, 0u);
+        } else {
+            tree_overflow();
+        }
+    }
+    let half = 1u - tree.last_half;
+    let k = atomicAdd(&lists.counts[half], 1u);
+    if k < tree.list_capacity {
+        lists.ids[half * tree.list_capacity + k] = id;
+    } else {
+        tree_overflow();
+    }
+}
+
+// Building `b` of the cut, tested part by part; `counted`: a culled one counts as culled (not for
+// a landmark, whose cluster shows it already).
+fn tree_keep_building(b: u32, counted: bool) {
+    if b >= tree.building_count {
+        return;
+    }
+    let record = tree_record(b);
+    let outcome = record_outcome(record, true);
+    if outcome == CULL_VISIBLE {
+        tree_keep(b, record);
+    } else if counted && outcome == CULL_FRUSTUM_OUTSIDE {
+        atomicAdd(&counters[TREE_C_FRUSTUM_CULLED], 1u);
+    } else if counted {
+        atomicAdd(&counters[TREE_C_OCCLUSION_CULLED], 1u);
+    }
+}
+
+// Resets the counters, takes last frame's kept count for the early entry and puts the root in
+// level 0 of the queue.
+@compute @workgroup_size(1, 1, 1)
+fn tree_begin() {
+    for (var i = 0u; i < TREE_C_WORDS; i++) {
+        atomicStore(&counters[i], 0u);
+    }
+    atomicStore(&lists.counts[1u - tree.last_half], 0u);
+    var last = 0u;
+    if tree.early != TREE_EARLY_NONE {
+        last = min(atomicLoad(&lists.counts[tree.last_half]), tree.list_capacity);
+    }
+    atomicStore(&counters[TREE_C_LAST_KEPT], last);
+    var roots = 0u;
+    if tree.root < tree.node_count && tree.queue_capacity > 0u {
+        queue[0] = tree.root;
+        roots = 1u;
+    }
+    atomicStore(&counters[TREE_C_QUEUE_LEN], roots);
+}
+
+// Last frame's kept buildings still in this frame's cut and in the frustum (with the gate: not
+// hidden by the occluders' pyramid, parts included): drawn early and marked.
+@compute @workgroup_size(HZB_CULL_WORKGROUP, 1, 1)
+fn tree_early(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    let count = atomicLoad(&counters[TREE_C_LAST_KEPT]);
+    let stride = groups.x * HZB_CULL_WORKGROUP;
+    // Every invocation runs the same rounds and calls the occlusion test in each, reading only
+    // for the ids it takes, as `early_record` does.
+    let rounds = (count + stride - 1u) / stride;
+    for (var r = 0u; r < rounds; r++) {
+        let i = gid.x + r * stride;
+        var id = NO_PARENT;
+        if i < count {
+            id = lists.ids[tree.last_half * tree.list_capacity + i];
+        }
+        let takes = tree_early_takes(id);
+        let record = tree_record(select(0u, id, takes));
+        var outcome = CULL_VISIBLE;
+        if tree.early == TREE_EARLY_GATE {
+            outcome = record_outcome(record, takes);
+        } else if test_hull(box_corners(record.bounds_min_m, record.bounds_max_m), false) == CULL_FRUSTUM_OUTSIDE {
+            outcome = CULL_FRUSTUM_OUTSIDE;
+        }
+        if takes {
+            tree_early_draw(id, record, outcome);
+        }
+    }
+}
+
+// Whether kept id `id` of last frame is a building still in this frame's cut as a leaf: its
+// parent refines (and so, the errors being monotone, every ancestor does).
+fn tree_early_takes(id: u32) -> bool {
+    if id >= tree.building_count || id >= arrayLength(&leaf_of) {
+        return false;
+    }
+    let leaf = leaf_of[id];
+    if leaf >= arrayLength(&nodes) {
+        return false;
+    }
+    let parent = nodes[leaf].parent;
+    return parent == NO_PARENT || (parent < arrayLength(&nodes) && tree_refines(nodes[parent]));
+}
+
+// An early candidate's outcome: drawn early and marked when visible.
+fn tree_early_draw(id: u32, record: BuildingRecord, outcome: u32) {
+    if outcome == CULL_OCCLUDED {
+        atomicAdd(&counters[TREE_C_GATE_CULLED], 1u);
+    }
+    if outcome != CULL_VISIBLE {
+        return;
+    }
+    if id < arrayLength(&early_marks) {
+        early_marks[id] = tree.early_mark;
+    }
+    let slot = atomicAdd(&counters[TREE_C_EARLY_DRAWS], 1u);
+    if slot < arrayLength(&early_commands) {
+        early_commands[slot] = DrawIndexedIndirectArgs(record.index_count, 1u, record.first_index, record.base_vertex, 0u);
+    }
+    let e = atomicAdd(&counters[TREE_C_EARLY_LISTED], 1u);
+    if e < arrayLength(&early_ids) {
+        early_ids[e] = id;
+    }
+}
+
+// The current level's nodes, strided over the dispatch's invocations; the last workgroup to
+// finish moves the walk to the next level (whose entries start after this level's).
+// Invocations past the level's entries do nothing (a level is often far smaller than the
+// dispatch).
+@compute @workgroup_size(HZB_CULL_WORKGROUP, 1, 1)
+fn tree_level(
+    @builtin(global_invocation_id) gid: vec3<u32>,
+    @builtin(local_invocation_index) local: u32,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let l = min(atomicLoad(&counters[TREE_C_LEVEL]), TREE_MAX_LEVELS - 1u);
+    let start = atomicLoad(&counters[TREE_C_QUEUE_START + l]);
+    let len = atomicLoad(&counters[TREE_C_QUEUE_LEN + l]);
+    for (var i = gid.x; i < len; i += groups.x * HZB_CULL_WORKGROUP) {
+        if start + i < arrayLength(&queue) {
+            tree_node(l, queue[start + i], start + len);
+        }
+    }
+    storageBarrier();
+    workgroupBarrier();
+    if local == 0u {
+        let done = atomicAdd(&counters[TREE_C_DONE], 1u) + 1u;
+        if done == groups.x {
+            atomicStore(&counters[TREE_C_DONE], 0u);
+            let next = l + 1u;
+            atomicStore(&counters[TREE_C_LEVEL], next);
+            if next < TREE_MAX_LEVELS {
+                atomicStore(&counters[TREE_C_QUEUE_START + next], start + len);
+            }
+        }
+    }
+}
+
+// Node `n` of level `l`, whose children go to the next level from `next_start`: culled with
+// its subtree, refined (its children queued), or in the cut (kept).
+fn tree_node(l: u32, n: u32, next_start: u32) {
+    if n >= arrayLength(&nodes) {
+        return;
+    }
+    let node = nodes[n];
+    let box_record = tree_record(tree.building_count + n);
+    let outcome = test_hull(box_corners(box_record.bounds_min_m, box_record.bounds_max_m), true);
+    atomicAdd(&counters[TREE_C_VISITED], 1u);
+    if outcome == CULL_FRUSTUM_OUTSIDE {
+        atomicAdd(&counters[TREE_C_FRUSTUM_CULLED], node.building_count);
+        return;
+    }
+    if outcome == CULL_OCCLUDED {
+        atomicAdd(&counters[TREE_C_OCCLUSION_CULLED], node.building_count);
+        return;
+    }
+    if node.child_count == 0u {
+        tree_keep_building(node.building, true);
+        return;
+    }
+    if tree_refines(node) {
+        if l + 1u >= TREE_MAX_LEVELS {
+            tree_overflow();
+            return;
+        }
+        let start = next_start + atomicAdd(&counters[TREE_C_QUEUE_LEN + l + 1u], node.child_count);
+        for (var k = 0u; k < node.child_count; k++) {
+            if start + k < arrayLength(&queue) && node.first_child + k < arrayLength(&children) {
+                queue[start + k] = children[node.first_child + k];
+            } else {
+                tree_overflow();
+            }
+        }
+        return;
+    }
+    // The cluster mesh: its box holds every building under it and was not hidden.
+    tree_keep(tree.building_count + n, box_record);
+    if tree.criterion == TREE_CRITERION_CHANG {
+        // Chang et al. §8: τ projected to τ_height at the cluster (0 with the eye inside).
+        let ppm = tree_px_per_m(node);
+        var tau_height_m = 0.0;
+        if ppm > 0.0 {
+            tau_height_m = tree.tolerance_b / ppm;
+        }
+        for (var k = 0u; k < node.landmark_count; k++) {
+            let at_k = node.first_landmark + k;
+            if at_k < arrayLength(&landmarks) && landmarks[at_k].top_m - node.height_m > tau_height_m {
+                tree_keep_building(landmarks[at_k].building, false);
+            }
+        }
+    }
+}

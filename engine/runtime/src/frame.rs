@@ -108,6 +108,7 @@ mod occluders;
 mod report_ring;
 mod sphere_index;
 mod targets;
+mod tree_frame;
 mod visibility;
 
 use std::time::Instant;
@@ -289,6 +290,8 @@ struct PendingFrame {
     occluder_triangles: u64,
     cpu_ms: f64,
     started: Instant,
+    /// A tree frame's lists ([`CullingRenderer::submit_tree`]).
+    tree: Option<tree_frame::TreePending>,
 }
 
 /// The two-phase culling renderer: pipelines, the cull pass, draw lists and targets.
@@ -313,6 +316,10 @@ pub struct CullingRenderer {
     /// One [`NO_PARENT`] word: the parents of a scene without a cluster tree.
     no_parents: wgpu::Buffer,
     occluder_draws: GrowBuffer,
+    /// The GPU's LOD cut with hierarchical occlusion ([`CullingRenderer::submit_tree`]).
+    tree_cull: crate::hzb::tree_cull::TreeCull,
+    /// Kept and early ids a tree frame's report copies (grown when a frame needs more).
+    tree_report_entries: u32,
     reports: ReportRing<PendingFrame>,
     frames: u64,
     targets: Option<Targets>,
@@ -374,6 +381,8 @@ impl CullingRenderer {
             frames: 0,
             targets: None,
             multi_draw_count: gpu.has(wgpu::Features::MULTI_DRAW_INDIRECT_COUNT),
+            tree_cull: crate::hzb::tree_cull::TreeCull::new(gpu),
+            tree_report_entries: tree_frame::FIRST_REPORT_ENTRIES,
             timer: GpuTimer::new(gpu, "frame timer", FRAME_PHASES),
             style: SceneStyle::default(),
         }
@@ -508,13 +517,15 @@ impl CullingRenderer {
                 view_proj,
             )?,
         }
-        self.early_pass(&mut encoder, frame.geometry, n as u32, colour);
+        let early_draws = IndirectDraws::of(&self.early);
+        self.early_pass(&mut encoder, frame.geometry, (early_draws, n as u32), colour);
         if let Some(meshes) = occluder_meshes {
             self.occluder_pass(gpu, &mut encoder, meshes, &occluders_drawn, gated);
         }
         self.build_pyramid(&mut encoder, occluder_meshes.is_some());
         self.cull(gpu, &mut encoder, cull_input, n, view_proj)?;
-        self.late_pass(&mut encoder, frame.geometry, n as u32, colour);
+        let late_draws = IndirectDraws::of(&self.cull);
+        self.late_pass(&mut encoder, frame.geometry, (late_draws, n as u32), colour);
         let report = self.record_report(gpu, &mut encoder, n);
 
         gpu.queue.submit([encoder.finish()]);
@@ -535,6 +546,7 @@ impl CullingRenderer {
                 occluder_triangles,
                 cpu_ms: clock.elapsed_ms(),
                 started,
+                tree: None,
             };
             self.reports.submitted(ticket, layout, pending);
         }
@@ -560,7 +572,7 @@ impl CullingRenderer {
             .into_iter()
             .find(|r| r.pending.number == ticket.number)
             .ok_or(FrameError::NoReport(ticket.number))?;
-        self.read_report(slot, (scene, lod), Some(visibility))
+        self.read_report(Some(gpu), slot, (scene, lod), Some(visibility))?
             .ok_or(FrameError::NoReport(ticket.number))
     }
 
@@ -572,19 +584,29 @@ impl CullingRenderer {
         (scene, lod): (&SceneGpu, Option<&LodScene>),
     ) -> Result<Option<FrameOutput>, FrameError> {
         let ready = self.reports.take_ready(gpu, |p| p.number)?;
-        Ok(ready
-            .into_iter()
-            .last()
-            .and_then(|slot| self.read_report(slot, (scene, lod), None)))
+        match ready.into_iter().last() {
+            Some(slot) => self.read_report(None, slot, (scene, lod), None),
+            None => Ok(None),
+        }
     }
 
-    /// The frame's output from its read report slot.
+    /// The frame's output from its read report slot (`gpu` when the caller waits: a tree
+    /// frame's long lists are then read whole); `None` for a frame of another scene.
     fn read_report(
-        &self,
+        &mut self,
+        gpu: Option<&GpuContext>,
         slot: ReadSlot<PendingFrame>,
         (scene, lod): (&SceneGpu, Option<&LodScene>),
         visibility: Option<&mut Visibility>,
-    ) -> Option<FrameOutput> {
+    ) -> Result<Option<FrameOutput>, FrameError> {
+        if slot.pending.tree.is_some() {
+            return match lod {
+                Some(lod) if lod.building_count as usize == slot.pending.buildings => self
+                    .read_tree_report(gpu, slot, lod, visibility)
+                    .map(Some),
+                _ => Ok(None),
+            };
+        }
         let ReadSlot {
             bytes,
             layout,
@@ -606,7 +628,7 @@ impl CullingRenderer {
             (Some(ids), Some(lod)) if lod.building_count as usize == pending.buildings => {
                 Candidates::lod(LodSource::of(lod), ids, &early)
             }
-            _ => return None,
+            _ => return Ok(None),
         };
         if let Some(visibility) = visibility {
             candidates.update_visibility(visibility, &status);
@@ -623,7 +645,7 @@ impl CullingRenderer {
             .times_from(&pending.timed, &bytes[..layout.timestamps_bytes as usize]);
         output.occluders = pending.occluders;
         output.lod_cut = pending.lod_ids.is_some();
-        Some(output)
+        Ok(Some(output))
     }
 
     /// The occluder gate's depth: the ground and the selected occluders alone into the culling
@@ -691,7 +713,7 @@ impl CullingRenderer {
         &self,
         encoder: &mut wgpu::CommandEncoder,
         scene: &SceneGpu,
-        n: u32,
+        (draws, n): (IndirectDraws<'_>, u32),
         colour: &wgpu::TextureView,
     ) {
         let targets = self.targets.as_ref().expect("fit_targets ran");
@@ -716,24 +738,24 @@ impl CullingRenderer {
         scene.bind(&mut pass);
         scene.draw_ground(&mut pass);
         if n > 0 {
-            self.indirect_draws(&mut pass, &self.early, n);
+            self.indirect_draws(&mut pass, draws, n);
         }
     }
 
-    /// Draws the commands `cull` wrote (at most `max`): through its count where the adapter
-    /// has `multi_draw_indexed_indirect_count`, else all `max` slots (those past the count are
+    /// Draws `draws` (at most `max`): through its count where the adapter has
+    /// `multi_draw_indexed_indirect_count`, else all `max` slots (those past the count are
     /// zero: empty draws).
-    fn indirect_draws(&self, pass: &mut wgpu::RenderPass<'_>, cull: &HzbCull, max: u32) {
+    fn indirect_draws(&self, pass: &mut wgpu::RenderPass<'_>, draws: IndirectDraws<'_>, max: u32) {
         if self.multi_draw_count {
             pass.multi_draw_indexed_indirect_count(
-                cull.commands_buffer(),
+                draws.commands,
                 0,
-                cull.count_buffer(),
-                0,
+                draws.count,
+                draws.count_offset,
                 max,
             );
         } else {
-            pass.multi_draw_indexed_indirect(cull.commands_buffer(), 0, max);
+            pass.multi_draw_indexed_indirect(draws.commands, 0, max);
         }
     }
 
@@ -868,7 +890,7 @@ impl CullingRenderer {
         &self,
         encoder: &mut wgpu::CommandEncoder,
         scene: &SceneGpu,
-        n: u32,
+        (draws, n): (IndirectDraws<'_>, u32),
         colour: &wgpu::TextureView,
     ) {
         if n == 0 {
@@ -901,7 +923,7 @@ impl CullingRenderer {
         pass.set_pipeline(&self.scene_pipeline);
         pass.set_bind_group(0, &self.view_group, &[]);
         scene.bind(&mut pass);
-        self.indirect_draws(&mut pass, &self.cull, n);
+        self.indirect_draws(&mut pass, draws, n);
     }
 
     /// Copies the frame's timestamps, cull status and early status into a free report slot
@@ -914,6 +936,7 @@ impl CullingRenderer {
     ) -> Option<(report_ring::SlotTicket, SlotLayout, TimedPhases)> {
         let layout = SlotLayout {
             timestamps_bytes: self.timer.resolved_bytes(),
+            header_words: 0,
             candidates: n as u64,
         };
         let (ticket, buffer) = self.reports.reserve(gpu, layout)?;
@@ -949,6 +972,24 @@ impl CullingRenderer {
         }
         self.targets = Some(Targets::new(gpu, &self.copy_layout, width, height)?);
         Ok(())
+    }
+}
+
+/// Indirect draw commands and the buffer word counting them.
+#[derive(Debug, Clone, Copy)]
+struct IndirectDraws<'a> {
+    commands: &'a wgpu::Buffer,
+    count: &'a wgpu::Buffer,
+    count_offset: u64,
+}
+
+impl<'a> IndirectDraws<'a> {
+    fn of(cull: &'a HzbCull) -> IndirectDraws<'a> {
+        IndirectDraws {
+            commands: cull.commands_buffer(),
+            count: cull.count_buffer(),
+            count_offset: 0,
+        }
     }
 }
 

@@ -25,6 +25,7 @@
 //!
 //! The GPU side (cluster meshes next to the buildings in one scene) is [`scene`].
 
+pub mod gpu_tree;
 pub mod scene;
 
 use citywalk_scenes::cluster_tree::{ClusterNode, ClusterTree};
@@ -138,8 +139,14 @@ impl LodView {
     /// Pixels per metre at distance `distance_m`, for something facing the camera. Infinite at
     /// distance 0 (the eye inside a node's bounds refines it whenever it has any error).
     pub fn px_per_m(&self, distance_m: f32) -> f32 {
+        self.px_per_m_at_1m() / distance_m.max(0.0)
+    }
+
+    /// Pixels per metre at 1 m, `height_px / (2·tan(fov_y/2))`: [`LodView::px_per_m`] divides it
+    /// by the distance (as the GPU's tree cull does, so both round alike).
+    pub fn px_per_m_at_1m(&self) -> f32 {
         let half = (self.fov_y_rad * 0.5).tan().max(1e-6);
-        self.height_px as f32 / (2.0 * half * distance_m.max(0.0))
+        self.height_px as f32 / (2.0 * half)
     }
 }
 
@@ -199,9 +206,14 @@ pub fn distance_to_box(p: Vec3, min: Vec3, max: Vec3) -> f32 {
 /// directions, `|(A_yz, A_xz, A_xy)|`, so the error does not depend on the direction and a
 /// nearer camera never gives a coarser cut (the paper does not say which direction it uses).
 fn neg_space_px(node: &ClusterNode, px_per_m: f32) -> f32 {
+    chang_area_m2(node) * px_per_m * px_per_m
+}
+
+/// The largest area (m²) the negative-space box of `node` shows from any direction,
+/// `|(A_yz, A_xz, A_xy)|` ([`neg_space_px`] projects it).
+pub fn chang_area_m2(node: &ClusterNode) -> f32 {
     let [w, d, h] = node.neg_space_box_m.map(|v| v.max(0.0));
-    let area_m2 = Vec3::new(d * h, w * h, w * d).length();
-    area_m2 * px_per_m * px_per_m
+    Vec3::new(d * h, w * h, w * d).length()
 }
 
 /// Whether `node` (an inner node) must be refined at `px_per_m`.
@@ -257,7 +269,7 @@ impl LodTree {
     }
 
     /// Top of building `b` (metres), from its leaf.
-    fn building_top_m(&self, b: u32) -> Option<f32> {
+    pub fn building_top_m(&self, b: u32) -> Option<f32> {
         let leaf = *self.leaf_of.get(b as usize)?;
         self.tree.nodes.get(leaf as usize).map(|n| n.h_max_m)
     }

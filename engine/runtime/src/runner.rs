@@ -164,7 +164,15 @@ impl FrameRunner {
         let start = Instant::now();
         let cpu = CpuClock::start();
         let (width, height) = target.size;
-        let cut = match (plan.lod, scene.lod) {
+        // The GPU computes the cut inside the HZB frame where the adapter can (the tree cull);
+        // the CPU cuts otherwise.
+        let gpu_cut = match scene.lod {
+            Some(lod) if plan.lod && plan.hzb && plan.frustum && self.culling.runs_tree(lod) => {
+                Some((lod, criterion.unwrap_or_else(|| lod.default_criterion(camera))))
+            }
+            _ => None,
+        };
+        let cut = match (plan.lod && gpu_cut.is_none(), scene.lod) {
             (true, Some(lod)) => Some((
                 lod,
                 lod_cut(lod, scene.blocks, camera, target.size, criterion, plan),
@@ -174,11 +182,16 @@ impl FrameRunner {
         if plan.hzb {
             let select_ms = start.elapsed().as_secs_f64() * 1e3;
             let select_cpu_ms = cpu.elapsed_ms();
+            let frame = match (gpu_cut, &cut) {
+                (Some((lod, criterion)), _) => HzbFrame::Tree(lod, criterion),
+                (None, Some((lod, cut))) => HzbFrame::Cut(lod, cut),
+                (None, None) => HzbFrame::Buildings,
+            };
             return self.run_hzb(
                 gpu,
                 scene,
                 plan,
-                cut.as_ref().map(|(lod, cut)| (*lod, cut)),
+                frame,
                 visibility,
                 camera,
                 target,
@@ -289,12 +302,12 @@ impl FrameRunner {
         gpu: &GpuContext,
         scene: SceneRefs<'_>,
         plan: FramePlan,
-        cut: Option<(&LodScene, &LodFrame)>,
+        frame: HzbFrame<'_>,
         visibility: &mut Visibility,
         camera: &Camera,
         target: FrameTarget<'_>,
         completion: Completion,
-        (select_ms, select_cpu_ms): (f64, f64),
+        select: (f64, f64),
     ) -> Result<Option<FrameReport>, FrameError> {
         let options = CullingOptions {
             occluders: plan.occluders,
@@ -302,13 +315,27 @@ impl FrameRunner {
             ..CullingOptions::default()
         };
         let occluders = scene.occluders.filter(|_| plan.occluders);
-        let frame = match cut {
-            Some((lod, cut)) => FrameScene::Lod(lod, &cut.draw_ids),
-            None => FrameScene::Buildings(scene.scene),
+        let frame_scene = match frame {
+            HzbFrame::Tree(lod, criterion) => {
+                let ticket = self.culling.submit_tree(
+                    gpu,
+                    lod,
+                    criterion,
+                    occluders,
+                    &options,
+                    visibility,
+                    camera,
+                    target.colour,
+                    target.size,
+                )?;
+                return self.finish_hzb(gpu, scene, plan, ticket, visibility, completion, select);
+            }
+            HzbFrame::Cut(lod, cut) => FrameScene::Lod(lod, &cut.draw_ids),
+            HzbFrame::Buildings => FrameScene::Buildings(scene.scene),
         };
         let ticket = self.culling.submit(
             gpu,
-            frame,
+            frame_scene,
             occluders,
             &options,
             visibility,
@@ -316,6 +343,21 @@ impl FrameRunner {
             target.colour,
             target.size,
         )?;
+        self.finish_hzb(gpu, scene, plan, ticket, visibility, completion, select)
+    }
+
+    /// Waits for or polls the report of the HZB frame `ticket`.
+    #[expect(clippy::too_many_arguments, reason = "one frame, all inputs explicit")]
+    fn finish_hzb(
+        &mut self,
+        gpu: &GpuContext,
+        scene: SceneRefs<'_>,
+        plan: FramePlan,
+        ticket: crate::frame::FrameTicket,
+        visibility: &mut Visibility,
+        completion: Completion,
+        (select_ms, select_cpu_ms): (f64, f64),
+    ) -> Result<Option<FrameReport>, FrameError> {
         let scenes = (scene.scene, scene.lod);
         let output = match completion {
             Completion::Wait => Some(self.culling.wait_report(gpu, ticket, scenes, visibility)?),
@@ -332,6 +374,15 @@ impl FrameRunner {
         }
         Ok(Some(report))
     }
+}
+
+/// What an HZB frame culls: every building, the CPU's LOD cut, or a cut the GPU computes
+/// under a criterion (the tree cull).
+#[derive(Debug, Clone, Copy)]
+enum HzbFrame<'a> {
+    Buildings,
+    Cut(&'a LodScene, &'a LodFrame),
+    Tree(&'a LodScene, LodCriterion),
 }
 
 /// The report of an HZB frame from its output (this frame's, or with [`Completion::Poll`] an

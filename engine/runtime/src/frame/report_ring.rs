@@ -24,21 +24,29 @@ const FAILED: u8 = 3;
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) struct SlotLayout {
     pub timestamps_bytes: u64,
-    /// Candidates: the cull's and the early entry's status, `u32` each.
+    /// Words after the timestamps, before the two arrays (a tree frame's counters and list
+    /// header; 0 otherwise).
+    pub header_words: u64,
+    /// Candidates: the cull's and the early entry's status, `u32` each (a tree frame: its kept
+    /// ids and early ids, up to this many each).
     pub candidates: u64,
 }
 
 impl SlotLayout {
-    pub fn status_at(&self) -> u64 {
+    pub fn header_at(&self) -> u64 {
         self.timestamps_bytes
     }
 
+    pub fn status_at(&self) -> u64 {
+        self.timestamps_bytes + self.header_words * 4
+    }
+
     pub fn early_at(&self) -> u64 {
-        self.timestamps_bytes + self.candidates * 4
+        self.status_at() + self.candidates * 4
     }
 
     pub fn bytes(&self) -> u64 {
-        (self.timestamps_bytes + self.candidates * 8).max(4)
+        (self.status_at() + self.candidates * 8).max(4)
     }
 }
 

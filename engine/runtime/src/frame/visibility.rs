@@ -22,8 +22,22 @@ pub struct Visibility {
     stamps: Option<Stamps>,
     /// The stamp of the frame rendered last (0 before any).
     stamp: u32,
-    /// Per building: visible in the frame whose report was read last ([`Visibility::is_visible`]).
-    mirror: Vec<bool>,
+    /// The buildings visible in the frame whose report was read last, ascending
+    /// ([`Visibility::is_visible`]).
+    mirror: Vec<u32>,
+    /// The tree cull's kept lists ([`crate::hzb::tree_cull`]), made for the first tree frame.
+    tree: Option<TreeLists>,
+}
+
+/// Two halves of kept draw ids: the last tree frame's and the one being written.
+#[derive(Debug)]
+struct TreeLists {
+    buffer: wgpu::Buffer,
+    capacity: u32,
+    /// The half holding the last tree frame's ids.
+    last_half: u32,
+    /// The stamp of the frame that wrote `last_half` (0: none).
+    written: u32,
 }
 
 #[derive(Debug)]
@@ -45,14 +59,12 @@ impl Visibility {
     /// Whether building `id` was visible in the last frame whose report was read (a frame
     /// rendered with [`crate::frame::CullingRenderer::render`] or `render_lod` has been).
     pub fn is_visible(&self, id: u32) -> bool {
-        self.mirror.get(id as usize).copied().unwrap_or(false)
+        self.mirror.binary_search(&id).is_ok()
     }
 
     /// The buildings of [`Visibility::is_visible`], in id order.
     pub fn visible_ids(&self) -> Vec<u32> {
-        (0..self.mirror.len() as u32)
-            .filter(|&b| self.mirror[b as usize])
-            .collect()
+        self.mirror.clone()
     }
 
     /// An independent copy (the GPU stamps copied, on the queue, after what was submitted).
@@ -78,10 +90,13 @@ impl Visibility {
                 draw_ids: s.draw_ids,
             }
         });
+        // The tree lists are not copied: the fork's first tree frame draws nothing early
+        // (a hint, not a promise).
         Visibility {
             stamps,
             stamp: self.stamp,
             mirror: self.mirror.clone(),
+            tree: None,
         }
     }
 
@@ -113,14 +128,58 @@ impl Visibility {
     /// Sets the CPU copy from a cull status (`CULL_VISIBLE` = visible), one per building.
     pub(super) fn mirror_status(&mut self, status: &[u32]) {
         self.mirror.clear();
-        self.mirror
-            .extend(status.iter().map(|&s| s == CULL_VISIBLE));
+        self.mirror.extend(
+            (0..status.len() as u32).filter(|&b| status[b as usize] == CULL_VISIBLE),
+        );
     }
 
     /// Sets the CPU copy to `visible` (one per building): for a frame whose candidates are not
     /// the buildings themselves (a LOD cut), the caller maps candidates to buildings.
     pub(super) fn mirror_set(&mut self, visible: Vec<bool>) {
-        self.mirror = visible;
+        self.mirror.clear();
+        self.mirror
+            .extend((0..visible.len() as u32).filter(|&b| visible[b as usize]));
+    }
+
+    /// Sets the CPU copy to the buildings `ids`, ascending.
+    pub(super) fn mirror_ids(&mut self, ids: Vec<u32>) {
+        self.mirror = ids;
+    }
+
+    /// The tree cull's kept lists for the frame of stamp `frame_stamp` (after
+    /// [`Visibility::begin_frame`]), `capacity` entries per half: the buffer, the half holding
+    /// last frame's ids, and whether it does (the last frame was a tree frame of this stream).
+    pub(super) fn tree_lists(
+        &mut self,
+        gpu: &GpuContext,
+        capacity: u32,
+        frame_stamp: u32,
+    ) -> (wgpu::Buffer, u32, bool) {
+        if self.tree.as_ref().is_none_or(|t| t.capacity != capacity) {
+            self.tree = Some(TreeLists {
+                buffer: gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("tree cull kept lists"),
+                    size: crate::hzb::tree_cull::lists_bytes(capacity),
+                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                    mapped_at_creation: false,
+                }),
+                capacity,
+                last_half: 0,
+                written: 0,
+            });
+        }
+        let t = self.tree.as_ref().expect("made above");
+        let valid = t.written != 0 && t.written + 1 == frame_stamp;
+        (t.buffer.clone(), t.last_half, valid)
+    }
+
+    /// The tree frame of stamp `frame_stamp` wrote the other half: it is last frame's for the
+    /// next one.
+    pub(super) fn tree_written(&mut self, frame_stamp: u32) {
+        if let Some(t) = &mut self.tree {
+            t.last_half = 1 - t.last_half;
+            t.written = frame_stamp;
+        }
     }
 }
 

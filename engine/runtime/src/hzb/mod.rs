@@ -20,6 +20,7 @@
 pub mod build;
 pub mod cull;
 pub mod reference;
+pub mod tree_cull;
 
 pub use build::HzbPyramid;
 pub use cull::{CullResults, HzbCull};

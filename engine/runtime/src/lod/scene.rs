@@ -22,6 +22,8 @@ use wgpu::util::DeviceExt;
 
 use crate::camera::Camera;
 use crate::gpu::GpuContext;
+use crate::hzb::tree_cull::TreeBuffers;
+use crate::lod::gpu_tree::TreeArrays;
 use crate::lod::{LodCriterion, LodCut, LodTree, LodView};
 use crate::scene_gpu::SceneGpu;
 
@@ -49,6 +51,8 @@ pub struct LodScene {
     /// Per draw id, the draw id of the cluster above it ([`draw_id_parents`]), for the GPU's
     /// "visible last frame" test.
     pub parents_buffer: wgpu::Buffer,
+    /// The tree as the GPU's LOD cut reads it ([`crate::hzb::tree_cull`]).
+    pub tree_gpu: TreeBuffers,
 }
 
 /// One frame's LOD selection.
@@ -138,13 +142,16 @@ impl LodScene {
         } else {
             view.parents
         };
+        let tree = LodTree::new(tree);
+        let tree_gpu = TreeBuffers::upload(gpu, &TreeArrays::build(&tree, view.building_count));
         LodScene {
+            tree_gpu,
             parents_buffer: storage("lod draw-id parents", bytemuck::cast_slice(parents)),
             cull_records_buffer,
             cull_records: view.cull_records.to_vec(),
             gpu_scene: SceneGpu::sharing(gpu, buildings, view.records, view.bounds),
             building_count: view.building_count,
-            tree: LodTree::new(tree),
+            tree,
             criterion: None,
         }
     }

@@ -1,0 +1,433 @@
+//! The LOD frame whose cut the GPU computes ([`crate::hzb::tree_cull`]), as a script:
+//!
+//! ```text
+//! occluder_gate → (occluders on, gate on) the ground and nearby occluders, their pyramid
+//! tree_early    → counters reset; last frame's kept buildings still in the cut and in the
+//!                 frustum (with the gate: not hidden by the occluders' pyramid) drawn early
+//! early_pass    → colour + depth: the ground and those buildings
+//! occluder_pass → (occluders on) as in the candidate frame
+//! build_pyramid → HiZ pyramid
+//! tree_walk     → the cut, level by level, culling whole subtrees against the pyramid; the
+//!                 kept draw ids listed for the next frame, the late draws appended
+//! late_pass     → what the walk kept that the early pass did not draw
+//! report        → counters, kept and early ids into a ring slot, read a frame or more late
+//! ```
+//!
+//! The CPU's work is the same for any city: two uniform blocks, the occluder selection, and a
+//! fixed number of dispatches (the tree's levels plus two). Its report is O(what was drawn): the
+//! kept and early lists, up to [`CullingRenderer::tree_report_entries`] each (grown when a frame
+//! keeps more; a frame waited for is read whole).
+
+use std::time::Instant;
+
+use citywalk_scenes::frustum::Frustum;
+use citywalk_shaders::constants::{
+    TREE_C_EARLY_DRAWS, TREE_C_EARLY_LISTED, TREE_C_FRUSTUM_CULLED, TREE_C_GATE_CULLED,
+    TREE_C_LATE_DRAWS, TREE_C_OCCLUSION_CULLED, TREE_C_OVERFLOW, TREE_C_VISITED, TREE_C_WORDS,
+    TREE_EARLY_FRUSTUM, TREE_EARLY_GATE, TREE_EARLY_NONE, TREE_LIST_HEADER, TREE_MAX_LEVELS,
+};
+
+use super::report_ring::{ReadSlot, SlotLayout};
+use super::{
+    CullingOptions, CullingRenderer, FrameError, FrameOutput, FrameStats, FrameTicket,
+    IndirectDraws, OccluderMeshes, PendingFrame, Visibility,
+};
+use crate::camera::Camera;
+use crate::gpu::GpuContext;
+use crate::hzb::tree_cull::TreeInputs;
+use crate::lod::gpu_tree::tree_params;
+use crate::lod::scene::LodScene;
+use crate::lod::{LodCriterion, LodView};
+use crate::render::targets::map_read_prefix;
+use crate::render::view::view_uniforms;
+
+/// Kept and early ids a tree frame's report copies at first.
+pub(super) const FIRST_REPORT_ENTRIES: u32 = 4096;
+
+/// What a submitted tree frame keeps until its report is read.
+#[derive(Debug)]
+pub(super) struct TreePending {
+    lists: wgpu::Buffer,
+    /// The half this frame wrote.
+    half: u32,
+    capacity: u32,
+    early_ids: wgpu::Buffer,
+}
+
+impl CullingRenderer {
+    /// Whether [`CullingRenderer::submit_tree`] can run `lod` on this adapter: it draws through
+    /// indirect counts (`MULTI_DRAW_INDIRECT_COUNT`) and walks at most [`TREE_MAX_LEVELS`]
+    /// levels.
+    pub fn runs_tree(&self, lod: &LodScene) -> bool {
+        self.multi_draw_count && lod.tree_gpu.levels <= TREE_MAX_LEVELS
+    }
+
+    /// Kept and early ids the next tree frame's report copies.
+    pub fn tree_report_entries(&self) -> u32 {
+        self.tree_report_entries
+    }
+
+    /// Records and submits one LOD frame of `lod` whose cut the GPU computes under `criterion`
+    /// (see the module documentation); returns without waiting, as
+    /// [`CullingRenderer::submit`]. Requires [`CullingRenderer::runs_tree`].
+    #[expect(clippy::too_many_arguments, reason = "one frame, all inputs explicit")]
+    pub fn submit_tree(
+        &mut self,
+        gpu: &GpuContext,
+        lod: &LodScene,
+        criterion: LodCriterion,
+        occluders: Option<&OccluderMeshes>,
+        options: &CullingOptions,
+        visibility: &mut Visibility,
+        camera: &Camera,
+        colour: &wgpu::TextureView,
+        (width, height): (u32, u32),
+    ) -> Result<FrameTicket, FrameError> {
+        let started = Instant::now();
+        let clock = crate::cpu_clock::CpuClock::start();
+        self.fit_targets(gpu, width, height)?;
+        self.frames += 1;
+        let number = self.frames;
+        let draw_id_count = lod.cull_records.len() as u32;
+        let (_, frame_stamp) = visibility.begin_frame(gpu, draw_id_count);
+        let capacity = draw_id_count.max(1);
+        let (lists, last_half, early_valid) = visibility.tree_lists(gpu, capacity, frame_stamp);
+        let view_proj = Self::view_proj(camera, (width, height));
+        let frustum = Frustum::from_view_proj(view_proj);
+        let selected = match occluders.filter(|_| options.occluders) {
+            Some(meshes) => meshes.select(camera, &frustum, height, options.occluder_min_px),
+            None => Vec::new(),
+        };
+        let meshes = occluders.filter(|_| !selected.is_empty());
+        let gated = options.occluder_gate && meshes.is_some();
+        let uniforms = view_uniforms(camera, width, height, &self.style);
+        gpu.queue
+            .write_buffer(&self.view_buffer, 0, bytemuck::bytes_of(&uniforms));
+
+        let mut params = tree_params(
+            &LodView::new(camera, width, height),
+            criterion,
+            lod.building_count,
+        );
+        params.list_capacity = capacity;
+        params.last_half = last_half;
+        params.early = match (early_valid, gated) {
+            (false, _) => TREE_EARLY_NONE,
+            (true, true) => TREE_EARLY_GATE,
+            (true, false) => TREE_EARLY_FRUSTUM,
+        };
+        // Frame numbers start at 1; the marks buffer starts zeroed.
+        params.early_mark = number as u32;
+        let inputs = TreeInputs {
+            tree: &lod.tree_gpu,
+            records: &lod.cull_records_buffer,
+            parts: &lod.gpu_scene.parts_buffer,
+            lists: &lists,
+            draw_id_count,
+        };
+        {
+            let targets = self.targets.as_ref().expect("fit_targets ran");
+            self.tree_cull
+                .prepare(gpu, &inputs, params, (&targets.pyramid, view_proj));
+        }
+        let mut encoder = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("tree frame"),
+            });
+        self.timer.begin_frame();
+        if let Some(meshes) = meshes.filter(|_| gated) {
+            self.occluder_gate(gpu, &mut encoder, meshes, &selected, &lod.gpu_scene)?;
+        }
+        let max_draws = self.tree_cull.max_draws();
+        {
+            let targets = self.targets.as_ref().expect("fit_targets ran");
+            let phase = if gated { "gate" } else { "early_cull" };
+            self.tree_cull.encode_early(
+                &mut encoder,
+                &inputs,
+                &targets.pyramid,
+                self.timer.compute_pass_writes(phase),
+            );
+        }
+        let early_draws = IndirectDraws {
+            commands: self.tree_cull.early_commands(),
+            count: self.tree_cull.counters(),
+            count_offset: u64::from(TREE_C_EARLY_DRAWS) * 4,
+        };
+        self.early_pass(&mut encoder, &lod.gpu_scene, (early_draws, max_draws), colour);
+        if let Some(meshes) = meshes {
+            self.occluder_pass(gpu, &mut encoder, meshes, &selected, gated);
+        }
+        self.build_pyramid(&mut encoder, meshes.is_some());
+        {
+            let targets = self.targets.as_ref().expect("fit_targets ran");
+            self.tree_cull.encode_walk(
+                &mut encoder,
+                &inputs,
+                &targets.pyramid,
+                self.timer.compute_pass_writes("cull"),
+            );
+        }
+        let late_draws = IndirectDraws {
+            commands: self.tree_cull.late_commands(),
+            count: self.tree_cull.counters(),
+            count_offset: u64::from(TREE_C_LATE_DRAWS) * 4,
+        };
+        self.late_pass(&mut encoder, &lod.gpu_scene, (late_draws, max_draws), colour);
+        let half = 1 - last_half;
+        let report = self.record_tree_report(gpu, &mut encoder, &lists, (half, capacity));
+        gpu.queue.submit([encoder.finish()]);
+        visibility.tree_written(frame_stamp);
+        let reported = report.is_some();
+        if let Some((ticket, layout, timed)) = report {
+            let occluder_triangles = meshes.map_or(0, |m| {
+                selected
+                    .iter()
+                    .map(|&i| u64::from(m.occluders[i].triangles))
+                    .sum()
+            });
+            let pending = PendingFrame {
+                number,
+                buildings: lod.building_count as usize,
+                lod_ids: None,
+                timed,
+                occluders: selected,
+                occluder_triangles,
+                cpu_ms: clock.elapsed_ms(),
+                started,
+                tree: Some(TreePending {
+                    lists,
+                    half,
+                    capacity,
+                    early_ids: self.tree_cull.early_ids().clone(),
+                }),
+            };
+            self.reports.submitted(ticket, layout, pending);
+        }
+        Ok(FrameTicket { number, reported })
+    }
+
+    /// Copies the timestamps, the counters, the lists' header and the first
+    /// [`CullingRenderer::tree_report_entries`] kept and early ids into a free report slot.
+    fn record_tree_report(
+        &mut self,
+        gpu: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        lists: &wgpu::Buffer,
+        (half, capacity): (u32, u32),
+    ) -> Option<(
+        super::report_ring::SlotTicket,
+        SlotLayout,
+        crate::gpu_timer::TimedPhases,
+    )> {
+        let entries = self.tree_report_entries.min(capacity);
+        let layout = SlotLayout {
+            timestamps_bytes: self.timer.resolved_bytes(),
+            header_words: u64::from(TREE_C_WORDS + TREE_LIST_HEADER),
+            candidates: u64::from(entries),
+        };
+        let (ticket, buffer) = self.reports.reserve(gpu, layout)?;
+        let timed = self.timer.resolve_to(encoder, buffer, 0);
+        let at = layout.header_at();
+        let counters_bytes = u64::from(TREE_C_WORDS) * 4;
+        encoder.copy_buffer_to_buffer(self.tree_cull.counters(), 0, buffer, at, counters_bytes);
+        let header_bytes = u64::from(TREE_LIST_HEADER) * 4;
+        encoder.copy_buffer_to_buffer(lists, 0, buffer, at + counters_bytes, header_bytes);
+        let bytes = u64::from(entries) * 4;
+        if bytes > 0 {
+            let half_at = header_bytes + u64::from(half) * u64::from(capacity) * 4;
+            encoder.copy_buffer_to_buffer(lists, half_at, buffer, layout.status_at(), bytes);
+            encoder.copy_buffer_to_buffer(
+                self.tree_cull.early_ids(),
+                0,
+                buffer,
+                layout.early_at(),
+                bytes,
+            );
+        }
+        Some((ticket, layout, timed))
+    }
+
+    /// A tree frame's output from its report slot. Lists longer than the slot holds are read
+    /// whole from the GPU when `gpu` is given (a frame waited for: nothing has overwritten them
+    /// since), else the report covers the copied part only; either way later reports copy more.
+    pub(super) fn read_tree_report(
+        &mut self,
+        gpu: Option<&GpuContext>,
+        slot: ReadSlot<PendingFrame>,
+        lod: &LodScene,
+        visibility: Option<&mut Visibility>,
+    ) -> Result<FrameOutput, FrameError> {
+        let ReadSlot {
+            bytes,
+            layout,
+            pending,
+        } = slot;
+        let frame_ms = pending.started.elapsed().as_secs_f64() * 1e3;
+        let tree = pending.tree.as_ref().expect("a tree frame");
+        let words = |at: u64, n: usize| -> Vec<u32> {
+            let at = at as usize;
+            bytemuck::pod_collect_to_vec(&bytes[at..at + n * 4])
+        };
+        let counters = words(layout.header_at(), TREE_C_WORDS as usize);
+        let header = words(
+            layout.header_at() + u64::from(TREE_C_WORDS) * 4,
+            TREE_LIST_HEADER as usize,
+        );
+        let kept_count = (header[tree.half as usize] as usize).min(tree.capacity as usize);
+        let early_count =
+            (counters[TREE_C_EARLY_LISTED as usize] as usize).min(tree.capacity as usize);
+        let copied = layout.candidates as usize;
+        let (kept, early) = match gpu {
+            Some(gpu) if kept_count.max(early_count) > copied => {
+                let header_bytes = u64::from(TREE_LIST_HEADER) * 4;
+                let half_at = header_bytes + u64::from(tree.half) * u64::from(tree.capacity) * 4;
+                (
+                    read_words(gpu, &tree.lists, half_at, kept_count)?,
+                    read_words(gpu, &tree.early_ids, 0, early_count)?,
+                )
+            }
+            _ => (
+                words(layout.status_at(), kept_count.min(copied)),
+                words(layout.early_at(), early_count.min(copied)),
+            ),
+        };
+        let needed = kept_count.max(early_count) as u32;
+        if needed > self.tree_report_entries {
+            self.tree_report_entries = needed.saturating_mul(2).next_power_of_two();
+        }
+        if counters[TREE_C_OVERFLOW as usize] != 0 {
+            tracing::error!(
+                "tree cull overflowed its queue or lists (frame {}): the frame is incomplete",
+                pending.number
+            );
+        }
+        tracing::debug!(
+            frame = pending.number,
+            visited = counters[TREE_C_VISITED as usize],
+            kept = kept.len(),
+            early = early.len(),
+            late = counters[TREE_C_LATE_DRAWS as usize],
+            "tree cull"
+        );
+        let mut output = tree_output(lod, &kept, early, &counters);
+        if let Some(visibility) = visibility {
+            visibility.mirror_ids(output.drawn.clone());
+        }
+        let stats = &mut output.stats;
+        stats.occluders_drawn = pending.occluders.len() as u32;
+        stats.occluder_triangles = pending.occluder_triangles;
+        stats.draw_calls += pending.occluders.len() as u32;
+        stats.cpu_ms = pending.cpu_ms;
+        stats.frame_ms = frame_ms;
+        stats.gpu = self
+            .timer
+            .times_from(&pending.timed, &bytes[..layout.timestamps_bytes as usize]);
+        output.occluders = pending.occluders;
+        output.lod_cut = true;
+        Ok(output)
+    }
+}
+
+/// `n` words of `buffer` from byte `at`, through a staging copy (waits for the GPU).
+fn read_words(
+    gpu: &GpuContext,
+    buffer: &wgpu::Buffer,
+    at: u64,
+    n: usize,
+) -> Result<Vec<u32>, FrameError> {
+    if n == 0 {
+        return Ok(Vec::new());
+    }
+    let bytes = n as u64 * 4;
+    let staging = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("tree report"),
+        size: bytes,
+        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+        mapped_at_creation: false,
+    });
+    let mut encoder = gpu
+        .device
+        .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("tree report"),
+        });
+    encoder.copy_buffer_to_buffer(buffer, at, &staging, 0, bytes);
+    gpu.queue.submit([encoder.finish()]);
+    let read = map_read_prefix(gpu, &staging, bytes)?;
+    Ok(bytemuck::pod_collect_to_vec(&read))
+}
+
+/// The frame's output from its kept draw ids, early building ids and counters: O(what was
+/// drawn), never O(buildings).
+pub(super) fn tree_output(
+    lod: &LodScene,
+    kept: &[u32],
+    mut early: Vec<u32>,
+    counters: &[u32],
+) -> FrameOutput {
+    let n = lod.building_count;
+    let index_count = |id: u32| {
+        lod.cull_records
+            .get(id as usize)
+            .map_or(0, |r| r.index_count)
+    };
+    early.sort_unstable();
+    early.dedup();
+    let mut themselves: Vec<u32> = kept.iter().copied().filter(|&id| id < n).collect();
+    themselves.extend_from_slice(&early);
+    themselves.sort_unstable();
+    themselves.dedup();
+    // A cluster with an empty mesh shows none of its buildings: not counted as drawn (that
+    // would hide a false cull from the benchmark).
+    let mut clusters: Vec<u32> = kept
+        .iter()
+        .copied()
+        .filter(|&id| id >= n && index_count(id) > 0)
+        .map(|id| id - n)
+        .collect();
+    clusters.sort_unstable();
+    clusters.dedup();
+    let mut drawn = themselves.clone();
+    for &c in &clusters {
+        drawn.extend(lod.covered_by(n + c));
+    }
+    drawn.sort_unstable();
+    drawn.dedup();
+    let triangles: u64 = themselves
+        .iter()
+        .copied()
+        .chain(clusters.iter().map(|&c| n + c))
+        .map(|id| u64::from(index_count(id) / 3))
+        .sum();
+    let late = counters[TREE_C_LATE_DRAWS as usize];
+    let early_drawn = counters[TREE_C_EARLY_DRAWS as usize];
+    let stats = FrameStats {
+        building_count: n,
+        candidates: counters[TREE_C_VISITED as usize],
+        early_drawn,
+        gate_culled: counters[TREE_C_GATE_CULLED as usize],
+        frustum_culled: counters[TREE_C_FRUSTUM_CULLED as usize],
+        occlusion_culled: counters[TREE_C_OCCLUSION_CULLED as usize],
+        cull_kept: kept.len() as u32,
+        late_drawn: late,
+        drawn: drawn.len() as u32,
+        clusters_drawn: clusters.len() as u32,
+        buildings_through_clusters: (drawn.len() - themselves.len()) as u32,
+        triangles,
+        // The ground, the early and the late draws.
+        draw_calls: 1 + early_drawn + late,
+        late_commands: late,
+        ..FrameStats::default()
+    };
+    FrameOutput {
+        drawn,
+        status: Vec::new(),
+        clusters,
+        drawn_early: early,
+        drawn_themselves: themselves,
+        lod_cut: true,
+        occluders: Vec::new(),
+        stats,
+    }
+}
