@@ -217,6 +217,8 @@ struct Harness {
     last_rgba: Vec<u8>,
     /// The combined frame's `CullingOptions::occluder_gate`.
     lod_gate: bool,
+    /// The combined frame's cut computed by the GPU (the tree cull) instead of the CPU.
+    lod_tree: bool,
 }
 
 impl Harness {
@@ -227,6 +229,7 @@ impl Harness {
             brute: BruteRenderer::new(&gpu, BruteRenderer::PNG_FORMAT),
             last_rgba: Vec::new(),
             lod_gate: true,
+            lod_tree: false,
             gpu,
         }
     }
@@ -390,9 +393,21 @@ impl Harness {
         };
         let target =
             OffscreenTarget::new(&self.gpu, w, h, BruteRenderer::PNG_FORMAT).expect("target");
-        let out = self
-            .renderer
-            .render_lod(
+        let out = if self.lod_tree {
+            let criterion = criterion.unwrap_or_else(|| scene.lod.default_criterion(camera));
+            self.renderer.render_tree(
+                &self.gpu,
+                &scene.lod,
+                criterion,
+                Some(&scene.occluders),
+                &options,
+                visibility,
+                camera,
+                &target.colour_view,
+                size,
+            )
+        } else {
+            self.renderer.render_lod(
                 &self.gpu,
                 &scene.lod,
                 &cut,
@@ -403,7 +418,8 @@ impl Harness {
                 &target.colour_view,
                 size,
             )
-            .expect("combined frame");
+        }
+        .expect("combined frame");
         let visible = self.visible_set(scene, camera, size);
         let missing = Undrawn::of(&visible, &out);
         assert!(
@@ -434,22 +450,33 @@ impl Harness {
             "{}: visible buildings {forgotten:?} not kept for the next frame",
             scene.name
         );
-        // Drawn only from the cut; the counts add up.
-        let covered = scene.lod.covered(&cut);
-        assert!(out.drawn.iter().all(|b| covered.binary_search(b).is_ok()));
         let st = &out.stats;
-        assert_eq!(st.candidates as usize, cut.draw_ids.len());
-        assert_eq!(
-            st.frustum_culled + st.occlusion_culled + st.cull_kept,
-            st.candidates
-        );
+        if self.lod_tree {
+            // The GPU's cut: each building is culled (alone or with its subtree) or kept at
+            // most once; an early one may also be culled by the walk.
+            assert!(
+                st.frustum_culled + st.occlusion_culled + st.drawn
+                    <= st.building_count + st.early_drawn,
+                "{st:?}"
+            );
+            assert!(st.candidates > 0 || out.drawn.is_empty());
+        } else {
+            // Drawn only from the cut; the counts add up.
+            let covered = scene.lod.covered(&cut);
+            assert!(out.drawn.iter().all(|b| covered.binary_search(b).is_ok()));
+            assert_eq!(st.candidates as usize, cut.draw_ids.len());
+            assert_eq!(
+                st.frustum_culled + st.occlusion_culled + st.cull_kept,
+                st.candidates
+            );
+            assert!(
+                out.clusters
+                    .iter()
+                    .all(|c| cut.cut.clusters.binary_search(c).is_ok())
+            );
+        }
         assert_eq!(st.drawn as usize, out.drawn.len());
         assert_eq!(st.clusters_drawn as usize, out.clusters.len());
-        assert!(
-            out.clusters
-                .iter()
-                .all(|c| cut.cut.clusters.binary_search(c).is_ok())
-        );
         assert!(st.buildings_through_clusters <= st.drawn);
         let visible_through_clusters = visible
             .visible
@@ -1124,4 +1151,144 @@ fn empty_cut_and_devices_without_draw_count_stay_correct() {
     let mut h = Harness::new(gpu);
     sweep(&mut h, &scene, 0x5eed_0001, 8);
     sweep_lod(&mut h, &scene, 0x5eed_0101, 16);
+}
+
+/// The combined frame with the cut computed on the GPU (the tree cull, which also culls whole
+/// subtrees against the pyramid), held to the same oracle sweeps as the CPU cut.
+fn sweep_gpu_cut(test: &str, load: fn(&GpuContext) -> TestScene, seed: u64, cameras: usize) {
+    let Some((mut h, scene)) = harness(test, load) else {
+        return;
+    };
+    h.lod_tree = true;
+    assert!(
+        h.renderer.runs_tree(&scene.lod),
+        "{}: this adapter cannot run the tree cull",
+        scene.name
+    );
+    sweep_lod(&mut h, &scene, seed, cameras);
+}
+
+#[test]
+fn generated_city_gpu_cut_frame_is_conservative() {
+    sweep_gpu_cut("two_phase gpu cut generated", generated, 0x5eed_0201, 16);
+}
+
+#[test]
+fn chelsea_gpu_cut_frame_is_conservative() {
+    sweep_gpu_cut("two_phase gpu cut chelsea", chelsea, 0x5eed_0202, 10);
+}
+
+#[test]
+fn den_haag_gpu_cut_frame_is_conservative() {
+    sweep_gpu_cut("two_phase gpu cut den haag", den_haag, 0x5eed_0203, 10);
+}
+
+/// The tree cull's kept draw ids against its CPU reference
+/// (`citywalk_runtime::hzb::reference::tree_cull`) over the pyramid the frame culled against:
+/// the GPU keeps everything the reference keeps (its tests are widened for rounding) and at most
+/// a few more; on street and aerial cameras of the generated city and Den Haag, at two sizes.
+#[test]
+fn gpu_cut_matches_its_cpu_reference() {
+    use citywalk_runtime::hzb::reference::tree_cull;
+    use citywalk_runtime::lod::LodView;
+    use citywalk_runtime::lod::gpu_tree::{TreeArrays, tree_params};
+
+    let Some((mut h, generated_city)) = harness("two_phase gpu cut reference", generated) else {
+        return;
+    };
+    let den_haag = den_haag(&h.gpu);
+    let mut rng = Rng(0x5eed_0301);
+    let (mut compared, mut extra, mut clusters) = (0usize, 0usize, 0usize);
+    for scene in [&generated_city, &den_haag] {
+        let lod = &scene.lod;
+        let arrays = TreeArrays::build(&lod.tree, lod.building_count);
+        // The plain and LOD scenes share their parts.
+        let parts = &scene.scene.parts;
+        for i in 0..8 {
+            let size = if i % 2 == 0 { (1001, 777) } else { (320, 200) };
+            let camera = if i % 4 < 2 {
+                street_camera(&mut rng, &scene.city)
+            } else {
+                aerial_camera(&mut rng, &scene.scene)
+            };
+            let criterion = lod.default_criterion(&camera);
+            let target = OffscreenTarget::new(&h.gpu, size.0, size.1, BruteRenderer::PNG_FORMAT)
+                .expect("target");
+            let options = CullingOptions {
+                occluders: true,
+                occluder_gate: false,
+                ..CullingOptions::default()
+            };
+            // A fresh stream: nothing drawn early, so what the walk keeps is the frame's set.
+            let out = h
+                .renderer
+                .render_tree(
+                    &h.gpu,
+                    lod,
+                    criterion,
+                    Some(&scene.occluders),
+                    &options,
+                    &mut Visibility::default(),
+                    &camera,
+                    &target.colour_view,
+                    size,
+                )
+                .expect("tree frame");
+            assert!(out.drawn_early.is_empty());
+            let pyramid = h
+                .renderer
+                .pyramid()
+                .expect("a pyramid")
+                .read_back(&h.gpu)
+                .expect("pyramid");
+            let mut params = tree_params(
+                &LodView::new(&camera, size.0, size.1),
+                criterion,
+                lod.building_count,
+            );
+            params.root = arrays.root;
+            params.node_count = arrays.nodes.len() as u32;
+            let view_proj = camera.view_proj(size.0 as f32 / size.1 as f32);
+            let reference: Vec<u32> = tree_cull(
+                &pyramid,
+                &arrays,
+                (&lod.cull_records, parts),
+                view_proj,
+                &params,
+            )
+            .into_iter()
+            // The output lists clusters with a mesh only.
+            .filter(|&id| id < lod.building_count || lod.cull_records[id as usize].index_count > 0)
+            .collect();
+            let mut gpu: Vec<u32> = out.drawn_themselves.clone();
+            gpu.extend(out.clusters.iter().map(|&c| lod.building_count + c));
+            gpu.sort_unstable();
+            let missing: Vec<u32> = reference
+                .iter()
+                .copied()
+                .filter(|id| gpu.binary_search(id).is_err())
+                .collect();
+            assert!(
+                missing.is_empty(),
+                "{} camera {} {size:?}: the reference keeps {missing:?}, the GPU does not",
+                scene.name,
+                camera.to_arg_string()
+            );
+            let more = gpu.len() - reference.len();
+            assert!(
+                more <= 2 + reference.len() / 50,
+                "{} camera {} {size:?}: the GPU keeps {more} more than the reference's {}",
+                scene.name,
+                camera.to_arg_string(),
+                reference.len()
+            );
+            compared += reference.len();
+            extra += more;
+            clusters += out.clusters.len();
+        }
+    }
+    eprintln!(
+        "tree cull: {compared} kept by the reference, {extra} more by the GPU, {clusters} clusters"
+    );
+    assert!(compared > 0 && clusters > 0);
 }

@@ -518,7 +518,12 @@ impl CullingRenderer {
             )?,
         }
         let early_draws = IndirectDraws::of(&self.early);
-        self.early_pass(&mut encoder, frame.geometry, (early_draws, n as u32), colour);
+        self.early_pass(
+            &mut encoder,
+            frame.geometry,
+            (early_draws, n as u32),
+            colour,
+        );
         if let Some(meshes) = occluder_meshes {
             self.occluder_pass(gpu, &mut encoder, meshes, &occluders_drawn, gated);
         }
@@ -601,9 +606,9 @@ impl CullingRenderer {
     ) -> Result<Option<FrameOutput>, FrameError> {
         if slot.pending.tree.is_some() {
             return match lod {
-                Some(lod) if lod.building_count as usize == slot.pending.buildings => self
-                    .read_tree_report(gpu, slot, lod, visibility)
-                    .map(Some),
+                Some(lod) if lod.building_count as usize == slot.pending.buildings => {
+                    self.read_tree_report(gpu, slot, lod, visibility).map(Some)
+                }
                 _ => Ok(None),
             };
         }

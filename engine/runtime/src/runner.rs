@@ -168,7 +168,10 @@ impl FrameRunner {
         // the CPU cuts otherwise.
         let gpu_cut = match scene.lod {
             Some(lod) if plan.lod && plan.hzb && plan.frustum && self.culling.runs_tree(lod) => {
-                Some((lod, criterion.unwrap_or_else(|| lod.default_criterion(camera))))
+                Some((
+                    lod,
+                    criterion.unwrap_or_else(|| lod.default_criterion(camera)),
+                ))
             }
             _ => None,
         };

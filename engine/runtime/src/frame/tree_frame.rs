@@ -155,7 +155,12 @@ impl CullingRenderer {
             count: self.tree_cull.counters(),
             count_offset: u64::from(TREE_C_EARLY_DRAWS) * 4,
         };
-        self.early_pass(&mut encoder, &lod.gpu_scene, (early_draws, max_draws), colour);
+        self.early_pass(
+            &mut encoder,
+            &lod.gpu_scene,
+            (early_draws, max_draws),
+            colour,
+        );
         if let Some(meshes) = meshes {
             self.occluder_pass(gpu, &mut encoder, meshes, &selected, gated);
         }
@@ -174,7 +179,12 @@ impl CullingRenderer {
             count: self.tree_cull.counters(),
             count_offset: u64::from(TREE_C_LATE_DRAWS) * 4,
         };
-        self.late_pass(&mut encoder, &lod.gpu_scene, (late_draws, max_draws), colour);
+        self.late_pass(
+            &mut encoder,
+            &lod.gpu_scene,
+            (late_draws, max_draws),
+            colour,
+        );
         let half = 1 - last_half;
         let report = self.record_tree_report(gpu, &mut encoder, &lists, (half, capacity));
         gpu.queue.submit([encoder.finish()]);
@@ -206,6 +216,27 @@ impl CullingRenderer {
             self.reports.submitted(ticket, layout, pending);
         }
         Ok(FrameTicket { number, reported })
+    }
+
+    /// Renders one LOD frame whose cut the GPU computes ([`CullingRenderer::submit_tree`]) and
+    /// waits for its report, as [`CullingRenderer::render_lod`] does for a CPU cut.
+    #[expect(clippy::too_many_arguments, reason = "one frame, all inputs explicit")]
+    pub fn render_tree(
+        &mut self,
+        gpu: &GpuContext,
+        lod: &LodScene,
+        criterion: LodCriterion,
+        occluders: Option<&OccluderMeshes>,
+        options: &CullingOptions,
+        visibility: &mut Visibility,
+        camera: &Camera,
+        colour: &wgpu::TextureView,
+        size: (u32, u32),
+    ) -> Result<FrameOutput, FrameError> {
+        let ticket = self.submit_tree(
+            gpu, lod, criterion, occluders, options, visibility, camera, colour, size,
+        )?;
+        self.wait_report(gpu, ticket, (&lod.gpu_scene, Some(lod)), visibility)
     }
 
     /// Copies the timestamps, the counters, the lists' header and the first

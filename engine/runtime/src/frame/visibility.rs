@@ -128,9 +128,8 @@ impl Visibility {
     /// Sets the CPU copy from a cull status (`CULL_VISIBLE` = visible), one per building.
     pub(super) fn mirror_status(&mut self, status: &[u32]) {
         self.mirror.clear();
-        self.mirror.extend(
-            (0..status.len() as u32).filter(|&b| status[b as usize] == CULL_VISIBLE),
-        );
+        self.mirror
+            .extend((0..status.len() as u32).filter(|&b| status[b as usize] == CULL_VISIBLE));
     }
 
     /// Sets the CPU copy to `visible` (one per building): for a frame whose candidates are not

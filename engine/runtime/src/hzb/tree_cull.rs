@@ -191,7 +191,10 @@ impl TreeCull {
             early: pipeline("tree_early", &walk_layout),
             level: pipeline("tree_level", &walk_layout),
             params: uniform_buffer("tree cull params", size_of::<HzbCullParams>() as u64),
-            tree_params: uniform_buffer("tree cull tree params", size_of::<TreeCullParams>() as u64),
+            tree_params: uniform_buffer(
+                "tree cull tree params",
+                size_of::<TreeCullParams>() as u64,
+            ),
             counters: device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("tree cull counters"),
                 size: u64::from(TREE_C_WORDS) * 4,

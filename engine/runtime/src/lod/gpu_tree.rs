@@ -153,7 +153,11 @@ mod tests {
             h_max_m: if children.is_empty() { 10.0 + x } else { 40.0 },
             delta_h_m: if children.is_empty() { 0.0 } else { 30.0 },
             delta_a_m2: if children.is_empty() { 0.0 } else { 50.0 },
-            neg_space_box_m: if children.is_empty() { [0.0; 3] } else { [5.0, 5.0, 10.0] },
+            neg_space_box_m: if children.is_empty() {
+                [0.0; 3]
+            } else {
+                [5.0, 5.0, 10.0]
+            },
             bounds_min: [x, 0.0, 0.0],
             bounds_max: [x + 10.0, 10.0, 40.0],
             children,
@@ -171,7 +175,11 @@ mod tests {
         let mut root = node(vec![1, 2], (0, 2), 0, 0.0);
         root.landmarks = vec![BuildingId(1)];
         let tree = ClusterTree {
-            nodes: vec![root, node(vec![], (0, 1), 1, 0.0), node(vec![], (1, 2), 1, 20.0)],
+            nodes: vec![
+                root,
+                node(vec![], (0, 1), 1, 0.0),
+                node(vec![], (1, 2), 1, 20.0),
+            ],
             root: 0,
             building_order: vec![BuildingId(1), BuildingId(0)],
             vertices: vec![],
@@ -188,7 +196,13 @@ mod tests {
         assert_eq!(arrays.nodes[0].building, NO_PARENT);
         assert_eq!(arrays.nodes[0].building_count, 2);
         // Building 1's top comes from its leaf (node 1: 10 + 0 m).
-        assert_eq!(arrays.landmarks, vec![TreeLandmark { building: 1, top_m: 10.0 }]);
+        assert_eq!(
+            arrays.landmarks,
+            vec![TreeLandmark {
+                building: 1,
+                top_m: 10.0
+            }]
+        );
         assert_eq!(arrays.nodes[0].has_error, 1);
         assert_eq!(arrays.nodes[1].has_error, 0);
     }
