@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use citywalk_preprocess::pipeline::{PreprocessParams, ProgressSink, Stage, preprocess};
-use citywalk_scenes::package::{ScenePackage, WriteOptions};
+use citywalk_scenes::package::{ScenePackage, WriteOptions, check_output_path};
 use citywalk_scenes::{LoadOptions, load_cities};
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use serde::Serialize;
@@ -103,6 +103,8 @@ pub fn peak_memory_bytes() -> Option<u64> {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let start = Instant::now();
+    // Refuse a device, a folder or a read-only file before minutes of work, not after.
+    check_output_path(&args.output).context("cannot write the package")?;
     let load = ProgressBar::new_spinner();
     if let Ok(style) = ProgressStyle::with_template("{spinner} {msg} {elapsed}") {
         load.set_style(style);
@@ -132,7 +134,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 include_timings: args.store_timings,
             },
         )
-        .with_context(|| format!("cannot write {}", args.output.display()))?;
+        .context("cannot write the package")?;
     let write_seconds = write_start.elapsed().as_secs_f64();
 
     let summary = summarise(&package, &args, bytes, load_seconds, write_seconds, start);
