@@ -475,3 +475,46 @@ fn generated_city_loads_fast_and_whole() {
     assert!(r.warnings.is_empty(), "{:?}", r.warnings.first());
     std::fs::remove_file(&path).ok();
 }
+
+/// Issue 14 case 6: one building at 1e15 m in an EPSG:3857 file moved the frame's origin to
+/// half-way there, and every building was rejected ("no buildings could be loaded (5 found,
+/// all rejected)"). The frame comes from the good buildings; the outlier alone is rejected,
+/// with its id and how far it is.
+#[test]
+fn one_far_outlier_is_rejected_and_the_city_keeps_its_frame() {
+    let mut features: Vec<serde_json::Value> = (0..4)
+        .map(|k| {
+            let x = -8_237_000.0 + 40.0 * k as f64;
+            polygon(
+                x,
+                4_970_000.0,
+                20.0,
+                json!({"id": format!("b{k}"), "height": 10}),
+            )
+        })
+        .collect();
+    features.insert(
+        2,
+        polygon(1e15, 1e15, 20.0, json!({"id": "far", "height": 10})),
+    );
+    features.push(polygon(
+        -8_237_000.0,
+        -1e15,
+        20.0,
+        json!({"id": "south", "height": 10}),
+    ));
+    let mut doc = collection(features);
+    doc["crs"] = json!({"type": "name", "properties": {"name": "urn:ogc:def:crs:EPSG::3857"}});
+    let city = load_json("outlier.geojson", &doc).unwrap();
+    let r = &city.report;
+    assert_eq!((r.buildings_found, r.buildings_loaded), (6, 4), "{r}");
+    assert_eq!(city.frame.origin, [-8_236_930.0, 4_970_010.0, 0.0]);
+    for id in ["far", "south"] {
+        let rejection = r.rejected.iter().find(|x| x.source_id == id).expect(id);
+        assert!(
+            matches!(&rejection.reason, RejectReason::CoordinateOutOfRange(m) if m.contains("km from")),
+            "{rejection}"
+        );
+    }
+    city.check_invariants().unwrap();
+}
