@@ -61,13 +61,18 @@ pub struct LoadWarning {
 
 impl fmt::Display for LoadWarning {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(
-            f,
-            "{}: {}: {}",
-            self.file.display(),
-            self.source_id,
-            self.message
-        )
+        if self.source_id.is_empty() {
+            // A warning about the file as a whole (skipped features, an ignored tileset).
+            write!(f, "{}: {}", self.file.display(), self.message)
+        } else {
+            write!(
+                f,
+                "{}: {}: {}",
+                self.file.display(),
+                self.source_id,
+                self.message
+            )
+        }
     }
 }
 
@@ -130,9 +135,24 @@ impl fmt::Display for LoadReport {
     }
 }
 
+impl LoadReport {
+    /// Logs every rejection and warning, each with its file, source id and reason (the
+    /// counts alone do not say which building to look at).
+    pub fn log_items(&self) {
+        for r in &self.rejected {
+            tracing::warn!("rejected: {r}");
+        }
+        for w in &self.warnings {
+            tracing::warn!("{w}");
+        }
+    }
+}
+
 impl LoadError {
-    /// The error of a file whose every building was rejected: names the first rejection.
+    /// The error of a file whose every building was rejected: names the first rejection (and
+    /// logs them all).
     pub fn nothing_loaded(path: &Path, report: &LoadReport) -> LoadError {
+        report.log_items();
         let first = report
             .rejected
             .first()

@@ -11,6 +11,7 @@ mod inspect;
 mod path_arg;
 mod preprocess;
 mod render;
+mod report_items;
 mod scene_input;
 mod view;
 

@@ -12,6 +12,8 @@ use citywalk_scenes::{LoadOptions, load_cities};
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use serde::Serialize;
 
+use crate::report_items::{self, ReportItem};
+
 /// Arguments of `citywalk preprocess`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -74,6 +76,10 @@ struct Summary {
     buildings_found: usize,
     buildings_loaded: usize,
     buildings_rejected: usize,
+    /// Every rejected building: file, source id, reason.
+    rejected: Vec<ReportItem>,
+    /// Every load warning: file, source id (empty for the file as a whole), message.
+    load_warnings: Vec<ReportItem>,
     streets: usize,
     occluders: Option<usize>,
     occluder_triangles: Option<usize>,
@@ -155,12 +161,15 @@ fn summarise(
     start: Instant,
 ) -> Summary {
     let report = &package.provenance.load_report;
+    let (rejected, load_warnings) = report_items::items(report);
     Summary {
         output: args.output.display().to_string(),
         package_bytes,
         buildings_found: report.buildings_found,
         buildings_loaded: report.buildings_loaded,
         buildings_rejected: report.rejected.len(),
+        rejected,
+        load_warnings,
         streets: package.streets.len(),
         occluders: package.occluders.as_ref().map(|o| o.occluders.len()),
         occluder_triangles: package.occluders.as_ref().map(|o| o.triangle_count()),
@@ -196,6 +205,7 @@ fn print_summary(s: &Summary) {
         "buildings: {} found, {} loaded, {} rejected; {} streets",
         s.buildings_found, s.buildings_loaded, s.buildings_rejected, s.streets
     );
+    report_items::print(&s.rejected, &s.load_warnings);
     println!(
         "occluders: {} ({} triangles)",
         opt(s.occluders),
