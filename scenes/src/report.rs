@@ -91,16 +91,23 @@ pub struct LoadReport {
     pub buildings_with_height: usize,
     /// Buildings whose height was estimated with the default.
     pub buildings_estimated_height: usize,
+    /// Street lines found in the input (one per line of a multi-line street).
+    pub streets_found: usize,
     /// Streets loaded.
     pub streets_loaded: usize,
     pub rejected: Vec<Rejection>,
+    /// Street lines that could not be used (too few points, zero length, a coordinate out of
+    /// range), with their source id and reason: `streets_loaded + streets_rejected =
+    /// streets_found`.
+    pub streets_rejected: Vec<Rejection>,
     pub warnings: Vec<LoadWarning>,
 }
 
 impl LoadReport {
-    /// `loaded + rejected = found`.
+    /// `loaded + rejected = found`, for buildings and for streets.
     pub fn is_balanced(&self) -> bool {
         self.buildings_loaded + self.rejected.len() == self.buildings_found
+            && self.streets_loaded + self.streets_rejected.len() == self.streets_found
     }
 
     /// Folds another file's report into this one.
@@ -111,8 +118,10 @@ impl LoadReport {
         self.parts_found += other.parts_found;
         self.buildings_with_height += other.buildings_with_height;
         self.buildings_estimated_height += other.buildings_estimated_height;
+        self.streets_found += other.streets_found;
         self.streets_loaded += other.streets_loaded;
         self.rejected.extend(other.rejected);
+        self.streets_rejected.extend(other.streets_rejected);
         self.warnings.extend(other.warnings);
     }
 }
@@ -122,7 +131,7 @@ impl fmt::Display for LoadReport {
         write!(
             f,
             "{} buildings found, {} loaded, {} rejected; {} parts; {} with tagged height, {} \
-             estimated; {} streets; {} warnings",
+             estimated; {} streets ({} rejected); {} warnings",
             self.buildings_found,
             self.buildings_loaded,
             self.rejected.len(),
@@ -130,6 +139,7 @@ impl fmt::Display for LoadReport {
             self.buildings_with_height,
             self.buildings_estimated_height,
             self.streets_loaded,
+            self.streets_rejected.len(),
             self.warnings.len()
         )
     }
@@ -141,6 +151,10 @@ impl LoadReport {
     pub fn log_items(&self) {
         for r in &self.rejected {
             tracing::warn!("rejected: {r}");
+        }
+        for r in &self.streets_rejected {
+            let file = r.file.display();
+            tracing::warn!("rejected: {file}: street {}: {}", r.source_id, r.reason);
         }
         for w in &self.warnings {
             tracing::warn!("{w}");

@@ -518,3 +518,43 @@ fn one_far_outlier_is_rejected_and_the_city_keeps_its_frame() {
     }
     city.check_invariants().unwrap();
 }
+
+/// Issue 14 case 12: malformed highway lines (one point, zero length, a 1e300 coordinate)
+/// gave "0 streets; 0 warnings". Each is counted and rejected with its id and reason, like a
+/// building; the good street loads.
+#[test]
+fn malformed_streets_are_counted_and_rejected_with_their_ids() {
+    let street = |id: &str, coords: serde_json::Value| {
+        json!({"type": "Feature", "geometry": {"type": "LineString", "coordinates": coords},
+               "properties": {"id": id, "highway": "residential"}})
+    };
+    let features = vec![
+        polygon(0.0, 0.0, 0.0002, json!({"id": "house", "height": 9})),
+        street("good", json!([[0.0, -0.0001], [0.0003, -0.0001]])),
+        street("one", json!([[0.0, 0.0]])),
+        street("zero", json!([[0.0001, 0.0], [0.0001, 0.0], [0.0001, 0.0]])),
+        street("huge", json!([[0.0, 0.0], [1e300, 0.0]])),
+        street("null", json!([[0.0, 0.0], [null, 0.0]])),
+        street("text", json!("nowhere")),
+    ];
+    let city = load_json("streets.geojson", &collection(features)).unwrap();
+    let r = &city.report;
+    assert_eq!((r.streets_found, r.streets_loaded), (6, 1), "{r}");
+    assert!(r.is_balanced(), "{r}");
+    assert!(r.to_string().contains("1 streets (5 rejected)"), "{r}");
+    assert_eq!(city.streets[0].source_id, "good");
+    let reason = |id: &str| {
+        let x = r.streets_rejected.iter().find(|x| x.source_id == id);
+        x.unwrap_or_else(|| panic!("{id} not rejected: {:?}", r.streets_rejected))
+            .reason
+            .to_string()
+    };
+    assert!(reason("one").contains("2 distinct points, it has 1"));
+    assert!(reason("zero").contains("2 distinct points, it has 1"));
+    assert!(
+        reason("huge").contains("out of range"),
+        "{}",
+        reason("huge")
+    );
+    assert!(!reason("null").is_empty() && !reason("text").is_empty());
+}

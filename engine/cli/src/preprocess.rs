@@ -76,7 +76,9 @@ struct Summary {
     buildings_found: usize,
     buildings_loaded: usize,
     buildings_rejected: usize,
-    /// Every rejected building: file, source id, reason.
+    streets_found: usize,
+    streets_rejected: usize,
+    /// Every rejected building and street: kind, file, source id, reason.
     rejected: Vec<ReportItem>,
     /// Every load warning: file, source id (empty for the file as a whole), message.
     load_warnings: Vec<ReportItem>,
@@ -168,6 +170,8 @@ fn summarise(
         buildings_found: report.buildings_found,
         buildings_loaded: report.buildings_loaded,
         buildings_rejected: report.rejected.len(),
+        streets_found: report.streets_found,
+        streets_rejected: report.streets_rejected.len(),
         rejected,
         load_warnings,
         streets: package.streets.len(),
@@ -202,8 +206,13 @@ fn print_summary(s: &Summary) {
         s.package_bytes as f64 / 1048576.0
     );
     println!(
-        "buildings: {} found, {} loaded, {} rejected; {} streets",
-        s.buildings_found, s.buildings_loaded, s.buildings_rejected, s.streets
+        "buildings: {} found, {} loaded, {} rejected; streets: {} found, {} loaded, {} rejected",
+        s.buildings_found,
+        s.buildings_loaded,
+        s.buildings_rejected,
+        s.streets_found,
+        s.streets,
+        s.streets_rejected
     );
     report_items::print(&s.rejected, &s.load_warnings);
     println!(

@@ -12,17 +12,21 @@ const PRINTED: usize = 20;
 /// One rejection or warning.
 #[derive(Debug, Serialize)]
 pub struct ReportItem {
+    /// `building` or `street` for a rejection; empty for a warning.
+    pub kind: &'static str,
     pub file: String,
     pub source_id: String,
     pub reason: String,
 }
 
-/// The rejections and the warnings of a load report.
+/// The rejections (buildings, then streets) and the warnings of a load report.
 pub fn items(report: &LoadReport) -> (Vec<ReportItem>, Vec<ReportItem>) {
-    let rejected = report
-        .rejected
-        .iter()
-        .map(|r| ReportItem {
+    let buildings = report.rejected.iter().map(|r| ("building", r));
+    let streets = report.streets_rejected.iter().map(|r| ("street", r));
+    let rejected = buildings
+        .chain(streets)
+        .map(|(kind, r)| ReportItem {
+            kind,
             file: r.file.display().to_string(),
             source_id: r.source_id.clone(),
             reason: r.reason.to_string(),
@@ -32,6 +36,7 @@ pub fn items(report: &LoadReport) -> (Vec<ReportItem>, Vec<ReportItem>) {
         .warnings
         .iter()
         .map(|w| ReportItem {
+            kind: "",
             file: w.file.display().to_string(),
             source_id: w.source_id.clone(),
             reason: w.message.clone(),
@@ -40,7 +45,8 @@ pub fn items(report: &LoadReport) -> (Vec<ReportItem>, Vec<ReportItem>) {
     (rejected, warnings)
 }
 
-/// Prints `rejected: FILE: building ID: REASON` and `load warning: FILE: ID: MESSAGE` lines,
+/// Prints `rejected: FILE: building ID: REASON` (or `street ID`) and `load warning: FILE: ID:
+/// MESSAGE` lines,
 /// the first [`PRINTED`] of each.
 pub fn print(rejected: &[ReportItem], warnings: &[ReportItem]) {
     for (label, list) in [("rejected", rejected), ("load warning", warnings)] {

@@ -67,7 +67,8 @@ pub(crate) struct RawStreet {
     pub source_id: String,
     pub class: StreetClass,
     pub name: Option<String>,
-    pub points: Vec<Coord<f64>>,
+    /// The line, or why it could not be read.
+    pub points: Result<Vec<Coord<f64>>, RejectReason>,
 }
 
 /// The CRS of the source coordinates.
@@ -277,15 +278,18 @@ pub(crate) fn assemble(
     let mut city_streets = Vec::new();
     if options.load_streets {
         for s in streets {
-            let points: Vec<Coord<f64>> = s
-                .points
-                .into_iter()
-                .filter_map(|c| project(c).ok())
-                .collect();
-            let points = dedup(points);
-            if points.len() < 2 {
-                continue;
-            }
+            report.streets_found += 1;
+            let points = match s.points.and_then(|p| street_line(p, &project)) {
+                Ok(points) => points,
+                Err(reason) => {
+                    report.streets_rejected.push(Rejection {
+                        file: path.to_path_buf(),
+                        source_id: s.source_id,
+                        reason,
+                    });
+                    continue;
+                }
+            };
             city_streets.push(Street {
                 source_id: s.source_id,
                 class: s.class,
@@ -549,10 +553,46 @@ fn better_source(a: HeightSource, b: HeightSource) -> HeightSource {
     if rank(b) < rank(a) { b } else { a }
 }
 
-/// Drops consecutive repeated points.
-fn dedup(mut points: Vec<Coord<f64>>) -> Vec<Coord<f64>> {
-    points.dedup();
-    points
+/// Shortest street line kept (metres): anything shorter is a stray point.
+const MIN_STREET_LENGTH_M: f64 = 0.01;
+
+/// A street's points in the local frame, consecutive repeats dropped; every coordinate must
+/// be finite and within the local range, and the line must have two distinct points and a
+/// length.
+fn street_line(
+    points: Vec<Coord<f64>>,
+    project: &impl Fn(Coord<f64>) -> Result<Coord<f64>, RejectReason>,
+) -> Result<Vec<Coord<f64>>, RejectReason> {
+    let mut local = Vec::with_capacity(points.len());
+    for c in points {
+        let p = project(c)?;
+        if !(p.x.abs() <= MAX_LOCAL_COORDINATE_M && p.y.abs() <= MAX_LOCAL_COORDINATE_M) {
+            return Err(RejectReason::CoordinateOutOfRange(format!(
+                "({}, {}) is beyond {} km of the origin",
+                c.x,
+                c.y,
+                MAX_LOCAL_COORDINATE_M / 1000.0
+            )));
+        }
+        local.push(p);
+    }
+    local.dedup();
+    if local.len() < 2 {
+        return Err(RejectReason::InvalidGeometry(format!(
+            "a street needs 2 distinct points, it has {}",
+            local.len()
+        )));
+    }
+    let length_m: f64 = local
+        .windows(2)
+        .map(|w| (w[1].x - w[0].x).hypot(w[1].y - w[0].y))
+        .sum();
+    if length_m.is_nan() || length_m < MIN_STREET_LENGTH_M {
+        return Err(RejectReason::InvalidGeometry(format!(
+            "street of zero length ({length_m} m)"
+        )));
+    }
+    Ok(local)
 }
 
 #[cfg(test)]

@@ -264,7 +264,7 @@ fn read(path: &Path, options: &LoadOptions) -> Result<RawCity, LoadError> {
                     source_id,
                     class,
                     name: w.tags.get("name").cloned(),
-                    points,
+                    points: Ok(points),
                 });
             }
         }

@@ -52,6 +52,7 @@ struct Summary {
     buildings: usize,
     buildings_with_mesh: usize,
     streets: usize,
+    streets_rejected: usize,
     blocks: usize,
     blocks_with_street_outline: usize,
     buildings_per_block_min_median_max: Option<(usize, usize, usize)>,
@@ -163,6 +164,7 @@ fn summarise(
         buildings: pkg.buildings.len(),
         buildings_with_mesh: pkg.buildings.iter().filter(|b| b.mesh.is_some()).count(),
         streets: pkg.streets.len(),
+        streets_rejected: report.streets_rejected.len(),
         blocks: pkg.blocks.blocks.len(),
         blocks_with_street_outline: pkg
             .blocks
@@ -218,13 +220,15 @@ fn print_summary(s: &Summary) {
         );
     }
     println!(
-        "buildings: {} found, {} loaded, {} rejected, {} load warnings; {} with meshes; {} streets",
+        "buildings: {} found, {} loaded, {} rejected, {} load warnings; {} with meshes; {} streets \
+         ({} rejected)",
         s.buildings_found,
         s.buildings_loaded,
         s.buildings_rejected,
         s.load_warnings,
         s.buildings_with_mesh,
-        s.streets
+        s.streets,
+        s.streets_rejected
     );
     for (reason, n) in &s.rejections_by_reason {
         println!("  rejected {n}: {reason}");
