@@ -128,6 +128,8 @@ pub(crate) fn assemble(
         } else {
             "no building or part has a usable coordinate"
         };
+        // The warnings (a skipped block, say) may tell why.
+        report.log_items();
         return Err(LoadError::NothingLoaded {
             path: path.to_path_buf(),
             found,
