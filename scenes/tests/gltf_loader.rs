@@ -673,3 +673,25 @@ fn gltf_buffer_uris_outside_the_folder_or_not_regular_files_are_refused() {
     assert_eq!(city.buildings.len(), 1);
     assert!((city.buildings[0].top_m - 7.0).abs() < 1e-5);
 }
+
+/// Issue 14 case 10 (the datum part): heights were judged in the file's absolute metres
+/// before the origin was raised, so a lone glTF standing 1,100 m up (a city high above its
+/// datum) lost every building as "absurd height". Heights are judged above the file's ground.
+#[test]
+fn heights_are_judged_above_the_files_ground() {
+    let glb = make_glb(
+        &[([0.0, 0.0, 0.0], [3.0, 3.0, 7.0], 0)],
+        false,
+        r#","translation":[0,1100,0]"#,
+    );
+    let path = Path::new("high.glb");
+    let city = gltf_loader::load_bytes(path, &glb).unwrap();
+    assert_eq!(city.buildings.len(), 1, "{}", city.report);
+    let b = &city.buildings[0];
+    assert_eq!((b.base_m, b.top_m), (0.0, 7.0));
+    assert!(
+        (city.frame.origin[2] - 1100.0).abs() < 1e-3,
+        "{:?}",
+        city.frame.origin
+    );
+}
