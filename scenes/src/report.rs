@@ -61,13 +61,18 @@ pub struct LoadWarning {
 
 impl fmt::Display for LoadWarning {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(
-            f,
-            "{}: {}: {}",
-            self.file.display(),
-            self.source_id,
-            self.message
-        )
+        if self.source_id.is_empty() {
+            // A warning about the file as a whole (skipped features, an ignored tileset).
+            write!(f, "{}: {}", self.file.display(), self.message)
+        } else {
+            write!(
+                f,
+                "{}: {}: {}",
+                self.file.display(),
+                self.source_id,
+                self.message
+            )
+        }
     }
 }
 
@@ -86,16 +91,23 @@ pub struct LoadReport {
     pub buildings_with_height: usize,
     /// Buildings whose height was estimated with the default.
     pub buildings_estimated_height: usize,
+    /// Street lines found in the input (one per line of a multi-line street).
+    pub streets_found: usize,
     /// Streets loaded.
     pub streets_loaded: usize,
     pub rejected: Vec<Rejection>,
+    /// Street lines that could not be used (too few points, zero length, a coordinate out of
+    /// range), with their source id and reason: `streets_loaded + streets_rejected =
+    /// streets_found`.
+    pub streets_rejected: Vec<Rejection>,
     pub warnings: Vec<LoadWarning>,
 }
 
 impl LoadReport {
-    /// `loaded + rejected = found`.
+    /// `loaded + rejected = found`, for buildings and for streets.
     pub fn is_balanced(&self) -> bool {
         self.buildings_loaded + self.rejected.len() == self.buildings_found
+            && self.streets_loaded + self.streets_rejected.len() == self.streets_found
     }
 
     /// Folds another file's report into this one.
@@ -106,8 +118,10 @@ impl LoadReport {
         self.parts_found += other.parts_found;
         self.buildings_with_height += other.buildings_with_height;
         self.buildings_estimated_height += other.buildings_estimated_height;
+        self.streets_found += other.streets_found;
         self.streets_loaded += other.streets_loaded;
         self.rejected.extend(other.rejected);
+        self.streets_rejected.extend(other.streets_rejected);
         self.warnings.extend(other.warnings);
     }
 }
@@ -117,7 +131,7 @@ impl fmt::Display for LoadReport {
         write!(
             f,
             "{} buildings found, {} loaded, {} rejected; {} parts; {} with tagged height, {} \
-             estimated; {} streets; {} warnings",
+             estimated; {} streets ({} rejected); {} warnings",
             self.buildings_found,
             self.buildings_loaded,
             self.rejected.len(),
@@ -125,14 +139,34 @@ impl fmt::Display for LoadReport {
             self.buildings_with_height,
             self.buildings_estimated_height,
             self.streets_loaded,
+            self.streets_rejected.len(),
             self.warnings.len()
         )
     }
 }
 
+impl LoadReport {
+    /// Logs every rejection and warning, each with its file, source id and reason (the
+    /// counts alone do not say which building to look at).
+    pub fn log_items(&self) {
+        for r in &self.rejected {
+            tracing::warn!("rejected: {r}");
+        }
+        for r in &self.streets_rejected {
+            let file = r.file.display();
+            tracing::warn!("rejected: {file}: street {}: {}", r.source_id, r.reason);
+        }
+        for w in &self.warnings {
+            tracing::warn!("{w}");
+        }
+    }
+}
+
 impl LoadError {
-    /// The error of a file whose every building was rejected: names the first rejection.
+    /// The error of a file whose every building was rejected: names the first rejection (and
+    /// logs them all).
     pub fn nothing_loaded(path: &Path, report: &LoadReport) -> LoadError {
+        report.log_items();
         let first = report
             .rejected
             .first()

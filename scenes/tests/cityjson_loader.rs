@@ -336,13 +336,14 @@ fn bad_files_are_errors_naming_file_and_problem() {
         ),
         "transform",
     );
+    // A file whose only building is broken loads nothing, naming that building's problem.
     expect_error(
         &cube_1_1().replace("[3,0,4,7]", "[3,0,4,70]"),
-        "out of range",
+        "cube: vertex index 70 is not an index",
     );
     expect_error(
         &cube_1_1().replace("[3,0,4,7]", "[3,0,4,-7]"),
-        "out of range",
+        "vertex index -7 is not an index",
     );
     expect_error(
         &cube_1_1().replace("[0,10000,10000]]", "[0,10000]]"),
@@ -465,4 +466,75 @@ fn mutated_files_never_panic() {
             Ok(())
         })
         .unwrap();
+}
+
+/// Issue 14 case 7: one CityObject with a vertex index out of range (or -1, 1.5, a string
+/// boundary) made the whole file invalid. The other objects load; each bad one is rejected with
+/// its id and the reason; a bad `BuildingPart` drops only that part of its building.
+#[test]
+fn one_bad_object_is_rejected_and_the_others_load() {
+    let cube = |id: &str, first: &str| {
+        format!(
+            r#""{id}":{{"type":"Building","geometry":[{{"type":"Solid","lod":"2","boundaries":[[
+            [{first}],[[4,5,6,7]],[[0,1,5,4]],[[1,2,6,5]],[[2,3,7,6]],[[3,0,4,7]]]]}}]}}"#
+        )
+    };
+    let objects = [
+        cube("good", "[0,3,2,1]"),
+        cube("beyond", "[0,3,2,99]"),
+        cube("minus", "[0,3,2,-1]"),
+        cube("half", "[0,3,2,1.5]"),
+        cube("text", r#"[0,3,2,"1"]"#),
+        cube("string", r#""[0,3,2,1]""#),
+        r#""whole":{"type":"Building","geometry":[{"type":"Solid","lod":"2","boundaries":"x"}]}"#
+            .to_string(),
+        r#""house":{"type":"Building","children":["p1","p2"]},
+        "p2":{"type":"BuildingPart","parents":["house"],"geometry":[{"type":"MultiSurface",
+          "lod":"1","boundaries":[[[0,1,2,1e9]]]}]}"#
+            .to_string(),
+        cube("p1", "[0,3,2,1]").replace(r#""type":"Building""#, r#""type":"BuildingPart""#),
+    ];
+    let text = format!(
+        r#"{{"type":"CityJSON","version":"2.0",
+        "transform":{{"scale":[1,1,1],"translate":[0,0,0]}},"CityObjects":{{{}}},
+        "vertices":[[0,0,0],[10,0,0],[10,10,0],[0,10,0],[0,0,10],[10,0,10],[10,10,10],[0,10,10]]}}"#,
+        objects.join(",")
+    );
+    let city = load_str(&text).unwrap();
+    let r = &city.report;
+    assert_eq!((r.buildings_found, r.buildings_loaded), (8, 2), "{r}");
+    assert!(r.is_balanced());
+    let loaded: Vec<&str> = city
+        .buildings
+        .iter()
+        .map(|b| b.source_id.as_str())
+        .collect();
+    assert_eq!(loaded, ["good", "house"]);
+    for (id, needle) in [
+        (
+            "beyond",
+            "vertex index 99 is not an index of the 8 vertices",
+        ),
+        ("minus", "vertex index -1"),
+        ("half", "vertex index 1.5"),
+        ("text", "vertex index \"1\""),
+        ("string", "is not an array"),
+        ("whole", "is not an array"),
+    ] {
+        let x = r.rejected.iter().find(|x| x.source_id == id).expect(id);
+        assert!(
+            matches!(&x.reason, RejectReason::InvalidGeometry(m) if m.contains(id) && m.contains(needle)),
+            "{x}"
+        );
+    }
+    // The house keeps its good part; the bad one is a warning naming it.
+    assert_eq!(city.buildings[1].parts.len(), 1);
+    assert!(
+        r.warnings
+            .iter()
+            .any(|w| w.source_id == "p2" && w.message.contains("vertex index 1000000000")),
+        "{:?}",
+        r.warnings
+    );
+    city.check_invariants().unwrap();
 }

@@ -475,3 +475,86 @@ fn generated_city_loads_fast_and_whole() {
     assert!(r.warnings.is_empty(), "{:?}", r.warnings.first());
     std::fs::remove_file(&path).ok();
 }
+
+/// Issue 14 case 6: one building at 1e15 m in an EPSG:3857 file moved the frame's origin to
+/// half-way there, and every building was rejected ("no buildings could be loaded (5 found,
+/// all rejected)"). The frame comes from the good buildings; the outlier alone is rejected,
+/// with its id and how far it is.
+#[test]
+fn one_far_outlier_is_rejected_and_the_city_keeps_its_frame() {
+    let mut features: Vec<serde_json::Value> = (0..4)
+        .map(|k| {
+            let x = -8_237_000.0 + 40.0 * k as f64;
+            polygon(
+                x,
+                4_970_000.0,
+                20.0,
+                json!({"id": format!("b{k}"), "height": 10}),
+            )
+        })
+        .collect();
+    features.insert(
+        2,
+        polygon(1e15, 1e15, 20.0, json!({"id": "far", "height": 10})),
+    );
+    features.push(polygon(
+        -8_237_000.0,
+        -1e15,
+        20.0,
+        json!({"id": "south", "height": 10}),
+    ));
+    let mut doc = collection(features);
+    doc["crs"] = json!({"type": "name", "properties": {"name": "urn:ogc:def:crs:EPSG::3857"}});
+    let city = load_json("outlier.geojson", &doc).unwrap();
+    let r = &city.report;
+    assert_eq!((r.buildings_found, r.buildings_loaded), (6, 4), "{r}");
+    assert_eq!(city.frame.origin, [-8_236_930.0, 4_970_010.0, 0.0]);
+    for id in ["far", "south"] {
+        let rejection = r.rejected.iter().find(|x| x.source_id == id).expect(id);
+        assert!(
+            matches!(&rejection.reason, RejectReason::CoordinateOutOfRange(m) if m.contains("km from")),
+            "{rejection}"
+        );
+    }
+    city.check_invariants().unwrap();
+}
+
+/// Issue 14 case 12: malformed highway lines (one point, zero length, a 1e300 coordinate)
+/// gave "0 streets; 0 warnings". Each is counted and rejected with its id and reason, like a
+/// building; the good street loads.
+#[test]
+fn malformed_streets_are_counted_and_rejected_with_their_ids() {
+    let street = |id: &str, coords: serde_json::Value| {
+        json!({"type": "Feature", "geometry": {"type": "LineString", "coordinates": coords},
+               "properties": {"id": id, "highway": "residential"}})
+    };
+    let features = vec![
+        polygon(0.0, 0.0, 0.0002, json!({"id": "house", "height": 9})),
+        street("good", json!([[0.0, -0.0001], [0.0003, -0.0001]])),
+        street("one", json!([[0.0, 0.0]])),
+        street("zero", json!([[0.0001, 0.0], [0.0001, 0.0], [0.0001, 0.0]])),
+        street("huge", json!([[0.0, 0.0], [1e300, 0.0]])),
+        street("null", json!([[0.0, 0.0], [null, 0.0]])),
+        street("text", json!("nowhere")),
+    ];
+    let city = load_json("streets.geojson", &collection(features)).unwrap();
+    let r = &city.report;
+    assert_eq!((r.streets_found, r.streets_loaded), (6, 1), "{r}");
+    assert!(r.is_balanced(), "{r}");
+    assert!(r.to_string().contains("1 streets (5 rejected)"), "{r}");
+    assert_eq!(city.streets[0].source_id, "good");
+    let reason = |id: &str| {
+        let x = r.streets_rejected.iter().find(|x| x.source_id == id);
+        x.unwrap_or_else(|| panic!("{id} not rejected: {:?}", r.streets_rejected))
+            .reason
+            .to_string()
+    };
+    assert!(reason("one").contains("2 distinct points, it has 1"));
+    assert!(reason("zero").contains("2 distinct points, it has 1"));
+    assert!(
+        reason("huge").contains("out of range"),
+        "{}",
+        reason("huge")
+    );
+    assert!(!reason("null").is_empty() && !reason("text").is_empty());
+}

@@ -592,3 +592,106 @@ fn glb_json_number_mutations_never_panic() {
         .unwrap();
     eprintln!("{} mutated GLBs loaded", loaded.get());
 }
+
+/// A `.gltf` (one 3 × 3 × 7 m box) whose buffer is the file `uri` with `byteLength` as
+/// written, and the binary data it needs.
+fn split_gltf(uri: &str) -> (String, Vec<u8>) {
+    let glb = make_glb(&[([0.0, 0.0, 0.0], [3.0, 3.0, 7.0], 0)], false, "");
+    let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+    let json = std::str::from_utf8(&glb[20..20 + json_len]).unwrap();
+    let bin = glb[20 + json_len + 8..].to_vec();
+    let json = json.replace(
+        r#""buffers":[{"byteLength""#,
+        &format!(
+            r#""buffers":[{{"uri":{},"byteLength""#,
+            serde_json::json!(uri)
+        ),
+    );
+    (json, bin)
+}
+
+/// Issue 14 case 2: a buffer `uri` of `/dev/zero` (byteLength 4,140) grew to 24 GB, and one of
+/// `/etc/passwd` was read. Only regular files inside the glTF's folder are read, never past
+/// `byteLength`; everything else is an error naming the file, the buffer and the reason, at
+/// once.
+#[test]
+fn gltf_buffer_uris_outside_the_folder_or_not_regular_files_are_refused() {
+    let root = tempfile::tempdir().unwrap();
+    let dir = root.path().join("model");
+    std::fs::create_dir_all(dir.join("sub")).unwrap();
+    let (_, bin) = split_gltf("x");
+    std::fs::write(root.path().join("outside.bin"), &bin).unwrap();
+    #[cfg(unix)]
+    {
+        std::os::unix::fs::symlink("/dev/zero", dir.join("zero.bin")).unwrap();
+        std::os::unix::fs::symlink(root.path().join("outside.bin"), dir.join("out.bin")).unwrap();
+    }
+    let cases = [
+        ("/dev/zero", "absolute"),
+        ("/etc/passwd", "absolute"),
+        ("file:///etc/passwd", "only relative"),
+        ("../outside.bin", "leaves the folder"),
+        ("sub/../../outside.bin", "leaves the folder"),
+        ("sub", "not a regular file"),
+        ("missing.bin", "missing.bin"),
+        #[cfg(unix)]
+        ("zero.bin", "outside the folder"),
+        #[cfg(unix)]
+        ("out.bin", "outside the folder"),
+    ];
+    for (k, (uri, needle)) in cases.iter().enumerate() {
+        let (json, _) = split_gltf(uri);
+        let file = dir.join(format!("case{k}.gltf"));
+        std::fs::write(&file, json).unwrap();
+        let start = std::time::Instant::now();
+        let err = load_city(&file, &LoadOptions::default()).expect_err(uri);
+        assert!(
+            start.elapsed().as_secs() < 5,
+            "{uri}: took {:?}",
+            start.elapsed()
+        );
+        let text = err.to_string();
+        assert!(text.contains(&format!("case{k}.gltf")), "{uri}: {text}");
+        assert!(
+            text.contains("buffer 0") && text.contains(needle),
+            "{uri}: {text}"
+        );
+    }
+
+    // A file shorter than byteLength is refused; a longer one is read up to byteLength only.
+    std::fs::write(dir.join("short.bin"), &bin[..bin.len() - 4]).unwrap();
+    let (json, _) = split_gltf("short.bin");
+    std::fs::write(dir.join("short.gltf"), json).unwrap();
+    let err = load_city(&dir.join("short.gltf"), &LoadOptions::default()).unwrap_err();
+    assert!(err.to_string().contains("declared"), "{err}");
+    let mut long = bin.clone();
+    long.extend_from_slice(&[0xAB; 1000]);
+    std::fs::write(dir.join("sub/long%.bin"), &long).unwrap();
+    let (json, _) = split_gltf("sub/long%25.bin");
+    std::fs::write(dir.join("long.gltf"), json).unwrap();
+    let city = load_city(&dir.join("long.gltf"), &LoadOptions::default()).unwrap();
+    assert_eq!(city.buildings.len(), 1);
+    assert!((city.buildings[0].top_m - 7.0).abs() < 1e-5);
+}
+
+/// Issue 14 case 10 (the datum part): heights were judged in the file's absolute metres
+/// before the origin was raised, so a lone glTF standing 1,100 m up (a city high above its
+/// datum) lost every building as "absurd height". Heights are judged above the file's ground.
+#[test]
+fn heights_are_judged_above_the_files_ground() {
+    let glb = make_glb(
+        &[([0.0, 0.0, 0.0], [3.0, 3.0, 7.0], 0)],
+        false,
+        r#","translation":[0,1100,0]"#,
+    );
+    let path = Path::new("high.glb");
+    let city = gltf_loader::load_bytes(path, &glb).unwrap();
+    assert_eq!(city.buildings.len(), 1, "{}", city.report);
+    let b = &city.buildings[0];
+    assert_eq!((b.base_m, b.top_m), (0.0, 7.0));
+    assert!(
+        (city.frame.origin[2] - 1100.0).abs() < 1e-3,
+        "{:?}",
+        city.frame.origin
+    );
+}

@@ -582,3 +582,44 @@ fn corrupt_pbf_never_panics() {
         .unwrap();
     std::fs::remove_file(temp_file("fuzz.osm.pbf", b"")).ok();
 }
+
+/// Issue 14 case 9: one changed block-type byte of `nyc.osm.pbf` loaded 1,520 of 1,525
+/// buildings with exit 0, only the warning count moving. A type one byte from `OSMData` is
+/// now an error naming the block; a block of a truly unknown type is skipped (as the format
+/// asks) with a warning naming it.
+#[test]
+fn a_damaged_or_unknown_block_is_named() {
+    let bytes = std::fs::read(CHELSEA).unwrap();
+    // Blocks: 0 the header, 1 nodes, 2 and 3 more data.
+    let data_blocks: Vec<usize> = (bytes.windows(7).enumerate())
+        .filter(|(_, w)| *w == b"OSMData")
+        .map(|(i, _)| i)
+        .collect();
+    assert_eq!(data_blocks.len(), 3);
+    let at = data_blocks[2];
+    let mut damaged = bytes.clone();
+    damaged[at + 4] = b'b';
+    let path = temp_file("damaged.osm.pbf", &damaged);
+    let err = osm::load(&path, &LoadOptions::default()).unwrap_err();
+    let text = err.to_string();
+    assert!(
+        text.contains("damaged.osm.pbf") && text.contains("block 3"),
+        "{text}"
+    );
+    assert!(text.contains("\"OSMDbta\""), "{text}");
+
+    let mut unknown = bytes;
+    let at = data_blocks[1];
+    unknown[at..at + 3].copy_from_slice(b"XYZ");
+    let path = temp_file("unknown.osm.pbf", &unknown);
+    let city = osm::load(&path, &LoadOptions::default()).unwrap();
+    let r = &city.report;
+    assert_eq!(r.buildings_found, 1520, "{r}");
+    let skipped: Vec<String> = r.warnings.iter().map(|w| w.to_string()).collect();
+    assert!(
+        skipped
+            .iter()
+            .any(|w| w.contains("block 2 (at byte") && w.contains("\"XYZData\" skipped")),
+        "{skipped:?}"
+    );
+}

@@ -11,6 +11,7 @@ mod inspect;
 mod path_arg;
 mod preprocess;
 mod render;
+mod report_items;
 mod scene_input;
 mod view;
 
@@ -40,7 +41,7 @@ enum Command {
     Bench(bench::Args),
 }
 
-fn main() -> anyhow::Result<()> {
+fn main() -> std::process::ExitCode {
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| {
@@ -50,7 +51,7 @@ fn main() -> anyhow::Result<()> {
         .with_writer(std::io::stderr)
         .init();
     let cli = Cli::parse();
-    match cli.command {
+    let result = match cli.command {
         Command::Generate(args) => generate::run(args),
         Command::Preprocess(args) => preprocess::run(args),
         Command::Inspect(args) => inspect::run(args),
@@ -58,5 +59,14 @@ fn main() -> anyhow::Result<()> {
         Command::View(args) => view::run(args),
         Command::Bench(args) => bench::run(args),
         Command::Demo(args) => demo::run(args),
+    };
+    match result {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            // The message and its causes only: an error the user caused needs no backtrace,
+            // even with RUST_BACKTRACE set (bugs panic, and panics keep theirs).
+            eprintln!("error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
     }
 }

@@ -7,10 +7,12 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use citywalk_preprocess::pipeline::{PreprocessParams, ProgressSink, Stage, preprocess};
-use citywalk_scenes::package::{ScenePackage, WriteOptions};
+use citywalk_scenes::package::{ScenePackage, WriteOptions, check_output_path};
 use citywalk_scenes::{LoadOptions, load_cities};
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use serde::Serialize;
+
+use crate::report_items::{self, ReportItem};
 
 /// Arguments of `citywalk preprocess`.
 #[derive(Debug, clap::Args)]
@@ -74,6 +76,12 @@ struct Summary {
     buildings_found: usize,
     buildings_loaded: usize,
     buildings_rejected: usize,
+    streets_found: usize,
+    streets_rejected: usize,
+    /// Every rejected building and street: kind, file, source id, reason.
+    rejected: Vec<ReportItem>,
+    /// Every load warning: file, source id (empty for the file as a whole), message.
+    load_warnings: Vec<ReportItem>,
     streets: usize,
     occluders: Option<usize>,
     occluder_triangles: Option<usize>,
@@ -103,6 +111,8 @@ pub fn peak_memory_bytes() -> Option<u64> {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let start = Instant::now();
+    // Refuse a device, a folder or a read-only file before minutes of work, not after.
+    check_output_path(&args.output).context("cannot write the package")?;
     let load = ProgressBar::new_spinner();
     if let Ok(style) = ProgressStyle::with_template("{spinner} {msg} {elapsed}") {
         load.set_style(style);
@@ -132,7 +142,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 include_timings: args.store_timings,
             },
         )
-        .with_context(|| format!("cannot write {}", args.output.display()))?;
+        .context("cannot write the package")?;
     let write_seconds = write_start.elapsed().as_secs_f64();
 
     let summary = summarise(&package, &args, bytes, load_seconds, write_seconds, start);
@@ -153,12 +163,17 @@ fn summarise(
     start: Instant,
 ) -> Summary {
     let report = &package.provenance.load_report;
+    let (rejected, load_warnings) = report_items::items(report);
     Summary {
         output: args.output.display().to_string(),
         package_bytes,
         buildings_found: report.buildings_found,
         buildings_loaded: report.buildings_loaded,
         buildings_rejected: report.rejected.len(),
+        streets_found: report.streets_found,
+        streets_rejected: report.streets_rejected.len(),
+        rejected,
+        load_warnings,
         streets: package.streets.len(),
         occluders: package.occluders.as_ref().map(|o| o.occluders.len()),
         occluder_triangles: package.occluders.as_ref().map(|o| o.triangle_count()),
@@ -191,9 +206,15 @@ fn print_summary(s: &Summary) {
         s.package_bytes as f64 / 1048576.0
     );
     println!(
-        "buildings: {} found, {} loaded, {} rejected; {} streets",
-        s.buildings_found, s.buildings_loaded, s.buildings_rejected, s.streets
+        "buildings: {} found, {} loaded, {} rejected; streets: {} found, {} loaded, {} rejected",
+        s.buildings_found,
+        s.buildings_loaded,
+        s.buildings_rejected,
+        s.streets_found,
+        s.streets,
+        s.streets_rejected
     );
+    report_items::print(&s.rejected, &s.load_warnings);
     println!(
         "occluders: {} ({} triangles)",
         opt(s.occluders),

@@ -363,8 +363,10 @@ pub fn generate_city(params: &GenerateParams) -> Result<City, GenerateError> {
         parts_found: summary.parts,
         buildings_with_height: summary.buildings,
         buildings_estimated_height: 0,
+        streets_found: streets.len(),
         streets_loaded: streets.len(),
         rejected: Vec::new(),
+        streets_rejected: Vec::new(),
         warnings: Vec::new(),
     };
     Ok(City {

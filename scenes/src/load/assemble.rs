@@ -1,7 +1,8 @@
 //! From raw 2.5D areas (OSM ways and relations, GeoJSON features) to a [`City`]: the part of the
 //! OSM and GeoJSON loaders that does not depend on the file format.
 //!
-//! 1. The frame is centred on the bounding box of the buildings' source coordinates.
+//! 1. The frame is centred on the bounding box of the buildings' source coordinates, after
+//!    the outliers far from the median of the buildings are rejected ([`make_frame`]).
 //! 2. Every area is projected, cleaned ([`crate::validate::clean_footprint`]) and given
 //!    heights ([`super::heights`], checked with [`crate::validate::check_heights`]); a bad
 //!    building is a [`Rejection`], a bad part a [`LoadWarning`] (parts are not buildings).
@@ -33,7 +34,7 @@ use super::heights::{ResolvedHeights, TaggedHeights};
 use crate::city::{Building, BuildingId, BuildingPart, City, HeightSource, Street, StreetClass};
 use crate::frame::Frame;
 use crate::report::{LoadError, LoadReport, LoadWarning, RejectReason, Rejection};
-use crate::validate::{check_heights, clean_footprint};
+use crate::validate::{MAX_LOCAL_COORDINATE_M, check_heights, clean_footprint};
 
 /// Polygons of rings (outer ring first, then holes), in source coordinates.
 pub(crate) type RawPolygons = Vec<Vec<Vec<Coord<f64>>>>;
@@ -66,7 +67,8 @@ pub(crate) struct RawStreet {
     pub source_id: String,
     pub class: StreetClass,
     pub name: Option<String>,
-    pub points: Vec<Coord<f64>>,
+    /// The line, or why it could not be read.
+    pub points: Result<Vec<Coord<f64>>, RejectReason>,
 }
 
 /// The CRS of the source coordinates.
@@ -116,7 +118,7 @@ pub(crate) fn assemble(
         warnings,
         ..LoadReport::default()
     };
-    let Some(frame) = make_frame(&crs, &areas) else {
+    let Some((frame, outliers)) = make_frame(&crs, &areas) else {
         let found = areas
             .iter()
             .filter(|a| a.kind == AreaKind::Building)
@@ -126,6 +128,8 @@ pub(crate) fn assemble(
         } else {
             "no building or part has a usable coordinate"
         };
+        // The warnings (a skipped block, say) may tell why.
+        report.log_items();
         return Err(LoadError::NothingLoaded {
             path: path.to_path_buf(),
             found,
@@ -150,7 +154,7 @@ pub(crate) fn assemble(
     let mut buildings: Vec<Area2> = Vec::new();
     let mut parts: Vec<Area2> = Vec::new();
     let mut link: HashMap<String, usize> = HashMap::new();
-    for area in areas {
+    for (area, outlier) in areas.into_iter().zip(outliers) {
         let is_building = area.kind == AreaKind::Building;
         if is_building {
             report.buildings_found += 1;
@@ -165,7 +169,11 @@ pub(crate) fn assemble(
             });
         }
         let ids = area.link_ids.clone();
-        match validate_area(area, &project, options) {
+        let validated = match outlier {
+            Some(reason) => Err((area.source_id, reason)),
+            None => validate_area(area, &project, options),
+        };
+        match validated {
             Ok((valid, repairs)) => {
                 for r in repairs {
                     report.warnings.push(LoadWarning {
@@ -272,15 +280,18 @@ pub(crate) fn assemble(
     let mut city_streets = Vec::new();
     if options.load_streets {
         for s in streets {
-            let points: Vec<Coord<f64>> = s
-                .points
-                .into_iter()
-                .filter_map(|c| project(c).ok())
-                .collect();
-            let points = dedup(points);
-            if points.len() < 2 {
-                continue;
-            }
+            report.streets_found += 1;
+            let points = match s.points.and_then(|p| street_line(p, &project)) {
+                Ok(points) => points,
+                Err(reason) => {
+                    report.streets_rejected.push(Rejection {
+                        file: path.to_path_buf(),
+                        source_id: s.source_id,
+                        reason,
+                    });
+                    continue;
+                }
+            };
             city_streets.push(Street {
                 source_id: s.source_id,
                 class: s.class,
@@ -304,51 +315,129 @@ pub(crate) fn assemble(
     Ok(city)
 }
 
-/// The frame: WGS84 or projected at the centre of the buildings' bounding box (of the parts'
-/// when no building has a usable coordinate); `None` when nothing has one.
-fn make_frame(crs: &SourceCrs, areas: &[RawArea]) -> Option<Frame> {
+/// The frame, and for each area the reason it lies outside any frame of this city (`None` for
+/// the rest); `None` when no area has a usable coordinate.
+///
+/// A single far outlier must not move the origin away from the city (issue 14: one building
+/// at 1e15 m rejected them all), so the centre is found robustly first: the per-coordinate
+/// median of the areas' box centres (buildings, or parts when no building has a usable
+/// coordinate). Areas with a coordinate beyond [`MAX_LOCAL_COORDINATE_M`] of that centre are
+/// outliers; the frame is then at the centre of the bounding box of the other areas, which
+/// all lie within that distance of the new origin too (half a box at most that wide).
+fn make_frame(crs: &SourceCrs, areas: &[RawArea]) -> Option<(Frame, Vec<Option<RejectReason>>)> {
+    let none = || vec![None; areas.len()];
     if *crs == SourceCrs::Local {
-        return Some(Frame::local());
+        return Some((Frame::local(), none()));
     }
     let usable = |c: &Coord<f64>| {
         c.x.is_finite()
             && c.y.is_finite()
             && (*crs != SourceCrs::Wgs84 || (c.x.abs() <= 180.0 && c.y.abs() <= 90.0))
     };
-    let bbox = |kind: AreaKind| {
-        let mut lo = Coord {
-            x: f64::INFINITY,
-            y: f64::INFINITY,
-        };
-        let mut hi = Coord {
-            x: f64::NEG_INFINITY,
-            y: f64::NEG_INFINITY,
-        };
-        let coords = areas
-            .iter()
-            .filter(|a| a.kind == kind)
-            .filter_map(|a| a.polygons.as_ref().ok())
+    let coords = |a: &RawArea| {
+        a.polygons
+            .as_ref()
+            .ok()
+            .into_iter()
             .flatten()
             .flatten()
             .flatten()
-            .filter(|c| usable(c));
-        for c in coords {
-            lo.x = lo.x.min(c.x);
-            lo.y = lo.y.min(c.y);
-            hi.x = hi.x.max(c.x);
-            hi.y = hi.y.max(c.y);
-        }
-        (lo.x <= hi.x).then_some(Coord {
-            x: 0.5 * (lo.x + hi.x),
-            y: 0.5 * (lo.y + hi.y),
-        })
+            .copied()
+            .filter(usable)
+            .collect::<Vec<_>>()
     };
-    let centre = bbox(AreaKind::Building).or_else(|| bbox(AreaKind::Part))?;
-    Some(match crs {
-        SourceCrs::Wgs84 => Frame::wgs84(centre.x, centre.y),
-        SourceCrs::Projected(name) => Frame::projected(name.clone(), [centre.x, centre.y, 0.0]),
+    let boxes: Vec<Option<geo::Rect<f64>>> = areas
+        .iter()
+        .map(|a| {
+            let c = coords(a);
+            let first = *c.first()?;
+            let (lo, hi) = c.iter().fold((first, first), |(lo, hi), p| {
+                (
+                    Coord {
+                        x: lo.x.min(p.x),
+                        y: lo.y.min(p.y),
+                    },
+                    Coord {
+                        x: hi.x.max(p.x),
+                        y: hi.y.max(p.y),
+                    },
+                )
+            });
+            Some(geo::Rect::new(lo, hi))
+        })
+        .collect();
+    let kind = if areas
+        .iter()
+        .zip(&boxes)
+        .any(|(a, b)| a.kind == AreaKind::Building && b.is_some())
+    {
+        AreaKind::Building
+    } else {
+        AreaKind::Part
+    };
+    let of_kind = || {
+        areas
+            .iter()
+            .zip(&boxes)
+            .filter(|(a, _)| a.kind == kind)
+            .filter_map(|(_, b)| *b)
+    };
+    let median = |mut v: Vec<f64>| {
+        let mid = v.len() / 2;
+        *v.select_nth_unstable_by(mid, f64::total_cmp).1
+    };
+    let centres: Vec<Coord<f64>> = of_kind().map(|b| b.center()).collect();
+    if centres.is_empty() {
+        return None;
+    }
+    let centre = Coord {
+        x: median(centres.iter().map(|c| c.x).collect()),
+        y: median(centres.iter().map(|c| c.y).collect()),
+    };
+    let frame_at = |c: Coord<f64>| match crs {
+        SourceCrs::Wgs84 => Frame::wgs84(c.x, c.y),
+        SourceCrs::Projected(name) => Frame::projected(name.clone(), [c.x, c.y, 0.0]),
         SourceCrs::Local => Frame::local(),
-    })
+    };
+    let provisional = frame_at(centre);
+    let outliers: Vec<Option<RejectReason>> = areas
+        .iter()
+        .map(|a| {
+            let far = coords(a).into_iter().find_map(|c| {
+                let p = provisional.to_local(DVec3::new(c.x, c.y, 0.0));
+                let d = p.x.abs().max(p.y.abs());
+                (d > MAX_LOCAL_COORDINATE_M || d.is_nan()).then_some((c, d))
+            })?;
+            let ((c, d), limit_km) = (far, MAX_LOCAL_COORDINATE_M / 1000.0);
+            Some(RejectReason::CoordinateOutOfRange(format!(
+                "({}, {}) is {:.0} km from the middle of the city's buildings, beyond \
+                 {limit_km:.0} km",
+                c.x,
+                c.y,
+                d / 1000.0
+            )))
+        })
+        .collect();
+    let kept = areas
+        .iter()
+        .zip(&boxes)
+        .zip(&outliers)
+        .filter(|((a, _), far)| a.kind == kind && far.is_none())
+        .filter_map(|((_, b), _)| *b)
+        .reduce(|a, b| {
+            geo::Rect::new(
+                Coord {
+                    x: a.min().x.min(b.min().x),
+                    y: a.min().y.min(b.min().y),
+                },
+                Coord {
+                    x: a.max().x.max(b.max().x),
+                    y: a.max().y.max(b.max().y),
+                },
+            )
+        });
+    let frame = kept.map_or(provisional, |b| frame_at(b.center()));
+    Some((frame, outliers))
 }
 
 /// Projects, cleans and gives heights to one area. On failure returns its id and the reason.
@@ -466,10 +555,46 @@ fn better_source(a: HeightSource, b: HeightSource) -> HeightSource {
     if rank(b) < rank(a) { b } else { a }
 }
 
-/// Drops consecutive repeated points.
-fn dedup(mut points: Vec<Coord<f64>>) -> Vec<Coord<f64>> {
-    points.dedup();
-    points
+/// Shortest street line kept (metres): anything shorter is a stray point.
+const MIN_STREET_LENGTH_M: f64 = 0.01;
+
+/// A street's points in the local frame, consecutive repeats dropped; every coordinate must
+/// be finite and within the local range, and the line must have two distinct points and a
+/// length.
+fn street_line(
+    points: Vec<Coord<f64>>,
+    project: &impl Fn(Coord<f64>) -> Result<Coord<f64>, RejectReason>,
+) -> Result<Vec<Coord<f64>>, RejectReason> {
+    let mut local = Vec::with_capacity(points.len());
+    for c in points {
+        let p = project(c)?;
+        if !(p.x.abs() <= MAX_LOCAL_COORDINATE_M && p.y.abs() <= MAX_LOCAL_COORDINATE_M) {
+            return Err(RejectReason::CoordinateOutOfRange(format!(
+                "({}, {}) is beyond {} km of the origin",
+                c.x,
+                c.y,
+                MAX_LOCAL_COORDINATE_M / 1000.0
+            )));
+        }
+        local.push(p);
+    }
+    local.dedup();
+    if local.len() < 2 {
+        return Err(RejectReason::InvalidGeometry(format!(
+            "a street needs 2 distinct points, it has {}",
+            local.len()
+        )));
+    }
+    let length_m: f64 = local
+        .windows(2)
+        .map(|w| (w[1].x - w[0].x).hypot(w[1].y - w[0].y))
+        .sum();
+    if length_m.is_nan() || length_m < MIN_STREET_LENGTH_M {
+        return Err(RejectReason::InvalidGeometry(format!(
+            "street of zero length ({length_m} m)"
+        )));
+    }
+    Ok(local)
 }
 
 #[cfg(test)]

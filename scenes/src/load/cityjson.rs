@@ -18,9 +18,11 @@
 //!   z = 0, a building's `base_m` is its base above that lowest base, `height_m()` its height
 //!   above its own base, and `frame.to_source` gives back the file's coordinates.
 //!
-//! Malformed files (bad JSON, wrong type or version, missing transform, a vertex or boundary
-//! index out of range, wrongly nested boundaries) are a [`LoadError`]; malformed buildings are
-//! rejections (see [`super::mesh_building`]).
+//! Malformed files (bad JSON, wrong type or version, missing transform, a vertex that is not
+//! three numbers) are a [`LoadError`]. A malformed object (a vertex index out of range,
+//! negative, fractional or not a number, wrongly nested boundaries) spoils only itself: its
+//! part is dropped and a building with no part left is rejected with its id and the reason
+//! (see [`super::mesh_building`]); the file's other objects load.
 
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::path::Path;
@@ -125,7 +127,7 @@ pub fn load_bytes(path: &Path, bytes: &[u8]) -> Result<City, LoadError> {
         }
         let mut part_ids = Vec::new();
         reader.collect_parts(id, &mut part_ids, &mut claimed, 0);
-        buildings.push(reader.building(id, object, &part_ids).map_err(malformed)?);
+        buildings.push(reader.building(id, object, &part_ids));
     }
     for (id, object) in objects {
         if object_type(object) == Some("BuildingPart") && !claimed.contains(id.as_str()) {
@@ -134,7 +136,7 @@ pub fn load_bytes(path: &Path, bytes: &[u8]) -> Result<City, LoadError> {
                 source_id: id.clone(),
                 message: "BuildingPart of no Building: loaded as a building of its own".into(),
             });
-            buildings.push(reader.building(id, object, &[]).map_err(malformed)?);
+            buildings.push(reader.building(id, object, &[]));
         }
     }
     assemble(path, FORMAT, frame, buildings, report)
@@ -292,14 +294,9 @@ impl<'a> Reader<'a> {
         }
     }
 
-    fn building(
-        &self,
-        id: &str,
-        object: &Value,
-        part_ids: &[&str],
-    ) -> Result<MeshBuilding, String> {
+    fn building(&self, id: &str, object: &Value, part_ids: &[&str]) -> MeshBuilding {
         let mut parts = Vec::with_capacity(part_ids.len() + 1);
-        let own = self.part_mesh(id, object)?;
+        let own = self.part_mesh(id, object);
         let has_own = !matches!(own, Err(RejectReason::MissingGeometry(_)));
         if has_own || part_ids.is_empty() {
             parts.push(MeshPart {
@@ -311,7 +308,7 @@ impl<'a> Reader<'a> {
             if let Some(part) = self.objects.get(*part_id) {
                 parts.push(MeshPart {
                     source_id: (*part_id).to_string(),
-                    mesh: self.part_mesh(part_id, part)?,
+                    mesh: self.part_mesh(part_id, part),
                 });
             }
         }
@@ -329,16 +326,23 @@ impl<'a> Reader<'a> {
                 tags.insert(k.clone(), s);
             }
         }
-        Ok(MeshBuilding {
+        MeshBuilding {
             source_id: id.to_string(),
             parts,
             tags,
-        })
+        }
     }
 
-    /// The mesh of one object's best geometry. `Err(String)` is a malformed file (bad index
-    /// or nesting); the inner `Err(RejectReason)` a problem of this object only.
-    fn part_mesh(
+    /// The mesh of one object's best geometry, or why this object has none (a bad index or
+    /// nesting is [`RejectReason::InvalidGeometry`] of this object only).
+    fn part_mesh(&self, id: &str, object: &Value) -> Result<TriangleMesh, RejectReason> {
+        self.read_mesh(id, object)
+            .unwrap_or_else(|malformed| Err(RejectReason::InvalidGeometry(malformed)))
+    }
+
+    /// [`Self::part_mesh`]: `Err(String)` for a malformed geometry (bad index or nesting), the
+    /// inner `Err(RejectReason)` for a well-formed one that gives no mesh.
+    fn read_mesh(
         &self,
         id: &str,
         object: &Value,
@@ -389,7 +393,8 @@ impl<'a> Reader<'a> {
                         .filter(|&i| i < self.vertices.len())
                         .ok_or_else(|| {
                             format!(
-                                "CityObject {id}: vertex index {index} out of range ({} vertices)",
+                                "CityObject {id}: vertex index {index} is not an index of the \
+                                 {} vertices",
                                 self.vertices.len()
                             )
                         })?;

@@ -73,7 +73,6 @@ fn read(path: &Path, options: &LoadOptions) -> Result<RawCity, LoadError> {
     })?;
     let mut sink = Sink {
         options,
-        path,
         areas: Vec::new(),
         streets: Vec::new(),
         warnings: Vec::new(),
@@ -205,7 +204,6 @@ struct Top {
 /// Collects the converted features.
 struct Sink<'a> {
     options: &'a LoadOptions,
-    path: &'a Path,
     areas: Vec<RawArea>,
     streets: Vec<RawStreet>,
     warnings: Vec<LoadWarning>,
@@ -653,16 +651,10 @@ impl Sink<'_> {
                 .and_then(|ls| ls.iter().map(Coords::line).collect()),
             _ => Err(bad_coords()),
         };
-        let lines = match lines {
-            Ok(lines) => lines,
-            Err(reason) => {
-                self.warnings.push(LoadWarning {
-                    file: self.path.to_path_buf(),
-                    source_id: source_id.to_string(),
-                    message: format!("street skipped: {reason}"),
-                });
-                return;
-            }
+        let lines: Vec<Result<Vec<Coord<f64>>, RejectReason>> = match lines {
+            Ok(lines) => lines.into_iter().map(Ok).collect(),
+            // Rejected in the assembly, with the streets' count.
+            Err(reason) => vec![Err(reason)],
         };
         let single = lines.len() == 1;
         let name = properties

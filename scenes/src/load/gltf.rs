@@ -25,6 +25,9 @@
 //!   In every case the origin is then raised to the lowest building base, so the city stands
 //!   on the ground plane z = 0 (the origin's height keeps the shift).
 //!
+//! External files (glTF buffer `uri`s, tileset contents) are read only from inside the naming
+//! file's folder, only when regular, and never past their declared length ([`uri`]).
+//!
 //! Malformed files (bad GLB/b3dm header, invalid glTF JSON, truncated buffers, an accessor or
 //! index out of range) are a [`LoadError`]; malformed buildings are rejections (see
 //! [`super::mesh_building`]).
@@ -47,11 +50,15 @@ use crate::report::{LoadError, LoadReport, LoadWarning};
 mod accessor;
 mod b3dm;
 mod tileset;
+mod uri;
 
 const FORMAT: &str = "glTF";
 
 /// Batch-table columns taken as the feature id, in order of preference.
 pub const ID_COLUMNS: [&str; 6] = ["id", "blockid", "gml_id", "identificatie", "bag_id", "name"];
+
+/// A tile's content is read up to this size: a b3dm's header counts its bytes in a u32.
+const MAX_CONTENT_BYTES: u64 = u32::MAX as u64;
 
 /// Node trees deeper than this are not followed (a guard against cyclic node graphs).
 const MAX_NODE_DEPTH: usize = 64;
@@ -291,7 +298,8 @@ fn load_tileset(path: &Path, json: &Value) -> Result<City, LoadError> {
         };
         let bytes =
             if lower.ends_with(".b3dm") || lower.ends_with(".glb") || lower.ends_with(".gltf") {
-                read(&content.path)?
+                uri::read_inside(uri::base_dir(path), &content.path, MAX_CONTENT_BYTES, false)
+                    .map_err(|r| malformed(path, format!("content {:?}: {r}", content.uri)))?
             } else {
                 report.warnings.push(LoadWarning {
                     file: path.to_path_buf(),
@@ -336,9 +344,8 @@ fn read_features(path: &Path, bytes: &[u8], batch: &BatchInfo) -> Result<Vec<Fea
     let gltf = ::gltf::Gltf::from_slice_without_validation(bytes)
         .map_err(|e| malformed(path, e.to_string()))?;
     validate(&gltf.document).map_err(|r| malformed(path, r))?;
-    let base = path.parent();
-    let buffers = ::gltf::import_buffers(&gltf.document, base, gltf.blob.clone())
-        .map_err(|e| malformed(path, format!("buffers: {e}")))?;
+    let buffers = import_buffers(path, &gltf.document, gltf.blob.as_deref())
+        .map_err(|r| malformed(path, r))?;
     let doc = &gltf.document;
     let mut walker = Walker {
         buffers: &buffers,
@@ -373,6 +380,49 @@ fn read_features(path: &Path, bytes: &[u8], batch: &BatchInfo) -> Result<Vec<Fea
         }
     }
     Ok(features)
+}
+
+/// The data of every buffer, `byteLength` bytes each: the GLB's binary chunk, a base64 `data:`
+/// URI, or a file inside the glTF's folder ([`uri`]); never more than `byteLength` is read.
+fn import_buffers(
+    path: &Path,
+    doc: &Document,
+    blob: Option<&[u8]>,
+) -> Result<Vec<buffer::Data>, String> {
+    let mut out = Vec::new();
+    for b in doc.buffers() {
+        let length = b.length();
+        let what = format!("buffer {} (byteLength {length})", b.index());
+        let mut data = match b.source() {
+            buffer::Source::Bin => {
+                let blob = blob.ok_or_else(|| format!("{what}: the file has no binary chunk"))?;
+                if blob.len() < length {
+                    return Err(format!("{what}: the binary chunk has {} bytes", blob.len()));
+                }
+                blob[..length].to_vec()
+            }
+            buffer::Source::Uri(u) if u.starts_with("data:") => {
+                // The gltf crate decodes data URIs without touching the file system.
+                let data = buffer::Data::from_source(buffer::Source::Uri(u), None)
+                    .map_err(|e| format!("{what}: {e}"))?
+                    .0;
+                if data.len() < length {
+                    return Err(format!("{what}: its data: uri holds {} bytes", data.len()));
+                }
+                data
+            }
+            buffer::Source::Uri(u) => {
+                let file = uri::resolve(path, u).map_err(|r| format!("{what}: {r}"))?;
+                uri::read_inside(uri::base_dir(path), &file, length as u64, true)
+                    .map_err(|r| format!("{what}: {r}"))?
+            }
+        };
+        data.truncate(length);
+        // As the gltf crate does: buffer data padded to a multiple of four bytes.
+        data.resize(length.div_ceil(4) * 4, 0);
+        out.push(buffer::Data(data));
+    }
+    Ok(out)
 }
 
 /// Runs the `gltf` crate's validation (every index between objects in range, which the

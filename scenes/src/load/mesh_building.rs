@@ -49,6 +49,9 @@ pub(crate) fn assemble(
             reason: "no building found".into(),
         });
     }
+    let mut frame = frame;
+    let mut buildings = buildings;
+    frame.origin[2] += lower_to_ground(&mut buildings);
     let mut out = Vec::with_capacity(buildings.len());
     for raw in buildings {
         report.buildings_found += 1;
@@ -141,6 +144,35 @@ pub(crate) fn rest_on_ground(city: &mut City) {
             mesh.positions.iter_mut().for_each(|p| p.z -= lowest_m);
         }
     }
+}
+
+/// Moves every part's mesh down by the median of the parts' lowest z and returns that shift,
+/// before any height is judged: mesh sources give absolute heights (a vertical datum, or
+/// ellipsoid heights for a b3dm read without its tileset, where a city 947 m above the
+/// ellipsoid looked like 1,150 m tall buildings). The median, not the lowest, so that one stray
+/// vertex far below cannot make every other building too tall; [`rest_on_ground`] then sets the
+/// ground to the lowest base that survived.
+fn lower_to_ground(buildings: &mut [MeshBuilding]) -> f64 {
+    let mut bases: Vec<f32> = buildings
+        .iter()
+        .flat_map(|b| &b.parts)
+        .filter_map(|p| p.mesh.as_ref().ok()?.bounds())
+        .map(|(lo, _)| lo.z)
+        .filter(|z| z.is_finite())
+        .collect();
+    if bases.is_empty() {
+        return 0.0;
+    }
+    let mid = bases.len() / 2;
+    let ground_m = *bases.select_nth_unstable_by(mid, f32::total_cmp).1;
+    if ground_m == 0.0 {
+        return 0.0;
+    }
+    let meshes = buildings.iter_mut().flat_map(|b| &mut b.parts);
+    for mesh in meshes.filter_map(|p| p.mesh.as_mut().ok()) {
+        mesh.positions.iter_mut().for_each(|p| p.z -= ground_m);
+    }
+    f64::from(ground_m)
 }
 
 /// How far the lowest base may lie below the 1st percentile of the bases before

@@ -122,6 +122,7 @@ pub fn load_city(path: &Path, options: &LoadOptions) -> Result<City, LoadError> 
         InputFormat::Gltf => gltf::load(path, options)?,
     };
     debug_assert!(city.report.is_balanced());
+    city.report.log_items();
     Ok(city)
 }
 

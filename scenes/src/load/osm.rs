@@ -15,6 +15,9 @@
 //! A building with a missing node or member way (cut by the extract) is rejected, as is an
 //! unclosed building way or a relation whose rings cannot be joined.
 //!
+//! Blocks are read one by one ([`pass`]): an undecodable block is an error naming its index and
+//! byte offset; a block of an unknown type is skipped with a warning saying so.
+//!
 //! `osmpbf` can panic on some corrupt blocks (an unknown relation member type); the passes run
 //! under `catch_unwind` so that a corrupt file is a [`LoadError`], never a crash.
 
@@ -27,7 +30,7 @@ use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::Path;
 
 use geo::Coord;
-use osmpbf::{Element, ElementReader, RelMemberType};
+use osmpbf::{BlobReader, BlobType, Element, RelMemberType};
 
 use super::LoadOptions;
 use super::assemble::{AreaKind, RawArea, RawCity, RawPolygons, RawStreet, SourceCrs, assemble};
@@ -94,27 +97,66 @@ struct Way {
     refs: Vec<i64>,
 }
 
-/// Runs one pass over the file's elements.
-fn pass(path: &Path, f: &mut dyn FnMut(Element<'_>)) -> Result<(), LoadError> {
+/// Runs one pass over the file's elements, block by block. An error names the block (its
+/// index and byte offset). Blocks of an unknown type are skipped, as the PBF format asks, but
+/// each is returned as a message for a warning; a type one byte away from `OSMData` or
+/// `OSMHeader` is a damaged block and an error (its data would be lost silently otherwise).
+fn pass(path: &Path, f: &mut dyn FnMut(Element<'_>)) -> Result<Vec<String>, LoadError> {
+    let malformed = |reason: String| LoadError::Malformed {
+        path: path.to_path_buf(),
+        format: FORMAT,
+        reason,
+    };
     let file = File::open(path).map_err(|source| LoadError::Io {
         path: path.to_path_buf(),
         source,
     })?;
-    let reader = ElementReader::new(BufReader::new(file));
-    let result = catch_unwind(AssertUnwindSafe(|| reader.for_each(f)));
+    let reader =
+        BlobReader::new_seekable(BufReader::new(file)).map_err(|e| malformed(e.to_string()))?;
+    let mut skipped = Vec::new();
+    let result = catch_unwind(AssertUnwindSafe(|| -> Result<(), String> {
+        for (k, blob) in reader.enumerate() {
+            let blob = blob.map_err(|e| format!("block {k}: {e}"))?;
+            let at = match blob.offset() {
+                Some(offset) => format!("block {k} (at byte {})", offset.0),
+                None => format!("block {k}"),
+            };
+            match blob.get_type() {
+                BlobType::OsmHeader => {}
+                BlobType::OsmData => blob
+                    .to_primitiveblock()
+                    .map_err(|e| format!("{at}: {e}"))?
+                    .for_each_element(&mut *f),
+                BlobType::Unknown(kind) if damaged_type(kind) => {
+                    return Err(format!(
+                        "{at}: block type {kind:?} is a damaged \"OSMData\" or \"OSMHeader\""
+                    ));
+                }
+                BlobType::Unknown(kind) => {
+                    skipped.push(format!("{at}: block of unknown type {kind:?} skipped"));
+                }
+            }
+        }
+        Ok(())
+    }));
     match result {
-        Ok(Ok(())) => Ok(()),
-        Ok(Err(e)) => Err(LoadError::Malformed {
-            path: path.to_path_buf(),
-            format: FORMAT,
-            reason: e.to_string(),
-        }),
-        Err(_) => Err(LoadError::Malformed {
-            path: path.to_path_buf(),
-            format: FORMAT,
-            reason: "corrupt block (the decoder gave up)".into(),
-        }),
+        Ok(Ok(())) => Ok(skipped),
+        Ok(Err(reason)) => Err(malformed(reason)),
+        Err(_) => Err(malformed("corrupt block (the decoder gave up)".into())),
     }
+}
+
+/// Whether an unknown block type is one changed byte away from a known one.
+fn damaged_type(kind: &str) -> bool {
+    ["OSMData", "OSMHeader"].iter().any(|known| {
+        known.len() == kind.len()
+            && known
+                .bytes()
+                .zip(kind.bytes())
+                .filter(|(a, b)| a != b)
+                .count()
+                == 1
+    })
 }
 
 /// Reads the file into raw areas and streets in lon/lat.
@@ -133,9 +175,10 @@ fn read(path: &Path, options: &LoadOptions) -> Result<RawCity, LoadError> {
         });
     }
 
-    // Pass 1: multipolygon relations that are buildings or parts.
+    // Pass 1: multipolygon relations that are buildings or parts. Skipped blocks are told
+    // once, from this pass.
     let mut relations: Vec<Relation> = Vec::new();
-    pass(path, &mut |e| {
+    let skipped = pass(path, &mut |e| {
         if let Element::Relation(r) = e {
             let is_mp = r.tags().any(|(k, v)| k == "type" && v == "multipolygon");
             if !is_mp {
@@ -236,7 +279,14 @@ fn read(path: &Path, options: &LoadOptions) -> Result<RawCity, LoadError> {
 
     let mut areas = Vec::new();
     let mut streets = Vec::new();
-    let mut warnings = Vec::new();
+    let mut warnings: Vec<LoadWarning> = skipped
+        .into_iter()
+        .map(|message| LoadWarning {
+            file: path.to_path_buf(),
+            source_id: String::new(),
+            message,
+        })
+        .collect();
     for w in ways {
         let source_id = format!("way/{}", w.id);
         match w.kind {
@@ -264,7 +314,7 @@ fn read(path: &Path, options: &LoadOptions) -> Result<RawCity, LoadError> {
                     source_id,
                     class,
                     name: w.tags.get("name").cloned(),
-                    points,
+                    points: Ok(points),
                 });
             }
         }

@@ -12,6 +12,10 @@ pub enum PackageError {
         #[source]
         source: std::io::Error,
     },
+    /// The output path exists and is not a writable regular file (a device, a folder, a
+    /// read-only file); it is left untouched.
+    #[error("{path}: {reason}")]
+    NotWritable { path: PathBuf, reason: String },
     /// The file does not start with the package magic.
     #[error("not a citywalk scene package (no `CWK` magic)")]
     NotAPackage,

@@ -32,7 +32,9 @@ pub const MAGIC: [u8; 4] = *b"CWK\0";
 ///   their frame's origin height is the lowest building base, heights are above it.
 /// - 3: the GPU-ready scene section ([`super::GpuScene`]: vertices, indices, records, cull
 ///   parts of buildings and cluster meshes, as raw little-endian arrays read in place).
-pub const FORMAT_VERSION: u32 = 3;
+/// - 4: the provenance's load report counts streets found and lists the rejected streets
+///   (`streets_found`, `streets_rejected`).
+pub const FORMAT_VERSION: u32 = 4;
 /// Sections start at multiples of this (a cache line, and enough for any scalar type).
 pub const SECTION_ALIGN: u64 = 64;
 /// The most sections a package may have.

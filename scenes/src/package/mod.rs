@@ -115,16 +115,34 @@ impl ScenePackage {
         format::decode(bytes)
     }
 
-    /// Writes the package to `path` (through a temporary file renamed into place).
+    /// Writes the package to `path`: to a temporary file beside it, flushed to disk, then
+    /// renamed into place, so a reader never sees half a package. A `path` that exists must be
+    /// a writable regular file (a symbolic link is followed to one); anything else (a device,
+    /// a folder, a pipe) is refused and left as it was.
     pub fn write(&self, path: &Path, options: WriteOptions) -> Result<u64, PackageError> {
+        let target = writable_target(path)?;
         let bytes = self.to_bytes(options)?;
-        let tmp = path.with_extension("cwk.tmp");
         let io = |source| PackageError::Io {
-            path: path.to_path_buf(),
+            path: target.clone(),
             source,
         };
-        std::fs::write(&tmp, &bytes).map_err(io)?;
-        std::fs::rename(&tmp, path).map_err(io)?;
+        let dir = match target.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        let mut builder = tempfile::Builder::new();
+        builder.prefix(".citywalk-").suffix(".cwk.tmp");
+        #[cfg(unix)]
+        let mode = match std::fs::metadata(&target) {
+            Ok(meta) => meta.permissions(),
+            Err(_) => std::os::unix::fs::PermissionsExt::from_mode(0o666),
+        };
+        #[cfg(unix)]
+        builder.permissions(mode);
+        let mut tmp = builder.tempfile_in(dir).map_err(io)?;
+        std::io::Write::write_all(&mut tmp, &bytes).map_err(io)?;
+        tmp.as_file().sync_all().map_err(io)?;
+        tmp.persist(&target).map_err(|e| io(e.error))?;
         Ok(bytes.len() as u64)
     }
 
@@ -202,6 +220,81 @@ impl ScenePackage {
         } else {
             Err(errors)
         }
+    }
+}
+
+/// Checks, before any work is done, that [`ScenePackage::write`] could write to `path`: it does
+/// not exist, or it is a writable regular file (or a symbolic link to one).
+pub fn check_output_path(path: &Path) -> Result<(), PackageError> {
+    writable_target(path).map(|_| ())
+}
+
+/// The file [`ScenePackage::write`] replaces for `path`: `path` itself, or the file a symbolic
+/// link at `path` points to. Refuses a target that is not a regular file or is read-only.
+fn writable_target(path: &Path) -> Result<std::path::PathBuf, PackageError> {
+    let refuse = |reason: String| PackageError::NotWritable {
+        path: path.to_path_buf(),
+        reason,
+    };
+    let meta = match std::fs::symlink_metadata(path) {
+        Ok(meta) => meta,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(path.to_path_buf()),
+        Err(source) => {
+            return Err(PackageError::Io {
+                path: path.to_path_buf(),
+                source,
+            });
+        }
+    };
+    let (target, meta) = if meta.file_type().is_symlink() {
+        let target = std::fs::canonicalize(path)
+            .map_err(|e| refuse(format!("a symbolic link that cannot be followed ({e})")))?;
+        let meta = std::fs::metadata(&target).map_err(|source| PackageError::Io {
+            path: target.clone(),
+            source,
+        })?;
+        (target, meta)
+    } else {
+        (path.to_path_buf(), meta)
+    };
+    if !meta.is_file() {
+        return Err(refuse(format!(
+            "exists and is {}, not a regular file (left as it is)",
+            file_kind(&meta.file_type())
+        )));
+    }
+    if meta.permissions().readonly() {
+        return Err(refuse("the file is read-only (left as it is)".into()));
+    }
+    std::fs::OpenOptions::new()
+        .write(true)
+        .open(&target)
+        .map_err(|e| refuse(format!("cannot be opened for writing ({e})")))?;
+    Ok(target)
+}
+
+/// "a folder", "a character device", ... for an error message.
+fn file_kind(kind: &std::fs::FileType) -> &'static str {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if kind.is_char_device() {
+            return "a character device";
+        }
+        if kind.is_block_device() {
+            return "a block device";
+        }
+        if kind.is_fifo() {
+            return "a named pipe";
+        }
+        if kind.is_socket() {
+            return "a socket";
+        }
+    }
+    if kind.is_dir() {
+        "a folder"
+    } else {
+        "a special file"
     }
 }
 

@@ -450,3 +450,66 @@ fn an_inconsistent_gpu_scene_is_refused() {
         "{errors:?}"
     );
 }
+
+/// Issue 14 case 1: `preprocess … -o /dev/full` reported success and replaced the device node
+/// (the temporary file was renamed over it). A named pipe stands in for the device here; a
+/// folder, a symbolic link to the pipe and a read-only file are refused the same way, and none
+/// of them is changed.
+#[cfg(unix)]
+#[test]
+fn writing_over_a_device_pipe_folder_or_read_only_file_fails_and_leaves_it() {
+    use std::os::unix::fs::{FileTypeExt, PermissionsExt};
+    let pkg = small_package();
+    let dir = tempfile::tempdir().expect("temp dir");
+    let fifo = dir.path().join("pipe.cwk");
+    let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+    if made.is_ok_and(|s| s.success()) {
+        let err = pkg.write(&fifo, WriteOptions::default()).unwrap_err();
+        assert!(matches!(err, PackageError::NotWritable { .. }), "{err}");
+        assert!(err.to_string().contains("named pipe"), "{err}");
+        let kind = std::fs::symlink_metadata(&fifo).expect("pipe").file_type();
+        assert!(kind.is_fifo(), "the pipe was replaced");
+        let link = dir.path().join("link.cwk");
+        std::os::unix::fs::symlink(&fifo, &link).expect("symlink");
+        let err = pkg.write(&link, WriteOptions::default()).unwrap_err();
+        assert!(err.to_string().contains("named pipe"), "{err}");
+        assert!(std::fs::symlink_metadata(&link).expect("link").is_symlink());
+    }
+    let folder = dir.path().join("folder.cwk");
+    std::fs::create_dir(&folder).expect("folder");
+    let err = pkg.write(&folder, WriteOptions::default()).unwrap_err();
+    assert!(err.to_string().contains("a folder"), "{err}");
+    assert!(folder.is_dir());
+
+    let read_only = dir.path().join("read-only.cwk");
+    std::fs::write(&read_only, b"keep").expect("file");
+    std::fs::set_permissions(&read_only, std::fs::Permissions::from_mode(0o444)).expect("chmod");
+    let err = pkg.write(&read_only, WriteOptions::default()).unwrap_err();
+    assert!(err.to_string().contains("read-only"), "{err}");
+    assert_eq!(std::fs::read(&read_only).expect("kept"), b"keep");
+
+    // Only the refused targets and the link are left: no temporary file stays behind.
+    let names = std::fs::read_dir(dir.path()).expect("list").count();
+    assert!(names <= 4, "{names} entries");
+}
+
+/// A package written over an existing regular file or through a symbolic link replaces the
+/// file the link points to (keeping its permissions), and the link stays a link.
+#[cfg(unix)]
+#[test]
+fn writing_replaces_a_regular_file_and_follows_a_link() {
+    use std::os::unix::fs::PermissionsExt;
+    let pkg = small_package();
+    let dir = tempfile::tempdir().expect("temp dir");
+    let file = dir.path().join("city.cwk");
+    std::fs::write(&file, b"old").expect("file");
+    std::fs::set_permissions(&file, std::fs::Permissions::from_mode(0o640)).expect("chmod");
+    let link = dir.path().join("link.cwk");
+    std::os::unix::fs::symlink(&file, &link).expect("symlink");
+    pkg.write(&link, WriteOptions::default()).expect("write");
+    assert!(std::fs::symlink_metadata(&link).expect("link").is_symlink());
+    assert_eq!(ScenePackage::read(&file).expect("read"), pkg);
+    let mode = std::fs::metadata(&file).expect("meta").permissions().mode();
+    assert_eq!(mode & 0o777, 0o640);
+    assert_eq!(std::fs::read_dir(dir.path()).expect("list").count(), 2);
+}

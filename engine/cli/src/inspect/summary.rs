@@ -9,6 +9,7 @@ use anyhow::Context;
 use citywalk_scenes::package::{PackageFile, ScenePackage, SectionKind};
 use serde::Serialize;
 
+use crate::report_items::{self, ReportItem};
 use crate::scene_input::{is_package, load_scene};
 
 /// Arguments of this inspection.
@@ -43,10 +44,15 @@ struct Summary {
     buildings_loaded: usize,
     buildings_rejected: usize,
     rejections_by_reason: BTreeMap<String, usize>,
+    /// Every rejected building: file, source id, reason.
+    rejected: Vec<ReportItem>,
     load_warnings: usize,
+    /// Every load warning: file, source id (empty for the file as a whole), message.
+    load_warning_list: Vec<ReportItem>,
     buildings: usize,
     buildings_with_mesh: usize,
     streets: usize,
+    streets_rejected: usize,
     blocks: usize,
     blocks_with_street_outline: usize,
     buildings_per_block_min_median_max: Option<(usize, usize, usize)>,
@@ -136,6 +142,7 @@ fn summarise(
             .entry(r.reason.to_string())
             .or_insert(0) += 1;
     }
+    let (rejected, load_warning_list) = report_items::items(report);
     Summary {
         scene: path.display().to_string(),
         is_package,
@@ -151,10 +158,13 @@ fn summarise(
         buildings_loaded: report.buildings_loaded,
         buildings_rejected: report.rejected.len(),
         rejections_by_reason,
+        rejected,
         load_warnings: report.warnings.len(),
+        load_warning_list,
         buildings: pkg.buildings.len(),
         buildings_with_mesh: pkg.buildings.iter().filter(|b| b.mesh.is_some()).count(),
         streets: pkg.streets.len(),
+        streets_rejected: report.streets_rejected.len(),
         blocks: pkg.blocks.blocks.len(),
         blocks_with_street_outline: pkg
             .blocks
@@ -210,17 +220,20 @@ fn print_summary(s: &Summary) {
         );
     }
     println!(
-        "buildings: {} found, {} loaded, {} rejected, {} load warnings; {} with meshes; {} streets",
+        "buildings: {} found, {} loaded, {} rejected, {} load warnings; {} with meshes; {} streets \
+         ({} rejected)",
         s.buildings_found,
         s.buildings_loaded,
         s.buildings_rejected,
         s.load_warnings,
         s.buildings_with_mesh,
-        s.streets
+        s.streets,
+        s.streets_rejected
     );
     for (reason, n) in &s.rejections_by_reason {
         println!("  rejected {n}: {reason}");
     }
+    report_items::print(&s.rejected, &s.load_warning_list);
     print!(
         "blocks: {} ({} street faces)",
         s.blocks, s.blocks_with_street_outline

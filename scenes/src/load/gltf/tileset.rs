@@ -44,9 +44,8 @@ pub(crate) fn looks_like_tileset(v: &Value) -> bool {
 /// Parses a tileset; `path` is the tileset file (its folder resolves content URIs).
 pub(crate) fn parse(path: &Path, v: &Value) -> Result<Tileset, String> {
     let root = v.get("root").ok_or("no \"root\" tile")?;
-    let base = path.parent().unwrap_or(Path::new(""));
     let mut contents = Vec::new();
-    walk(root, DMat4::IDENTITY, base, 0, &mut contents)?;
+    walk(root, DMat4::IDENTITY, path, 0, &mut contents)?;
     let root_transform = tile_transform(root)?;
     let centre_ecef = bounding_centre(root, root_transform)
         .unwrap_or_else(|| root_transform.transform_point3(DVec3::ZERO));
@@ -62,7 +61,7 @@ pub(crate) fn parse(path: &Path, v: &Value) -> Result<Tileset, String> {
 fn walk(
     tile: &Value,
     parent: DMat4,
-    base: &Path,
+    tileset_file: &Path,
     depth: usize,
     out: &mut Vec<TileContent>,
 ) -> Result<(), String> {
@@ -76,11 +75,10 @@ fn walk(
             .or_else(|| content.get("url"))
             .and_then(Value::as_str)
             .ok_or("tile content without \"uri\"")?;
-        if uri.contains("://") || uri.starts_with("data:") {
-            return Err(format!("content {uri:?} is not a relative file"));
-        }
+        let path =
+            super::uri::resolve(tileset_file, uri).map_err(|r| format!("content {uri:?}: {r}"))?;
         out.push(TileContent {
-            path: base.join(uri),
+            path,
             uri: uri.to_string(),
             to_ecef,
         });
@@ -88,7 +86,7 @@ fn walk(
     if let Some(children) = tile.get("children") {
         let children = children.as_array().ok_or("\"children\" is not an array")?;
         for child in children {
-            walk(child, to_ecef, base, depth + 1, out)?;
+            walk(child, to_ecef, tileset_file, depth + 1, out)?;
         }
     }
     Ok(())
@@ -169,5 +167,20 @@ mod tests {
         let v: Value =
             serde_json::from_str(r#"{"root":{"geometricError":1,"transform":[1,2,3]}}"#).unwrap();
         assert!(parse(Path::new("t.json"), &v).is_err());
+    }
+
+    /// Issue 14 case 2, for tileset contents: no absolute path, `..` or other scheme.
+    #[test]
+    fn refuses_contents_outside_the_tilesets_folder() {
+        for uri in [
+            "/dev/zero",
+            "../a.b3dm",
+            "t/../../a.b3dm",
+            "https://x.invalid/a.b3dm",
+        ] {
+            let v = serde_json::json!({"root": {"geometricError": 1, "content": {"uri": uri}}});
+            let err = parse(Path::new("/data/set/tileset.json"), &v).unwrap_err();
+            assert!(err.contains(uri), "{uri}: {err}");
+        }
     }
 }

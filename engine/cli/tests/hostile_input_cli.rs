@@ -1,0 +1,133 @@
+//! The binary on hostile input and faults (issue 14): every error names the file and the
+//! reason, exits non-zero, prints no backtrace, and destroys nothing. CPU only.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+#[path = "support/scratch.rs"]
+mod scratch;
+use scratch::temp_dir;
+
+/// Runs the binary with `RUST_BACKTRACE=1` (so a backtrace would show if one were printed).
+fn citywalk(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_citywalk"))
+        .args(args)
+        .env("RUST_BACKTRACE", "1")
+        .output()
+        .expect("run citywalk")
+}
+
+fn text(out: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    )
+}
+
+fn path_str(p: &Path) -> &str {
+    p.to_str().expect("utf-8 temp path")
+}
+
+/// A small generated city as GeoJSON in `dir`.
+fn small_city(dir: &Path) -> String {
+    let geojson = dir.join("city.geojson");
+    let out = citywalk(&[
+        "generate",
+        "--buildings",
+        "12",
+        "--seed",
+        "3",
+        "-o",
+        path_str(&geojson),
+    ]);
+    assert!(out.status.success(), "{}", text(&out));
+    path_str(&geojson).to_string()
+}
+
+/// Case 1: `preprocess … -o /dev/full` said "wrote /dev/full" and replaced the device with a
+/// regular file. A named pipe stands in for the device: refused before the work starts, with
+/// the path and the kind of file, exit code 1, no backtrace, and the pipe still a pipe.
+#[cfg(unix)]
+#[test]
+fn preprocess_to_a_device_or_pipe_fails_and_leaves_it() {
+    use std::os::unix::fs::FileTypeExt;
+    let dir = temp_dir("hostile-output");
+    let city = small_city(&dir);
+    let fifo = dir.join("out.cwk");
+    let made = Command::new("mkfifo").arg(&fifo).status();
+    if !made.is_ok_and(|s| s.success()) {
+        eprintln!("mkfifo unavailable: skipped");
+        return;
+    }
+    let out = citywalk(&["preprocess", &city, "-o", path_str(&fifo)]);
+    let all = text(&out);
+    assert_eq!(out.status.code(), Some(1), "{all}");
+    assert!(
+        all.contains(path_str(&fifo)) && all.contains("named pipe"),
+        "{all}"
+    );
+    assert!(!all.contains("wrote"), "{all}");
+    assert!(!all.contains("backtrace"), "{all}");
+    let kind = std::fs::symlink_metadata(&fifo).expect("pipe").file_type();
+    assert!(kind.is_fifo(), "the pipe was replaced");
+}
+
+/// A GeoJSON square `id` (lon/lat near 0) with the given properties.
+fn square(id: &str, x: f64, properties: serde_json::Value) -> serde_json::Value {
+    let s = 0.0002;
+    let mut properties = properties;
+    properties["id"] = serde_json::json!(id);
+    serde_json::json!({"type": "Feature", "properties": properties, "geometry": {
+        "type": "Polygon",
+        "coordinates": [[[x, 0.0], [x + s, 0.0], [x + s, s], [x, s], [x, 0.0]]]}})
+}
+
+/// Case 8: "rejected 1: absurd height: top -5 m not above base 0 m" never named the building
+/// (`b99`), in text, `--json` or the log, and warning texts were only counted. Each rejection
+/// and warning now names its file, source id and reason in the text summary, in `--json`, in
+/// the log, and (as before) in the package's provenance.
+#[test]
+fn rejections_and_warnings_name_their_building_everywhere() {
+    let dir = temp_dir("hostile-ids");
+    let features: Vec<serde_json::Value> = vec![
+        square("b1", 0.0, serde_json::json!({"height": 10})),
+        square("b2", 0.001, serde_json::json!({"height": "tall"})),
+        square("b99", 0.002, serde_json::json!({"height": -5})),
+    ];
+    let geojson = dir.join("ids.geojson");
+    let doc = serde_json::json!({"type": "FeatureCollection", "features": features});
+    std::fs::write(&geojson, doc.to_string()).unwrap();
+    let package = dir.join("ids.cwk");
+    let args = ["preprocess", path_str(&geojson), "-o", path_str(&package)];
+    let out = citywalk(&args);
+    let all = text(&out);
+    assert!(out.status.success(), "{all}");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    for log in [&stdout, &stderr] {
+        assert!(log.contains("building b99: absurd height"), "{all}");
+        assert!(log.contains("b2: unparseable height value"), "{all}");
+    }
+
+    let out = citywalk(&[&args[..], &["--json"]].concat());
+    assert!(out.status.success(), "{}", text(&out));
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json summary");
+    assert_eq!(json["rejected"][0]["source_id"], "b99", "{json}");
+    assert!(
+        json["rejected"][0]["reason"]
+            .as_str()
+            .unwrap()
+            .contains("absurd height")
+    );
+    let warned = json["load_warnings"].as_array().unwrap();
+    assert!(warned.iter().any(|w| w["source_id"] == "b2"), "{json}");
+
+    let pkg = citywalk_scenes::package::ScenePackage::read(&package).expect("package");
+    let report = &pkg.provenance.load_report;
+    assert_eq!(report.rejected[0].source_id, "b99");
+    assert!(report.warnings.iter().any(|w| w.source_id == "b2"));
+    let out = citywalk(&["inspect", path_str(&package), "--json"]);
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).expect("inspect json");
+    assert_eq!(json["rejected"][0]["source_id"], "b99", "{json}");
+}
