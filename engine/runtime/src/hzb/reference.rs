@@ -347,6 +347,94 @@ pub fn project_corners(
     }
 }
 
+/// CPU reference of the tree cull ([`crate::hzb::tree_cull`], the GPU's LOD cut with
+/// hierarchical occlusion): the draw ids its walk keeps over `tree` against this pyramid, under
+/// the view and criterion of `params`, ascending. `records` are the LOD scene's cull records by
+/// draw id (node `n`'s box is record `building_count + n`), `parts` the parts they name. A node
+/// whose box is outside or hidden is dropped with its subtree; a leaf keeps its building when the
+/// building's record may be visible; an inner node refines
+/// ([`crate::lod::gpu_tree::refines`]) or keeps its cluster mesh and, under Chang's criterion,
+/// each landmark rising more than τ above it whose record may be visible.
+pub fn tree_cull(
+    pyramid: &DepthPyramid,
+    tree: &crate::lod::gpu_tree::TreeArrays,
+    (records, parts): (&[BuildingRecord], &[CullPart]),
+    view_proj: Mat4,
+    params: &citywalk_shaders::TreeCullParams,
+) -> Vec<u32> {
+    use crate::lod::gpu_tree::{px_per_m, refines};
+    use citywalk_shaders::constants::TREE_CRITERION_CHANG;
+
+    let shows = |id: u32| {
+        records
+            .get(id as usize)
+            .is_some_and(|r| pyramid.cull_record(view_proj, r, parts) == RecordCull::Visible)
+    };
+    let mut kept = Vec::new();
+    let mut stack: Vec<u32> = Vec::new();
+    if (tree.root as usize) < tree.nodes.len() {
+        stack.push(tree.root);
+    }
+    while let Some(n) = stack.pop() {
+        let (Some(node), Some(record)) = (
+            tree.nodes.get(n as usize),
+            records.get((params.building_count + n) as usize),
+        ) else {
+            continue;
+        };
+        let corners = box_corners(
+            Vec3::from_array(record.bounds_min_m),
+            Vec3::from_array(record.bounds_max_m),
+        );
+        if matches!(
+            pyramid.test_hull(view_proj, &corners),
+            HullTest::Outside | HullTest::Occluded
+        ) {
+            continue;
+        }
+        if node.child_count == 0 {
+            if node.building < params.building_count && shows(node.building) {
+                kept.push(node.building);
+            }
+            continue;
+        }
+        let first = node.first_child as usize;
+        if refines(node, params) {
+            stack.extend(
+                tree.children
+                    .get(first..first + node.child_count as usize)
+                    .unwrap_or(&[]),
+            );
+            continue;
+        }
+        kept.push(params.building_count + n);
+        if params.criterion == TREE_CRITERION_CHANG {
+            let ppm = px_per_m(node, params);
+            let tau_height_m = if ppm > 0.0 {
+                params.tolerance_b / ppm
+            } else {
+                0.0
+            };
+            let first = node.first_landmark as usize;
+            for landmark in tree
+                .landmarks
+                .get(first..first + node.landmark_count as usize)
+                .unwrap_or(&[])
+            {
+                if landmark.top_m - node.height_m > tau_height_m
+                    && landmark.building < params.building_count
+                    && shows(landmark.building)
+                {
+                    kept.push(landmark.building);
+                }
+            }
+        }
+    }
+    kept.sort_unstable();
+    kept.dedup();
+    kept
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -636,92 +724,4 @@ mod tests {
             BoxProjection::Outside
         );
     }
-}
-
-/// CPU reference of the tree cull ([`crate::hzb::tree_cull`], the GPU's LOD cut with
-/// hierarchical occlusion): the draw ids its walk keeps over `tree` against this pyramid, under
-/// the view and criterion of `params`, ascending. `records` are the LOD scene's cull records by
-/// draw id (node `n`'s box is record `building_count + n`), `parts` the parts they name. A node
-/// whose box is outside or hidden is dropped with its subtree; a leaf keeps its building when the
-/// building's record may be visible; an inner node refines
-/// ([`crate::lod::gpu_tree::refines`]) or keeps its cluster mesh and, under Chang's criterion,
-/// each landmark rising more than τ above it whose record may be visible.
-pub fn tree_cull(
-    pyramid: &DepthPyramid,
-    tree: &crate::lod::gpu_tree::TreeArrays,
-    (records, parts): (&[BuildingRecord], &[CullPart]),
-    view_proj: Mat4,
-    params: &citywalk_shaders::TreeCullParams,
-) -> Vec<u32> {
-    use crate::lod::gpu_tree::{px_per_m, refines};
-    use citywalk_shaders::constants::TREE_CRITERION_CHANG;
-
-    let shows = |id: u32| {
-        records
-            .get(id as usize)
-            .is_some_and(|r| pyramid.cull_record(view_proj, r, parts) == RecordCull::Visible)
-    };
-    let mut kept = Vec::new();
-    let mut stack: Vec<u32> = Vec::new();
-    if (tree.root as usize) < tree.nodes.len() {
-        stack.push(tree.root);
-    }
-    while let Some(n) = stack.pop() {
-        let (Some(node), Some(record)) = (
-            tree.nodes.get(n as usize),
-            records.get((params.building_count + n) as usize),
-        ) else {
-            continue;
-        };
-        let corners = box_corners(
-            Vec3::from_array(record.bounds_min_m),
-            Vec3::from_array(record.bounds_max_m),
-        );
-        if matches!(
-            pyramid.test_hull(view_proj, &corners),
-            HullTest::Outside | HullTest::Occluded
-        ) {
-            continue;
-        }
-        if node.child_count == 0 {
-            if node.building < params.building_count && shows(node.building) {
-                kept.push(node.building);
-            }
-            continue;
-        }
-        let first = node.first_child as usize;
-        if refines(node, params) {
-            stack.extend(
-                tree.children
-                    .get(first..first + node.child_count as usize)
-                    .unwrap_or(&[]),
-            );
-            continue;
-        }
-        kept.push(params.building_count + n);
-        if params.criterion == TREE_CRITERION_CHANG {
-            let ppm = px_per_m(node, params);
-            let tau_height_m = if ppm > 0.0 {
-                params.tolerance_b / ppm
-            } else {
-                0.0
-            };
-            let first = node.first_landmark as usize;
-            for landmark in tree
-                .landmarks
-                .get(first..first + node.landmark_count as usize)
-                .unwrap_or(&[])
-            {
-                if landmark.top_m - node.height_m > tau_height_m
-                    && landmark.building < params.building_count
-                    && shows(landmark.building)
-                {
-                    kept.push(landmark.building);
-                }
-            }
-        }
-    }
-    kept.sort_unstable();
-    kept.dedup();
-    kept
 }
