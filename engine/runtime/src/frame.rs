@@ -1,7 +1,9 @@
 //! The two-phase occlusion-culled frame (hierarchical Z with last frame's visible set, and
 //! optionally the virtual-occluder pre-pass), over every building of a scene
 //! ([`CullingRenderer::render`]) or over the candidates of a screen-space LOD cut
-//! ([`CullingRenderer::render_lod`]: the cut's buildings and cluster meshes), as a script:
+//! ([`CullingRenderer::render_lod`]: the cut's buildings and cluster meshes), as a script
+//! below. A LOD frame whose cut the GPU computes, with hierarchical culling of the cluster
+//! tree, is [`CullingRenderer::submit_tree`] (`frame/tree_frame.rs`); it shares these passes.
 //!
 //! ```text
 //! (lod_cut      → caller: B-Quadtree + frustum + LOD cut, LodScene::select: the candidates)

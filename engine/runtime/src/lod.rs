@@ -23,7 +23,9 @@
 //! below them (hierarchical frustum culling on the tree), and optionally so are nodes whose
 //! urban block the B-Quadtree culled (the tree records a node's block below the block level).
 //!
-//! The GPU side (cluster meshes next to the buildings in one scene) is [`scene`].
+//! The GPU side (cluster meshes next to the buildings in one scene) is [`scene`]; the cut
+//! computed on the GPU, with hierarchical occlusion culling, is [`crate::hzb::tree_cull`], over
+//! the flat arrays of [`gpu_tree`].
 
 pub mod gpu_tree;
 pub mod scene;

@@ -4,9 +4,12 @@
 //! ```text
 //! resolve       → the plan as the scene can run it (FramePlan::resolve)
 //! cpu_cull      → (frustum) urban blocks through the B-Quadtree, or buildings by their boxes
-//! lod_cut       → (lod) the screen-space LOD cut of the cluster tree over the visible blocks
-//! hzb frame     → (hzb) the two-phase occlusion-culled frame over every building or the cut
-//!                 (crate::frame: occluder gate, early, occluders, pyramid, cull, late)
+//! lod_cut       → (lod, no tree cull) the CPU's screen-space LOD cut over the visible blocks
+//! hzb frame     → (hzb) the two-phase occlusion-culled frame over every building, the CPU's
+//!                 cut (crate::frame: occluder gate, early, occluders, pyramid, cull, late), or,
+//!                 with lod where the adapter can, the tree cull: the GPU cuts the cluster tree
+//!                 inside the frame, culling whole subtrees against the pyramid
+//!                 (crate::frame::CullingRenderer::submit_tree)
 //! plain pass    → (no hzb) one pass drawing everything, the frustum's buildings or the cut
 //! report        → one FrameReport: counts, times, what was drawn
 //! ```
