@@ -578,9 +578,11 @@ fn tree_begin() {
 // Last frame's kept buildings still in this frame's cut and in the frustum (with the gate: not
 // hidden by the occluders' pyramid, parts included): drawn early and marked.
 @compute @workgroup_size(HZB_CULL_WORKGROUP, 1, 1)
-fn tree_early(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+fn tree_early(@builtin(global_invocation_id) gid: vec3<u32>) {
     let count = atomicLoad(&counters[TREE_C_LAST_KEPT]);
-    let stride = groups.x * HZB_CULL_WORKGROUP;
+    // Dispatched with TREE_WALK_WORKGROUPS workgroups (not read from `num_workgroups`, which
+    // D3D12 reports as 0 without wgpu's indirect-call validation).
+    let stride = TREE_WALK_WORKGROUPS * HZB_CULL_WORKGROUP;
     // Every invocation runs the same rounds and calls the occlusion test in each, reading only
     // for the ids it takes, as `early_record` does.
     let rounds = (count + stride - 1u) / stride;
@@ -647,12 +649,11 @@ fn tree_early_draw(id: u32, record: BuildingRecord, outcome: u32) {
 fn tree_level(
     @builtin(global_invocation_id) gid: vec3<u32>,
     @builtin(local_invocation_index) local: u32,
-    @builtin(num_workgroups) groups: vec3<u32>,
 ) {
     let l = min(atomicLoad(&counters[TREE_C_LEVEL]), TREE_MAX_LEVELS - 1u);
     let start = atomicLoad(&counters[TREE_C_QUEUE_START + l]);
     let len = atomicLoad(&counters[TREE_C_QUEUE_LEN + l]);
-    for (var i = gid.x; i < len; i += groups.x * HZB_CULL_WORKGROUP) {
+    for (var i = gid.x; i < len; i += TREE_WALK_WORKGROUPS * HZB_CULL_WORKGROUP) {
         if start + i < arrayLength(&queue) {
             tree_node(l, queue[start + i], start + len);
         }
@@ -661,7 +662,7 @@ fn tree_level(
     workgroupBarrier();
     if local == 0u {
         let done = atomicAdd(&counters[TREE_C_DONE], 1u) + 1u;
-        if done == groups.x {
+        if done == TREE_WALK_WORKGROUPS {
             atomicStore(&counters[TREE_C_DONE], 0u);
             let next = l + 1u;
             atomicStore(&counters[TREE_C_LEVEL], next);
