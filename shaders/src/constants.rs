@@ -88,7 +88,6 @@ pub const TREE_CRITERION_YANG: u32 = 1;
 /// Tree cull: what the early entry point does with last frame's kept draw ids.
 pub const TREE_EARLY_NONE: u32 = 0;
 pub const TREE_EARLY_FRUSTUM: u32 = 1;
-pub const TREE_EARLY_GATE: u32 = 2;
 
 /// Tree cull: the deepest tree it walks (levels below the root, plus one).
 pub const TREE_MAX_LEVELS: u32 = 64;
@@ -102,9 +101,8 @@ pub const TREE_WALK_WORKGROUPS: u32 = 64;
 /// Tree cull: word indices of its counters buffer. The level being walked; draws appended
 /// by the early entry and by the levels (the indirect draw counts); entries of the early list;
 /// buildings culled by the frustum and by occlusion (whole subtrees); overflow (a queue or list
-/// ran out: the frame is incomplete, an error); early candidates the gate kept out; nodes
-/// visited; last frame's kept entries the early entry reads; per level, queue entries and the
-/// first entry.
+/// ran out: the frame is incomplete, an error); nodes visited; last frame's kept entries the
+/// early entry reads; per level, queue entries and the first entry.
 pub const TREE_C_LEVEL: u32 = 8;
 pub const TREE_C_EARLY_DRAWS: u32 = 9;
 pub const TREE_C_LATE_DRAWS: u32 = 10;
@@ -112,7 +110,6 @@ pub const TREE_C_EARLY_LISTED: u32 = 11;
 pub const TREE_C_FRUSTUM_CULLED: u32 = 12;
 pub const TREE_C_OCCLUSION_CULLED: u32 = 13;
 pub const TREE_C_OVERFLOW: u32 = 14;
-pub const TREE_C_GATE_CULLED: u32 = 15;
 pub const TREE_C_VISITED: u32 = 16;
 /// Tree cull: entries of last frame's kept list the early entry point reads (0 without an early
 /// set).
@@ -147,7 +144,6 @@ pub const WGSL_U32: &[(&str, u32)] = &[
     ("TREE_CRITERION_YANG", TREE_CRITERION_YANG),
     ("TREE_EARLY_NONE", TREE_EARLY_NONE),
     ("TREE_EARLY_FRUSTUM", TREE_EARLY_FRUSTUM),
-    ("TREE_EARLY_GATE", TREE_EARLY_GATE),
     ("TREE_MAX_LEVELS", TREE_MAX_LEVELS),
     ("TREE_WALK_WORKGROUPS", TREE_WALK_WORKGROUPS),
     ("TREE_C_DONE", TREE_C_DONE),
@@ -158,7 +154,6 @@ pub const WGSL_U32: &[(&str, u32)] = &[
     ("TREE_C_FRUSTUM_CULLED", TREE_C_FRUSTUM_CULLED),
     ("TREE_C_OCCLUSION_CULLED", TREE_C_OCCLUSION_CULLED),
     ("TREE_C_OVERFLOW", TREE_C_OVERFLOW),
-    ("TREE_C_GATE_CULLED", TREE_C_GATE_CULLED),
     ("TREE_C_VISITED", TREE_C_VISITED),
     ("TREE_C_LAST_KEPT", TREE_C_LAST_KEPT),
     ("TREE_C_QUEUE_LEN", TREE_C_QUEUE_LEN),

@@ -53,9 +53,8 @@ pub struct TreeCullParams {
     /// The half of the kept lists holding last frame's kept draw ids (0 or 1); this frame
     /// writes the other.
     pub last_half: u32,
-    /// [`TREE_EARLY_NONE`](crate::constants::TREE_EARLY_NONE) (no last frame to draw early),
-    /// [`TREE_EARLY_FRUSTUM`](crate::constants::TREE_EARLY_FRUSTUM) or
-    /// [`TREE_EARLY_GATE`](crate::constants::TREE_EARLY_GATE) (against the occluders' pyramid).
+    /// [`TREE_EARLY_NONE`](crate::constants::TREE_EARLY_NONE) (no last frame to draw early) or
+    /// [`TREE_EARLY_FRUSTUM`](crate::constants::TREE_EARLY_FRUSTUM).
     pub early: u32,
     /// Entries of the node queue (the tree's node count).
     pub queue_capacity: u32,

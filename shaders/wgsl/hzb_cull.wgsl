@@ -575,16 +575,14 @@ fn tree_begin() {
     atomicStore(&counters[TREE_C_QUEUE_LEN], roots);
 }
 
-// Last frame's kept buildings still in this frame's cut and in the frustum (with the gate: not
-// hidden by the occluders' pyramid, parts included): drawn early and marked.
+// Last frame's kept buildings still in this frame's cut and in the frustum: drawn early and
+// marked.
 @compute @workgroup_size(HZB_CULL_WORKGROUP, 1, 1)
 fn tree_early(@builtin(global_invocation_id) gid: vec3<u32>) {
     let count = atomicLoad(&counters[TREE_C_LAST_KEPT]);
     // Dispatched with TREE_WALK_WORKGROUPS workgroups (not read from `num_workgroups`, which
     // D3D12 reports as 0 without wgpu's indirect-call validation).
     let stride = TREE_WALK_WORKGROUPS * HZB_CULL_WORKGROUP;
-    // Every invocation runs the same rounds and calls the occlusion test in each, reading only
-    // for the ids it takes, as `early_record` does.
     let rounds = (count + stride - 1u) / stride;
     for (var r = 0u; r < rounds; r++) {
         let i = gid.x + r * stride;
@@ -595,9 +593,7 @@ fn tree_early(@builtin(global_invocation_id) gid: vec3<u32>) {
         let takes = tree_early_takes(id);
         let record = tree_record(select(0u, id, takes));
         var outcome = CULL_VISIBLE;
-        if tree.early == TREE_EARLY_GATE {
-            outcome = record_outcome(record, takes);
-        } else if test_hull(box_corners(record.bounds_min_m, record.bounds_max_m), false) == CULL_FRUSTUM_OUTSIDE {
+        if test_hull(box_corners(record.bounds_min_m, record.bounds_max_m), false) == CULL_FRUSTUM_OUTSIDE {
             outcome = CULL_FRUSTUM_OUTSIDE;
         }
         if takes {
@@ -622,9 +618,6 @@ fn tree_early_takes(id: u32) -> bool {
 
 // An early candidate's outcome: drawn early and marked when visible.
 fn tree_early_draw(id: u32, record: BuildingRecord, outcome: u32) {
-    if outcome == CULL_OCCLUDED {
-        atomicAdd(&counters[TREE_C_GATE_CULLED], 1u);
-    }
     if outcome != CULL_VISIBLE {
         return;
     }

@@ -1,9 +1,8 @@
 //! The LOD frame whose cut the GPU computes ([`crate::hzb::tree_cull`]), as a script:
 //!
 //! ```text
-//! occluder_gate → (occluders on, gate on) the ground and nearby occluders, their pyramid
 //! tree_early    → counters reset; last frame's kept buildings still in the cut and in the
-//!                 frustum (with the gate: not hidden by the occluders' pyramid) drawn early
+//!                 frustum drawn early (no occluder gate: see `submit_tree`)
 //! early_pass    → colour + depth: the ground and those buildings
 //! occluder_pass → (occluders on) as in the candidate frame
 //! build_pyramid → HiZ pyramid
@@ -22,9 +21,9 @@ use std::time::Instant;
 
 use citywalk_scenes::frustum::Frustum;
 use citywalk_shaders::constants::{
-    TREE_C_EARLY_DRAWS, TREE_C_EARLY_LISTED, TREE_C_FRUSTUM_CULLED, TREE_C_GATE_CULLED,
-    TREE_C_LATE_DRAWS, TREE_C_OCCLUSION_CULLED, TREE_C_OVERFLOW, TREE_C_VISITED, TREE_C_WORDS,
-    TREE_EARLY_FRUSTUM, TREE_EARLY_GATE, TREE_EARLY_NONE, TREE_LIST_HEADER, TREE_MAX_LEVELS,
+    TREE_C_EARLY_DRAWS, TREE_C_EARLY_LISTED, TREE_C_FRUSTUM_CULLED, TREE_C_LATE_DRAWS,
+    TREE_C_OCCLUSION_CULLED, TREE_C_OVERFLOW, TREE_C_VISITED, TREE_C_WORDS, TREE_EARLY_FRUSTUM,
+    TREE_EARLY_NONE, TREE_LIST_HEADER, TREE_MAX_LEVELS,
 };
 
 use super::report_ring::{ReadSlot, SlotLayout};
@@ -99,7 +98,13 @@ impl CullingRenderer {
             None => Vec::new(),
         };
         let meshes = occluders.filter(|_| !selected.is_empty());
-        let gated = options.occluder_gate && meshes.is_some();
+        // No occluder gate in a tree frame (`options.occluder_gate` is not read): its early set
+        // is only last frame's kept buildings still in the cut, and the gate would cost a second
+        // occluder pass and pyramid. Measured on lavapipe: with the gate's occlusion test in
+        // `tree_early`, street frames (cameras far apart) took 2.5–4 s each, at 10k, 100k and 1M
+        // buildings alike (cause not found; LLVM was compiling during those frames); frustum-only
+        // early frames took 0.1–0.2 s.
+
         let uniforms = view_uniforms(camera, width, height, &self.style);
         gpu.queue
             .write_buffer(&self.view_buffer, 0, bytemuck::bytes_of(&uniforms));
@@ -111,10 +116,10 @@ impl CullingRenderer {
         );
         params.list_capacity = capacity;
         params.last_half = last_half;
-        params.early = match (early_valid, gated) {
-            (false, _) => TREE_EARLY_NONE,
-            (true, true) => TREE_EARLY_GATE,
-            (true, false) => TREE_EARLY_FRUSTUM,
+        params.early = if early_valid {
+            TREE_EARLY_FRUSTUM
+        } else {
+            TREE_EARLY_NONE
         };
         // Frame numbers start at 1; the marks buffer starts zeroed.
         params.early_mark = number as u32;
@@ -136,18 +141,14 @@ impl CullingRenderer {
                 label: Some("tree frame"),
             });
         self.timer.begin_frame();
-        if let Some(meshes) = meshes.filter(|_| gated) {
-            self.occluder_gate(gpu, &mut encoder, meshes, &selected, &lod.gpu_scene)?;
-        }
         let max_draws = self.tree_cull.max_draws();
         {
             let targets = self.targets.as_ref().expect("fit_targets ran");
-            let phase = if gated { "gate" } else { "early_cull" };
             self.tree_cull.encode_early(
                 &mut encoder,
                 &inputs,
                 &targets.pyramid,
-                self.timer.compute_pass_writes(phase),
+                self.timer.compute_pass_writes("early_cull"),
             );
         }
         let early_draws = IndirectDraws {
@@ -162,7 +163,7 @@ impl CullingRenderer {
             colour,
         );
         if let Some(meshes) = meshes {
-            self.occluder_pass(gpu, &mut encoder, meshes, &selected, gated);
+            self.occluder_pass(gpu, &mut encoder, meshes, &selected, false);
         }
         self.build_pyramid(&mut encoder, meshes.is_some());
         {
@@ -437,7 +438,6 @@ pub(super) fn tree_output(
         building_count: n,
         candidates: counters[TREE_C_VISITED as usize],
         early_drawn,
-        gate_culled: counters[TREE_C_GATE_CULLED as usize],
         frustum_culled: counters[TREE_C_FRUSTUM_CULLED as usize],
         occlusion_culled: counters[TREE_C_OCCLUSION_CULLED as usize],
         cull_kept: kept.len() as u32,

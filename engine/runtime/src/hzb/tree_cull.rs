@@ -20,8 +20,7 @@
 //!
 //! **Early draws.** This frame's kept draw ids go to one half of a two-half list held by the
 //! [`crate::frame::Visibility`]; the next frame's `tree_early` draws those that are buildings
-//! still in its cut and inside the frustum (or, with the occluder gate, not hidden by the
-//! occluders' pyramid), marks them in a per-draw-id buffer with the frame's number (no clear)
+//! still in its cut and inside the frustum, marks them in a per-draw-id buffer with the frame's number (no clear)
 //! and lists them for the report; the walk appends no second draw for a marked id.
 
 use citywalk_shaders::constants::{TREE_C_WORDS, TREE_LIST_HEADER, TREE_WALK_WORKGROUPS};
@@ -278,8 +277,8 @@ impl TreeCull {
         })
     }
 
-    /// Resets the counters and draws nothing yet: then, over last frame's kept list, the early
-    /// entry point (its occlusion test reads `pyramid`, the occluders' own, with the gate).
+    /// Resets the counters, then runs the early entry point over last frame's kept list
+    /// (`pyramid` is bound but not read).
     pub fn encode_early(
         &self,
         encoder: &mut wgpu::CommandEncoder,
