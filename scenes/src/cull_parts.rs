@@ -1,8 +1,11 @@
 //! A building's tight cull bounds ([`CullPart`]s): one oriented prism per connected piece of
 //! its mesh (a tower and its podium are two), each the minimum-area rectangle of the piece's
 //! vertices in plan (Freeman & Shapira, *Determining the minimum-area encasing rectangle for an
-//! arbitrary closed curve*, CACM 1975: a side lies on an edge of the convex hull; `geo`'s
-//! rotating-calipers implementation) extruded over the piece's height range.
+//! arbitrary closed curve*, CACM 1975: a side lies on an edge of the convex hull), found by
+//! rotating calipers in time linear in the hull (Toussaint, *Solving geometric problems with
+//! the rotating calipers*, MELECON 1983 §3; `geo`'s `MinimumRotatedRect` measures the whole hull
+//! for each edge, quadratic on a round 40,000-vertex stadium) and extruded over the piece's
+//! height range.
 //!
 //! Why: the occlusion cull tests a building by the screen rectangle and nearest depth of its
 //! bounds. City blocks are rarely aligned with the axes, and the axis-aligned box of a rotated
@@ -15,7 +18,7 @@
 //! rounded to `f32`, so the rounding cannot move a side inside a vertex.
 
 use citywalk_shaders::CullPart;
-use geo::{MinimumRotatedRect, MultiPoint, Point};
+use geo::{ConvexHull, Coord, MultiPoint, Point};
 use glam::Vec3;
 use petgraph::unionfind::UnionFind;
 
@@ -77,18 +80,9 @@ fn enclosing_prism(points: &[Vec3]) -> Option<CullPart> {
         .iter()
         .map(|p| Point::new(f64::from(p.x), f64::from(p.y)))
         .collect();
-    // The rectangle's first side with a length gives its axes; every point coincides in plan
-    // (a vertical needle) or the rectangle is degenerate: the axes of the scene.
-    let (ux, uy) = plan
-        .minimum_rotated_rect()
-        .and_then(|rect| {
-            rect.exterior().lines().find_map(|side| {
-                let (dx, dy) = side.delta().x_y();
-                let length = dx.hypot(dy);
-                (length > 0.0 && length.is_finite()).then(|| (dx / length, dy / length))
-            })
-        })
-        .unwrap_or((1.0, 0.0));
+    // The best hull edge gives the rectangle's axes; every point coincides in plan (a vertical
+    // needle) or the hull is degenerate: the axes of the scene.
+    let (ux, uy) = min_area_axis(&plan.convex_hull().exterior().0).unwrap_or((1.0, 0.0));
     let (vx, vy) = (-uy, ux);
     let (mut a0, mut a1, mut b0, mut b1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
     let mut max_abs = 0.0f64;
@@ -116,6 +110,71 @@ fn enclosing_prism(points: &[Vec3]) -> Option<CullPart> {
         _pad0: 0,
         _pad1: 0,
     })
+}
+
+/// The unit direction of the hull edge on which the minimum-area rectangle lies (`hull`
+/// closed, either orientation), by rotating calipers: for each edge in turn, the farthest
+/// points along it, against it and away from it move forward monotonically around the hull.
+fn min_area_axis(hull: &[Coord<f64>]) -> Option<(f64, f64)> {
+    let mut h: Vec<Coord<f64>> = hull.get(..hull.len().saturating_sub(1))?.to_vec();
+    h.dedup();
+    let m = h.len();
+    if m < 3 {
+        // Collinear points (a wall sheet): the line's direction.
+        let (dx, dy) = (h.get(1)?.x - h[0].x, h[1].y - h[0].y);
+        let length = dx.hypot(dy);
+        return (length > 0.0 && length.is_finite()).then(|| (dx / length, dy / length));
+    }
+    // Relative to one vertex, for precision; counter-clockwise.
+    let o = h[0];
+    h.iter_mut().for_each(|c| *c = *c - o);
+    let twice_area: f64 = (0..m)
+        .map(|i| h[i].x * h[(i + 1) % m].y - h[(i + 1) % m].x * h[i].y)
+        .sum();
+    if twice_area < 0.0 {
+        h.reverse();
+    }
+    let dot = |u: (f64, f64), c: Coord<f64>| u.0 * c.x + u.1 * c.y;
+    // Advances `k` while the next vertex scores higher (at most one lap).
+    let advance = |k: &mut usize, score: &dyn Fn(Coord<f64>) -> f64| {
+        for _ in 0..m {
+            if score(h[(*k + 1) % m]) > score(h[*k]) {
+                *k = (*k + 1) % m;
+            } else {
+                break;
+            }
+        }
+    };
+    let argmax = |score: &dyn Fn(Coord<f64>) -> f64| {
+        (0..m)
+            .max_by(|&a, &b| score(h[a]).total_cmp(&score(h[b])))
+            .unwrap_or(0)
+    };
+    let mut best: Option<(f64, (f64, f64))> = None;
+    let (mut far, mut ahead, mut behind) = (0, 0, 0);
+    for i in 0..m {
+        let (a, b) = (h[i], h[(i + 1) % m]);
+        let (dx, dy) = (b.x - a.x, b.y - a.y);
+        let length = dx.hypot(dy);
+        if !(length > 0.0 && length.is_finite()) {
+            continue;
+        }
+        let u = (dx / length, dy / length);
+        let along = |c: Coord<f64>| dot(u, c);
+        let against = |c: Coord<f64>| -dot(u, c);
+        let away = |c: Coord<f64>| dot((-u.1, u.0), c);
+        if best.is_none() {
+            (ahead, behind, far) = (argmax(&along), argmax(&against), argmax(&away));
+        }
+        advance(&mut ahead, &along);
+        advance(&mut behind, &against);
+        advance(&mut far, &away);
+        let area = (along(h[ahead]) - along(h[behind])) * (away(h[far]) - away(a));
+        if best.is_none_or(|(min, _)| area < min) {
+            best = Some((area, u));
+        }
+    }
+    best.map(|(_, u)| u)
 }
 
 /// Whether `p` lies in `part` (in plan: on the inner side of all four sides, computed in
@@ -192,6 +251,51 @@ mod tests {
             let part = &parts[usize::from(i >= 8)];
             assert!(part_contains(part, *p), "vertex {i} {p}");
         }
+    }
+
+    #[test]
+    fn rotating_calipers_match_geo_on_random_hulls() {
+        use geo::{Area, MinimumRotatedRect};
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(14);
+        for _ in 0..200 {
+            let n = rng.random_range(3..60);
+            let points: MultiPoint<f64> = (0..n)
+                .map(|_| Point::new(rng.random_range(-50.0..50.0), rng.random_range(-20.0..20.0)))
+                .collect();
+            let Some(expected) = points.minimum_rotated_rect() else {
+                continue;
+            };
+            let (ux, uy) = min_area_axis(&points.convex_hull().exterior().0).unwrap();
+            let (mut a0, mut a1, mut b0, mut b1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+            for p in &points {
+                let (a, b) = (p.x() * ux + p.y() * uy, p.y() * ux - p.x() * uy);
+                (a0, a1, b0, b1) = (a0.min(a), a1.max(a), b0.min(b), b1.max(b));
+            }
+            let area = (a1 - a0) * (b1 - b0);
+            let want = expected.unsigned_area();
+            assert!(
+                (area - want).abs() <= 1e-9 * want.max(1.0),
+                "{area} vs {want}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_round_40000_vertex_hull_is_linear() {
+        // Issue 14 case 3: `geo`'s rectangle measured the whole hull for each of its edges.
+        let n = 40_000;
+        let ring: Vec<(f32, f32)> = (0..n)
+            .map(|i| {
+                let t = std::f32::consts::TAU * i as f32 / n as f32;
+                (60.0 * t.cos(), 60.0 * t.sin())
+            })
+            .collect();
+        let (positions, indices) = prism(&ring, 0.0, 10.0, 0);
+        let start = std::time::Instant::now();
+        let parts = cull_parts(&positions, &indices);
+        assert!(start.elapsed().as_secs_f64() < 2.0, "{:?}", start.elapsed());
+        assert!(positions.iter().all(|p| part_contains(&parts[0], *p)));
     }
 
     #[test]

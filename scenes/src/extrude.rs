@@ -162,9 +162,10 @@ fn closed(ring: &[Coord<f64>]) -> LineString<f64> {
     LineString::new(coords)
 }
 
-/// Counter-clockwise roof triangles as (ring, vertex) pairs. Ring edges are constraints; a
-/// constraint that would cross another (self-touching input) is left out, and the centroid test
-/// still decides which triangles are inside.
+/// Counter-clockwise roof triangles as (ring, vertex) pairs. Ring edges are constraints, and a
+/// triangle is inside when a walk from the outer face to it crosses them an odd number of times
+/// (one pass over the faces). A constraint that would cross another (self-touching input) is
+/// left out, and then a centroid test decides instead (linear in the ring per triangle).
 fn triangulate_rings(
     polygon: &Polygon<f64>,
     rings: &[Vec<Coord<f64>>],
@@ -192,21 +193,30 @@ fn triangulate_rings(
         }
         handles.push(ring_handles);
     }
+    let mut all_constrained = true;
     for ring_handles in &handles {
         let n = ring_handles.len();
         for i in 0..n {
             if let (Some(a), Some(b)) = (ring_handles[i], ring_handles[(i + 1) % n])
                 && a != b
+                && cdt.try_add_constraint(a, b).is_empty()
             {
-                cdt.try_add_constraint(a, b);
+                all_constrained = false;
             }
         }
     }
+    let inside = all_constrained.then(|| inside_by_parity(&cdt));
     let mut triangles = Vec::new();
     for face in cdt.inner_faces() {
         let [p, q, s] = face.positions();
-        let centroid = geo::Point::new((p.x + q.x + s.x) / 3.0, (p.y + q.y + s.y) / 3.0);
-        if !polygon.contains(&centroid) {
+        let is_inside = match &inside {
+            Some(inside) => inside[face.fix().index()],
+            None => polygon.contains(&geo::Point::new(
+                (p.x + q.x + s.x) / 3.0,
+                (p.y + q.y + s.y) / 3.0,
+            )),
+        };
+        if !is_inside {
             continue;
         }
         let vs = face.vertices();
@@ -222,6 +232,39 @@ fn triangulate_rings(
         }
     }
     triangles
+}
+
+/// For each face index of `cdt`, whether it lies inside its constraint rings: a breadth-first
+/// walk from the outer face, flipping at each constraint edge crossed.
+fn inside_by_parity(cdt: &ConstrainedDelaunayTriangulation<Point2<f64>>) -> Vec<bool> {
+    let faces = cdt.num_all_faces();
+    let mut inside = vec![false; faces];
+    let mut seen = vec![false; faces];
+    let outer = cdt.outer_face();
+    seen[outer.fix().index()] = true;
+    let mut queue = std::collections::VecDeque::from([outer.fix()]);
+    while let Some(f) = queue.pop_front() {
+        let face = cdt.face(f);
+        let here = inside[f.index()];
+        let edges: Vec<_> = match face.as_inner() {
+            Some(inner) => inner.adjacent_edges().to_vec(),
+            // The hull edges, turned to have the outer face on their side.
+            None => cdt
+                .convex_hull()
+                .map(|e| if e.face().is_outer() { e } else { e.rev() })
+                .collect(),
+        };
+        for e in edges {
+            let next = e.rev().face();
+            let g = next.fix().index();
+            if !seen[g] {
+                seen[g] = true;
+                inside[g] = here ^ cdt.is_constraint_edge(e.as_undirected().fix());
+                queue.push_back(next.fix());
+            }
+        }
+    }
+    inside
 }
 
 #[cfg(test)]

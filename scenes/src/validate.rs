@@ -3,15 +3,20 @@
 //! Every ring is checked on entry: finite coordinates within range, at least three distinct
 //! points, non-zero area. A ring that crosses itself is repaired by re-noding it through `geo`'s
 //! boolean operations (non-zero fill: a bow-tie becomes two triangles); the repair is accepted
-//! only if it keeps most of the ring's area, otherwise the building is rejected. The result is
-//! a valid `geo` multipolygon (OGC rules, checked with `geo::Validation`).
+//! only if it keeps most of the ring's area and the ring crosses itself at few points (a star
+//! crossing itself everywhere would be re-noded into thousands of slivers), otherwise the
+//! building is rejected. The result is a valid `geo` multipolygon (OGC rules), checked by
+//! [`check_multipolygon`] in O(n log n) ([`crossings`]).
+
+pub mod crossings;
 
 use geo::{
-    Area, BooleanOps, Coord, LineString, MultiPolygon, Polygon, RemoveRepeatedPoints, Validation,
-    Winding,
+    Area, BooleanOps, BoundingRect, Contains, Coord, LineString, MultiPolygon, Polygon,
+    RemoveRepeatedPoints, Validation, Winding,
 };
 
 use crate::report::RejectReason;
+use crossings::{contacts, pair_budget};
 
 /// Local coordinates beyond this many metres from the origin are rejected: a city spans tens of
 /// kilometres, and f32 meshes lose centimetres beyond a few hundred.
@@ -25,6 +30,14 @@ pub const MIN_BASE_M: f32 = -500.0;
 /// A self-intersecting ring is repaired only if the repair keeps this share of its area
 /// (shoelace area of the original ring vs. area of the re-noded polygon).
 const MIN_REPAIR_AREA_RATIO: f64 = 0.5;
+/// A footprint whose rings cross (properly, inside both edges) at more points than this is
+/// rejected, not re-noded: a digitising slip crosses once or twice, and re-noding costs time
+/// and pieces per crossing. Rings that only touch (parts sharing walls) are always re-noded.
+pub const MAX_REPAIR_CROSSINGS: usize = 64;
+/// Footprints whose rings touch (at a vertex, as OGC allows a hole to touch its outer ring) are
+/// judged by `geo`'s validation, which tests every pair of edges; above this many vertices such
+/// a footprint is reported invalid instead (and re-noded by the loaders).
+pub const MAX_TOUCHING_VERTICES: usize = 4_096;
 
 /// A cleaned footprint and the repairs made to it (empty when none was needed).
 #[derive(Debug, Clone, PartialEq)]
@@ -61,7 +74,27 @@ pub fn clean_footprint(polygons: &[Vec<Vec<Coord<f64>>>]) -> Result<CleanFootpri
         out.push(polygon);
     }
     let mut footprint = MultiPolygon::new(out);
-    if !footprint.is_valid() {
+    if check_multipolygon(&footprint).is_err() {
+        let rings: Vec<&[Coord<f64>]> = rings_of(&footprint).collect();
+        let edges: usize = rings.iter().map(|r| r.len() - 1).sum();
+        let met = contacts(
+            &rings,
+            usize::MAX,
+            MAX_REPAIR_CROSSINGS + 1,
+            pair_budget(edges),
+        )
+        .map_err(|e| {
+            RejectReason::InvalidGeometry(format!(
+                "footprint too complex to check: {} edges overlap in more than {} pairs",
+                e.edges, e.pairs_tested
+            ))
+        })?;
+        if met.iter().filter(|c| c.proper).count() > MAX_REPAIR_CROSSINGS {
+            return Err(RejectReason::InvalidGeometry(format!(
+                "footprint crosses itself at more than {MAX_REPAIR_CROSSINGS} points \
+                 ({edges} edges): not repaired"
+            )));
+        }
         let before: f64 = footprint.0.iter().map(signed_ring_area_abs).sum();
         let repaired = renode(&footprint);
         let after = repaired.unsigned_area();
@@ -71,7 +104,7 @@ pub fn clean_footprint(polygons: &[Vec<Vec<Coord<f64>>>]) -> Result<CleanFootpri
         if after < before * MIN_REPAIR_AREA_RATIO {
             return Err(RejectReason::SelfIntersection);
         }
-        if !repaired.is_valid() {
+        if check_multipolygon(&repaired).is_err() {
             return Err(RejectReason::SelfIntersection);
         }
         repairs.push(format!(
@@ -110,7 +143,9 @@ fn clean_ring(ring: &[Coord<f64>]) -> Result<LineString<f64>, RejectReason> {
     let polygon = Polygon::new(line, vec![]);
     // A crossing ring (a bow-tie) can have zero signed area and still enclose some: it is left
     // to the repair in `clean_footprint`.
-    if polygon.unsigned_area() < MIN_AREA_M2 && polygon.is_valid() {
+    if polygon.unsigned_area() < MIN_AREA_M2
+        && check_valid(&MultiPolygon::new(vec![polygon.clone()])).is_ok()
+    {
         return Err(RejectReason::ZeroArea);
     }
     let (line, _) = polygon.into_inner();
@@ -164,11 +199,102 @@ pub fn check_multipolygon(mp: &MultiPolygon<f64>) -> Result<(), String> {
     if mp.0.is_empty() {
         return Err("is empty".into());
     }
-    if let Err(e) = mp.check_validation() {
-        return Err(format!("is invalid: {e}"));
-    }
+    check_valid(mp).map_err(|e| format!("is invalid: {e}"))?;
     if mp.unsigned_area() < MIN_AREA_M2 {
         return Err("has zero area".into());
+    }
+    Ok(())
+}
+
+/// The closed rings of a multipolygon, outer ring of each polygon first.
+fn rings_of(mp: &MultiPolygon<f64>) -> impl Iterator<Item = &[Coord<f64>]> {
+    mp.0.iter().flat_map(|p| {
+        std::iter::once(p.exterior())
+            .chain(p.interiors())
+            .map(|r| r.0.as_slice())
+    })
+}
+
+/// OGC validity in O(n log n) when no two rings meet: rings closed, finite, of three distinct
+/// points, meeting nowhere ([`crossings`]); each hole inside its outer ring and outside the
+/// others; no polygon's outer ring inside another polygon. Rings that do touch are judged by
+/// `geo::Validation` up to [`MAX_TOUCHING_VERTICES`].
+fn check_valid(mp: &MultiPolygon<f64>) -> Result<(), String> {
+    let rings: Vec<&[Coord<f64>]> = rings_of(mp).collect();
+    let edges: usize = rings.iter().map(|r| r.len()).sum();
+    for ring in &rings {
+        if ring.len() < 4 || ring.first() != ring.last() {
+            return Err("a ring is not closed or has fewer than 3 points".into());
+        }
+        if ring.iter().any(|c| !(c.x.is_finite() && c.y.is_finite())) {
+            return Err("a coordinate is not finite".into());
+        }
+    }
+    let met = contacts(&rings, 1, 1, pair_budget(edges)).map_err(|e| {
+        format!(
+            "too complex to check: {} edges overlap in more than {} pairs",
+            e.edges, e.pairs_tested
+        )
+    })?;
+    if let Some(contact) = met.first() {
+        if edges <= MAX_TOUCHING_VERTICES {
+            return mp.check_validation().map_err(|e| e.to_string());
+        }
+        let (a, b) = contact.rings;
+        return Err(if a == b {
+            format!("ring {a} meets itself")
+        } else {
+            format!("rings {a} and {b} meet")
+        });
+    }
+    // No ring meets another: each lies wholly inside or outside each other ring, which its
+    // first vertex tells (after a test of bounding boxes, so that P parts cost P² box tests).
+    let boxes: Vec<Vec<geo::Rect<f64>>> =
+        mp.0.iter()
+            .map(|p| {
+                std::iter::once(p.exterior())
+                    .chain(p.interiors())
+                    .filter_map(|r| r.bounding_rect())
+                    .collect()
+            })
+            .collect();
+    let inside = |ring: &LineString<f64>, rect: &geo::Rect<f64>, c: Coord<f64>| {
+        rect.contains(&c) && Polygon::new(ring.clone(), vec![]).contains(&c)
+    };
+    for (i, polygon) in mp.0.iter().enumerate() {
+        let (holes, rects) = (polygon.interiors(), &boxes[i]);
+        for (h, hole) in holes.iter().enumerate() {
+            if !inside(polygon.exterior(), &rects[0], hole.0[0]) {
+                return Err(format!(
+                    "hole {h} of polygon {i} lies outside its outer ring"
+                ));
+            }
+            if let Some(g) = (0..h).find(|&g| {
+                inside(&holes[g], &rects[g + 1], hole.0[0])
+                    || inside(hole, &rects[h + 1], holes[g].0[0])
+            }) {
+                return Err(format!("holes {g} and {h} of polygon {i} are nested"));
+            }
+        }
+    }
+    let in_polygon = |k: usize, c: Coord<f64>| {
+        let p = &mp.0[k];
+        inside(p.exterior(), &boxes[k][0], c)
+            && !p
+                .interiors()
+                .iter()
+                .zip(&boxes[k][1..])
+                .any(|(h, r)| inside(h, r, c))
+    };
+    for i in 0..mp.0.len() {
+        for j in 0..i {
+            if !geo::Intersects::intersects(&boxes[i][0], &boxes[j][0]) {
+                continue;
+            }
+            if in_polygon(i, mp.0[j].exterior().0[0]) || in_polygon(j, mp.0[i].exterior().0[0]) {
+                return Err(format!("polygons {j} and {i} overlap"));
+            }
+        }
     }
     Ok(())
 }

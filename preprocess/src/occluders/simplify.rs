@@ -14,14 +14,18 @@
 //!   constraint that keeps the occlusion potential).
 //!
 //! A step is taken only if the removed triangle holds no other vertex of the polygon and the
-//! new edges cross no other edge (orientation tests with `robust::orient2d`), so rings stay
-//! simple and do not touch each other. Finally each simplified polygon is checked with `geo`:
-//! valid (`Validation`), covered by the original (`Covers`), no larger; if any check fails the
-//! polygon falls back to the unsimplified one. Polygons below the minimum area are dropped
+//! new edges cross no other edge (orientation tests with `robust::orient2d`, over R-trees of
+//! the vertices and edges), so rings stay simple and do not touch each other. Finally each
+//! simplified polygon is checked: valid (`check_multipolygon`), covered by the original
+//! (`geo::Covers`), no larger; if any check fails the polygon falls back to the unsimplified
+//! one. Polygons below the minimum area are dropped
 //! (dropping area is conservative).
 
-use geo::{Area, Coord, Covers, LineString, MultiPolygon, Orient, Polygon, Validation, orient};
+use citywalk_scenes::validate::check_multipolygon;
+use geo::{Area, Coord, Covers, LineString, MultiPolygon, Orient, Polygon, orient};
 use robust::{Coord as RCoord, orient2d};
+use rstar::primitives::{GeomWithData, Line as RLine};
+use rstar::{AABB, RTree};
 
 use super::OccluderParams;
 
@@ -49,26 +53,28 @@ pub fn simplify_footprint(
 /// contained and no larger.
 pub fn simplify_polygon(polygon: &Polygon<f64>, params: &OccluderParams) -> Polygon<f64> {
     let oriented = polygon.orient(orient::Direction::Default);
-    let mut rings: Vec<Vec<Coord<f64>>> = std::iter::once(oriented.exterior())
+    let open: Vec<Vec<Coord<f64>>> = std::iter::once(oriented.exterior())
         .chain(oriented.interiors())
         .map(open_ring)
         .collect();
-    if rings.iter().any(|r| r.len() < 3) {
+    if open.iter().any(|r| r.len() < 3) {
         return polygon.clone();
     }
+    let mut rings = Rings::new(&open);
     let max_turn = params.max_turn_angle_deg.to_radians();
     // Each pass scans every vertex once; stop when a pass changes nothing.
     for _ in 0..64 {
         let mut changed = false;
-        for r in 0..rings.len() {
-            let mut i = 0;
-            while i < rings[r].len() && rings[r].len() > 3 {
-                if try_remove_vertex(&mut rings, r, i, max_turn)
-                    || try_remove_edge(&mut rings, r, i, params.max_edge_shift_m)
-                {
+        for r in 0..rings.len.len() {
+            let (mut v, mut advanced) = (rings.head[r], 0);
+            while advanced < rings.len[r] && rings.len[r] > 3 {
+                let after = rings.next[v];
+                if try_remove_vertex(&mut rings, v, max_turn) {
+                    (v, changed) = (after, true);
+                } else if try_remove_edge(&mut rings, v, params.max_edge_shift_m) {
                     changed = true;
                 } else {
-                    i += 1;
+                    (v, advanced) = (after, advanced + 1);
                 }
             }
         }
@@ -76,12 +82,12 @@ pub fn simplify_polygon(polygon: &Polygon<f64>, params: &OccluderParams) -> Poly
             break;
         }
     }
-    let mut rings = rings.into_iter().map(close_ring);
+    let mut rings = rings.into_rings().into_iter().map(close_ring);
     let Some(exterior) = rings.next() else {
         return polygon.clone();
     };
     let simplified = Polygon::new(exterior, rings.collect());
-    let ok = simplified.is_valid()
+    let ok = check_multipolygon(&MultiPolygon::new(vec![simplified.clone()])).is_ok()
         && simplified.unsigned_area() <= polygon.unsigned_area()
         && polygon.covers(&simplified);
     if ok { simplified } else { polygon.clone() }
@@ -113,42 +119,188 @@ fn orient(a: Coord<f64>, b: Coord<f64>, c: Coord<f64>) -> f64 {
     orient2d(rc(a), rc(b), rc(c))
 }
 
-/// Redundant vertex removal at vertex `i` of ring `r`.
-fn try_remove_vertex(rings: &mut [Vec<Coord<f64>>], r: usize, i: usize, max_turn_rad: f64) -> bool {
-    let ring = &rings[r];
-    let n = ring.len();
-    let (p, v, q) = (ring[(i + n - 1) % n], ring[i], ring[(i + 1) % n]);
-    let o = orient(p, v, q);
+type VertexItem = GeomWithData<[f64; 2], usize>;
+type EdgeItem = GeomWithData<RLine<[f64; 2]>, usize>;
+
+/// The rings as linked lists of vertex nodes, with R-trees of the vertices and of the edges
+/// (keyed by their first node), so that the emptiness and crossing tests of a step look at the
+/// neighbourhood of its triangle instead of every vertex: a pass costs O(n log n), not O(n²).
+struct Rings {
+    pos: Vec<Coord<f64>>,
+    next: Vec<usize>,
+    prev: Vec<usize>,
+    head: Vec<usize>,
+    len: Vec<usize>,
+    ring_of: Vec<usize>,
+    vertices: RTree<VertexItem>,
+    edges: RTree<EdgeItem>,
+}
+
+impl Rings {
+    fn new(rings: &[Vec<Coord<f64>>]) -> Self {
+        let (mut pos, mut next, mut prev, mut ring_of) = (vec![], vec![], vec![], vec![]);
+        let (mut head, mut len) = (vec![], vec![]);
+        for (r, ring) in rings.iter().enumerate() {
+            let (base, n) = (pos.len(), ring.len());
+            head.push(base);
+            len.push(n);
+            for (i, &c) in ring.iter().enumerate() {
+                pos.push(c);
+                next.push(base + (i + 1) % n);
+                prev.push(base + (i + n - 1) % n);
+                ring_of.push(r);
+            }
+        }
+        let vertices = RTree::bulk_load(
+            (0..pos.len())
+                .map(|v| VertexItem::new(pos[v].x_y().into(), v))
+                .collect(),
+        );
+        let mut rings = Self {
+            pos,
+            next,
+            prev,
+            head,
+            len,
+            ring_of,
+            vertices,
+            edges: RTree::new(),
+        };
+        rings.edges = RTree::bulk_load((0..rings.pos.len()).map(|v| rings.edge_item(v)).collect());
+        rings
+    }
+
+    fn edge_item(&self, v: usize) -> EdgeItem {
+        let (a, b) = (self.pos[v], self.pos[self.next[v]]);
+        EdgeItem::new(RLine::new(a.x_y().into(), b.x_y().into()), v)
+    }
+
+    fn vertex_item(&self, v: usize) -> VertexItem {
+        VertexItem::new(self.pos[v].x_y().into(), v)
+    }
+
+    /// Unlinks node `v`: its neighbours are joined by one edge.
+    fn remove(&mut self, v: usize) {
+        let (p, q) = (self.prev[v], self.next[v]);
+        self.vertices.remove(&self.vertex_item(v));
+        self.edges.remove(&self.edge_item(p));
+        self.edges.remove(&self.edge_item(v));
+        (self.next[p], self.prev[q]) = (q, p);
+        self.edges.insert(self.edge_item(p));
+        let r = self.ring_of[v];
+        self.len[r] -= 1;
+        if self.head[r] == v {
+            self.head[r] = q;
+        }
+    }
+
+    /// Moves node `a` to `to` and unlinks its successor `b`.
+    fn replace_edge(&mut self, a: usize, to: Coord<f64>) {
+        let (p, b) = (self.prev[a], self.next[a]);
+        let q = self.next[b];
+        self.vertices.remove(&self.vertex_item(a));
+        self.vertices.remove(&self.vertex_item(b));
+        for e in [p, a, b] {
+            self.edges.remove(&self.edge_item(e));
+        }
+        self.pos[a] = to;
+        (self.next[a], self.prev[q]) = (q, a);
+        self.vertices.insert(self.vertex_item(a));
+        self.edges.insert(self.edge_item(p));
+        self.edges.insert(self.edge_item(a));
+        let r = self.ring_of[b];
+        self.len[r] -= 1;
+        if self.head[r] == b {
+            self.head[r] = a;
+        }
+    }
+
+    fn into_rings(self) -> Vec<Vec<Coord<f64>>> {
+        (0..self.head.len())
+            .map(|r| {
+                let mut v = self.head[r];
+                (0..self.len[r])
+                    .map(|_| {
+                        let c = self.pos[v];
+                        v = self.next[v];
+                        c
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+
+    /// Whether no vertex (other than the nodes listed) lies in or on the closed triangle.
+    fn triangle_is_empty(&self, t: [Coord<f64>; 3], except: &[usize]) -> bool {
+        let [a, b, c] = t;
+        let ccw = orient(a, b, c) > 0.0;
+        let envelope = AABB::from_points(&[a, b, c].map(|p| <[f64; 2]>::from(p.x_y())));
+        !self.vertices.locate_in_envelope(envelope).any(|item| {
+            if except.contains(&item.data) {
+                return false;
+            }
+            let w = self.pos[item.data];
+            let (o1, o2, o3) = (orient(a, b, w), orient(b, c, w), orient(c, a, w));
+            if ccw {
+                o1 >= 0.0 && o2 >= 0.0 && o3 >= 0.0
+            } else {
+                o1 <= 0.0 && o2 <= 0.0 && o3 <= 0.0
+            }
+        })
+    }
+
+    /// Whether segment p–q touches any ring edge, except the edges starting at the listed
+    /// nodes (the ones it replaces or shares an endpoint with) and their neighbours at the
+    /// shared endpoints.
+    fn crosses_any(&self, p: Coord<f64>, q: Coord<f64>, except: &[usize]) -> bool {
+        let envelope = AABB::from_corners(p.x_y().into(), q.x_y().into());
+        self.edges
+            .locate_in_envelope_intersecting(envelope)
+            .any(|item| {
+                if except.contains(&item.data) {
+                    return false;
+                }
+                let (a, b) = (self.pos[item.data], self.pos[self.next[item.data]]);
+                // Edges sharing an endpoint with p–q meet it there by construction; they only
+                // matter if they overlap it, which the orientation tests catch as collinear.
+                let shares = a == p || a == q || b == p || b == q;
+                segments_touch(p, q, a, b, shares)
+            })
+    }
+}
+
+/// Redundant vertex removal at node `v`.
+fn try_remove_vertex(rings: &mut Rings, v: usize, max_turn_rad: f64) -> bool {
+    let (ip, iq) = (rings.prev[v], rings.next[v]);
+    let (p, c, q) = (rings.pos[ip], rings.pos[v], rings.pos[iq]);
+    let o = orient(p, c, q);
     if o < 0.0 {
         return false; // reflex: removing it would add area
     }
     if o > 0.0 {
-        let (d1, d2) = (v - p, q - v);
+        let (d1, d2) = (c - p, q - c);
         let turn = (d1.x * d2.y - d1.y * d2.x).atan2(d1.x * d2.x + d1.y * d2.y);
         if turn.is_nan() || turn.abs() >= max_turn_rad {
             return false;
         }
         // The cut-off triangle must hold no other vertex and the new edge cross nothing.
-        let (ip, iq) = ((i + n - 1) % n, (i + 1) % n);
-        if !triangle_is_empty(rings, [p, v, q], &[(r, ip), (r, i), (r, iq)])
-            || crosses_any(rings, p, q, &[(r, ip), (r, i)])
-        {
+        if !rings.triangle_is_empty([p, c, q], &[ip, v, iq]) || rings.crosses_any(p, q, &[ip, v]) {
             return false;
         }
     }
-    rings[r].remove(i);
+    rings.remove(v);
     true
 }
 
-/// Redundant edge removal of edge (i, i+1) of ring `r`.
-fn try_remove_edge(rings: &mut [Vec<Coord<f64>>], r: usize, i: usize, max_shift_m: f64) -> bool {
-    let ring = &rings[r];
-    let n = ring.len();
-    if n < 4 {
+/// Redundant edge removal of the edge from node `ia` to its successor.
+fn try_remove_edge(rings: &mut Rings, ia: usize, max_shift_m: f64) -> bool {
+    let r = rings.ring_of[ia];
+    if rings.len[r] < 4 {
         return false;
     }
-    let (ip, ia, ib, iq) = ((i + n - 1) % n, i, (i + 1) % n, (i + 2) % n);
-    let (p, a, b, q) = (ring[ip], ring[ia], ring[ib], ring[iq]);
+    let (ip, ib) = (rings.prev[ia], rings.next[ia]);
+    let iq = rings.next[ib];
+    let [p, a, b, q] = [ip, ia, ib, iq].map(|v| rings.pos[v]);
     // Meeting point of the lines p→a and q→b: a + t (a − p) = b + s (b − q).
     let (d1, d2) = (a - p, b - q);
     let den = d1.x * d2.y - d1.y * d2.x;
@@ -176,71 +328,14 @@ fn try_remove_edge(rings: &mut [Vec<Coord<f64>>], r: usize, i: usize, max_shift_
     if orient(a, b, v) <= 0.0 {
         return false;
     }
-    let skip = [(r, ip), (r, ia), (r, ib)];
-    if !triangle_is_empty(rings, [a, v, b], &[(r, ia), (r, ib)])
-        || crosses_any(rings, p, v, &skip)
-        || crosses_any(rings, v, q, &[(r, ia), (r, ib), (r, iq)])
+    if !rings.triangle_is_empty([a, v, b], &[ia, ib])
+        || rings.crosses_any(p, v, &[ip, ia, ib])
+        || rings.crosses_any(v, q, &[ia, ib, iq])
     {
         return false;
     }
-    let ring = &mut rings[r];
-    ring[ia] = v;
-    ring.remove(ib);
+    rings.replace_edge(ia, v);
     true
-}
-
-/// Whether no vertex of any ring (other than those listed) lies in or on the closed triangle.
-fn triangle_is_empty(
-    rings: &[Vec<Coord<f64>>],
-    t: [Coord<f64>; 3],
-    except: &[(usize, usize)],
-) -> bool {
-    let [a, b, c] = t;
-    let ccw = orient(a, b, c) > 0.0;
-    for (r, ring) in rings.iter().enumerate() {
-        for (i, &w) in ring.iter().enumerate() {
-            if except.contains(&(r, i)) {
-                continue;
-            }
-            let (o1, o2, o3) = (orient(a, b, w), orient(b, c, w), orient(c, a, w));
-            let inside = if ccw {
-                o1 >= 0.0 && o2 >= 0.0 && o3 >= 0.0
-            } else {
-                o1 <= 0.0 && o2 <= 0.0 && o3 <= 0.0
-            };
-            if inside {
-                return false;
-            }
-        }
-    }
-    true
-}
-
-/// Whether segment p–q touches any ring edge, except the edges starting at the listed
-/// vertices (the ones it replaces or shares an endpoint with) and their neighbours at the
-/// shared endpoints.
-fn crosses_any(
-    rings: &[Vec<Coord<f64>>],
-    p: Coord<f64>,
-    q: Coord<f64>,
-    except: &[(usize, usize)],
-) -> bool {
-    for (r, ring) in rings.iter().enumerate() {
-        let n = ring.len();
-        for i in 0..n {
-            if except.contains(&(r, i)) {
-                continue;
-            }
-            let (a, b) = (ring[i], ring[(i + 1) % n]);
-            // Edges sharing an endpoint with p–q meet it there by construction; they only
-            // matter if they overlap it, which the orientation tests below catch as collinear.
-            let shares = a == p || a == q || b == p || b == q;
-            if segments_touch(p, q, a, b, shares) {
-                return true;
-            }
-        }
-    }
-    false
 }
 
 /// Closed-segment intersection test with exact orientations. With `shares_endpoint`, touching

@@ -1,0 +1,130 @@
+//! Issue 14's hostile inputs that reach preprocessing: a 40,000-vertex footprint and a star
+//! that crosses itself everywhere. Each
+//! input is built here; the time bounds are many times what a fixed debug build needs.
+
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use citywalk_preprocess::pipeline::{NoProgress, PreprocessParams, preprocess};
+use citywalk_scenes::package::ScenePackage;
+use citywalk_scenes::{City, LoadOptions, RejectReason, load_cities};
+use serde_json::json;
+
+/// Writes a GeoJSON collection (local metres, EPSG:3857) of `rings` (id, closed ring) with a
+/// height of 20 m each, and loads it.
+fn load_rings(name: &str, rings: &[(&str, Vec<[f64; 2]>)]) -> City {
+    let features: Vec<_> = rings
+        .iter()
+        .map(|(id, ring)| {
+            json!({"type": "Feature", "id": id,
+                   "geometry": {"type": "Polygon", "coordinates": [ring]},
+                   "properties": {"building": "yes", "height": 20}})
+        })
+        .collect();
+    let doc = json!({"type": "FeatureCollection",
+        "crs": {"type": "name", "properties": {"name": "urn:ogc:def:crs:EPSG::3857"}},
+        "features": features});
+    let path = std::env::temp_dir().join(format!(
+        "citywalk-hostile-{}-{name}.geojson",
+        std::process::id()
+    ));
+    std::fs::write(&path, doc.to_string()).unwrap();
+    let city = load_cities(&[PathBuf::from(&path)], &LoadOptions::default());
+    let _ = std::fs::remove_file(&path);
+    city.expect("load")
+}
+
+/// `n` points on a circle of radius `r_m`, visited `step` at a time (1: a circle; about n/2: a
+/// star crossing itself everywhere), closed.
+fn polygram(n: usize, step: usize, r_m: f64) -> Vec<[f64; 2]> {
+    let mut ring: Vec<[f64; 2]> = (0..n)
+        .map(|i| {
+            let t = std::f64::consts::TAU * ((i * step) % n) as f64 / n as f64;
+            [r_m * t.cos(), r_m * t.sin()]
+        })
+        .collect();
+    ring.push(ring[0]);
+    ring
+}
+
+fn square(x: f64, y: f64) -> Vec<[f64; 2]> {
+    vec![
+        [x, y],
+        [x + 10.0, y],
+        [x + 10.0, y + 10.0],
+        [x, y + 10.0],
+        [x, y],
+    ]
+}
+
+fn run(city: City) -> (ScenePackage, Duration) {
+    let start = Instant::now();
+    let pkg = preprocess(city, &PreprocessParams::default(), &NoProgress).expect("preprocess");
+    (pkg, start.elapsed())
+}
+
+#[test]
+fn issue14_case3_a_40000_vertex_footprint_loads_and_preprocesses_in_seconds() {
+    // Was quadratic: 2.5k vertices 0.3 s, 20k 19 s, 40k past 60 s (geo's ring validation, the
+    // occluder simplification, the cull rectangle and the roof's inside test).
+    let start = Instant::now();
+    let city = load_rings("stadium", &[("stadium", polygram(40_000, 1, 120.0))]);
+    assert_eq!(city.buildings.len(), 1, "{:?}", city.report.rejected);
+    let (pkg, preprocess_time) = run(city);
+    let elapsed = start.elapsed();
+    assert!(
+        elapsed < Duration::from_secs(30),
+        "{elapsed:?} ({preprocess_time:?} preprocessing)"
+    );
+    let occ = pkg.occluders.as_ref().expect("occluders");
+    assert_eq!(occ.per_building.len(), 1);
+    assert!(
+        !occ.occluders_of(pkg.buildings[0].id).is_empty(),
+        "{:?}",
+        occ.per_building[0].reason_if_none
+    );
+}
+
+#[test]
+fn issue14_case4_a_star_crossing_itself_everywhere_is_rejected_by_id_and_the_rest_load_fast() {
+    // Was: 301 vertices loaded (re-noded into thousands of slivers) and preprocessing ran past
+    // 60 s; 3,001 vertices hung inside the load at 713 MB.
+    for n in [301, 3_001] {
+        let start = Instant::now();
+        let mut rings: Vec<(&str, Vec<[f64; 2]>)> = vec![("star", polygram(n, n / 2, 40.0))];
+        let ids = ["b0", "b1", "b2", "b3", "b4"];
+        for (i, id) in ids.iter().enumerate() {
+            rings.push((id, square(100.0 + 20.0 * i as f64, 100.0)));
+        }
+        let city = load_rings(&format!("star{n}"), &rings);
+        assert_eq!(city.buildings.len(), 5);
+        let rejected = &city.report.rejected;
+        assert_eq!(rejected.len(), 1);
+        assert_eq!(rejected[0].source_id, "star");
+        assert!(
+            matches!(&rejected[0].reason, RejectReason::InvalidGeometry(r) if r.contains("crosses itself")),
+            "{:?}",
+            rejected[0].reason
+        );
+        let (pkg, _) = run(city);
+        assert_eq!(pkg.buildings.len(), 5);
+        let elapsed = start.elapsed();
+        assert!(
+            elapsed < Duration::from_secs(20),
+            "{n} vertices: {elapsed:?}"
+        );
+    }
+}
+
+#[test]
+fn issue14_case4_a_bow_tie_is_still_repaired() {
+    let bow = vec![
+        [0.0, 0.0],
+        [10.0, 10.0],
+        [10.0, 0.0],
+        [0.0, 10.0],
+        [0.0, 0.0],
+    ];
+    let city = load_rings("bow", &[("bow", bow)]);
+    assert_eq!(city.buildings.len(), 1, "{:?}", city.report.rejected);
+}
