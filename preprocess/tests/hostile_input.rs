@@ -1,12 +1,13 @@
-//! Issue 14's hostile inputs that reach preprocessing: a 40,000-vertex footprint and a star
-//! that crosses itself everywhere. Each
+//! Issue 14's hostile inputs that reach preprocessing: a 40,000-vertex footprint, a star that
+//! crosses itself everywhere, and packages whose sections come from another package. Each
 //! input is built here; the time bounds are many times what a fixed debug build needs.
 
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use citywalk_preprocess::pipeline::{NoProgress, PreprocessParams, preprocess};
-use citywalk_scenes::package::ScenePackage;
+use citywalk_scenes::generate::{GenerateParams, generate_city};
+use citywalk_scenes::package::{PackageError, ScenePackage, WriteOptions};
 use citywalk_scenes::{City, LoadOptions, RejectReason, load_cities};
 use serde_json::json;
 
@@ -127,4 +128,69 @@ fn issue14_case4_a_bow_tie_is_still_repaired() {
     ];
     let city = load_rings("bow", &[("bow", bow)]);
     assert_eq!(city.buildings.len(), 1, "{:?}", city.report.rejected);
+}
+
+fn generated(buildings: usize, seed: u64) -> ScenePackage {
+    let city = generate_city(&GenerateParams {
+        buildings,
+        seed,
+        ..GenerateParams::default()
+    })
+    .expect("generate");
+    run(city).0
+}
+
+/// Re-encodes `pkg` (checksums recomputed) and opens it from bytes and from a file.
+fn reopen(pkg: &ScenePackage, name: &str) -> Vec<PackageError> {
+    let bytes = pkg.to_bytes(WriteOptions::default()).expect("encode");
+    let path =
+        std::env::temp_dir().join(format!("citywalk-mixed-{}-{name}.cwk", std::process::id()));
+    std::fs::write(&path, &bytes).unwrap();
+    let from_file = ScenePackage::read(&path);
+    let _ = std::fs::remove_file(&path);
+    [ScenePackage::from_bytes(&bytes), from_file]
+        .into_iter()
+        .filter_map(Result::err)
+        .collect()
+}
+
+#[test]
+fn issue14_case11_a_section_from_another_package_is_refused_on_open_naming_the_sections() {
+    // Two cities of the same size and layout rules (counts may agree); each section of one
+    // taken into the other must be refused when the package is opened, not only by --check.
+    let (a, b) = (generated(120, 1), generated(120, 2));
+    assert!(
+        reopen(&a, "intact").is_empty(),
+        "{:?}",
+        reopen(&a, "intact")
+    );
+    let mut cases: Vec<(&str, ScenePackage)> = Vec::new();
+    let mut mixed = a.clone();
+    mixed.buildings = b.buildings.clone();
+    cases.push(("buildings", mixed));
+    let mut mixed = a.clone();
+    mixed.blocks = b.blocks.clone();
+    cases.push(("blocks", mixed));
+    let mut mixed = a.clone();
+    mixed.quadtree = b.quadtree.clone();
+    cases.push(("quadtree", mixed));
+    let mut mixed = a.clone();
+    mixed.occluders = b.occluders.clone();
+    cases.push(("occluders", mixed));
+    let mut mixed = a.clone();
+    mixed.cluster_tree = b.cluster_tree.clone();
+    cases.push(("cluster tree", mixed));
+    for (section, pkg) in &cases {
+        let errors = reopen(pkg, &section.replace(' ', "-"));
+        assert_eq!(errors.len(), 2, "{section}: opened");
+        for e in &errors {
+            let text = e.to_string();
+            assert!(
+                matches!(e, PackageError::Inconsistent { sections, .. } if sections.contains(section))
+                    || matches!(e, PackageError::Decode { section: s, .. } if s.contains("gpu")),
+                "{section}: {text}"
+            );
+            eprintln!("{section}: {text}");
+        }
+    }
 }

@@ -43,6 +43,10 @@ pub enum PackageError {
     /// A section passed its checksum but could not be decoded (written by a faulty writer).
     #[error("section {section}: cannot decode: {reason}")]
     Decode { section: String, reason: String },
+    /// Sections that each decode but do not belong together (one taken from another package):
+    /// their counts or ranges disagree. `sections` names them.
+    #[error("inconsistent package: {sections}: {reason}")]
+    Inconsistent { sections: String, reason: String },
     /// The package could not be encoded.
     #[error("cannot encode section {section}: {reason}")]
     Encode { section: String, reason: String },

@@ -485,17 +485,18 @@ fn decode_with(
         timings: decode_one::<Vec<StageTiming>>(bytes, entries, K::Timings)?.unwrap_or_default(),
         gpu_scene,
     };
-    let (buildings, nodes) = (
-        pkg.buildings.len(),
-        pkg.cluster_tree.as_ref().map_or(0, |t| t.nodes.len()),
-    );
-    let view = pkg.gpu_scene.view();
-    if view.building_count as usize != buildings || view.cluster_count() != nodes {
-        return Err(gpu_scene_error(format!(
-            "{} buildings and {} clusters, the package has {buildings} and {nodes}",
-            view.building_count,
-            view.cluster_count()
-        )));
+    if let Err(errors) = pkg.check_sections() {
+        let mut sections: Vec<&str> = errors.iter().flat_map(|(s, _)| s.split(", ")).collect();
+        sections.sort_unstable();
+        sections.dedup();
+        return Err(PackageError::Inconsistent {
+            sections: sections.join(", "),
+            reason: errors
+                .iter()
+                .map(|(s, r)| format!("{s}: {r}"))
+                .collect::<Vec<_>>()
+                .join("; "),
+        });
     }
     Ok(pkg)
 }

@@ -20,6 +20,7 @@ use crate::frame::Frame;
 use crate::occluder::OccluderSet;
 use crate::quadtree::BQuadtree;
 use crate::report::LoadReport;
+use geo::BoundingRect;
 
 mod error;
 pub mod format;
@@ -152,68 +153,75 @@ impl ScenePackage {
         PackageFile::open(path)?.decode()
     }
 
-    /// Runs every structure's invariant checker: city, blocks, quadtree, occluders and tree,
-    /// and the agreement of their sizes. Returns every violation found, one per structure.
-    pub fn check_invariants(&self) -> Result<(), Vec<String>> {
+    /// The cheap checks that the sections belong together, run whenever a package is opened:
+    /// counts and ranges agree across buildings, blocks, quadtree, occluders, cluster tree and
+    /// GPU scene, and the boxes the GPU scene draws lie in their buildings' boxes. Linear in the
+    /// package (the O(n log n) cluster-tree ranges aside); each finding names its sections.
+    pub fn check_sections(&self) -> Result<(), Vec<(&'static str, String)>> {
         let mut errors = Vec::new();
         let n = self.buildings.len();
-        if let Err(e) = self.city().check_invariants() {
-            errors.push(format!("city: {e}"));
-        }
-        if let Err(e) = self.blocks.check_invariants(n) {
-            errors.push(format!("blocks: {e}"));
-        }
-        if let Err(e) = self.quadtree.check_invariants() {
-            errors.push(format!("quadtree: {e}"));
-        }
-        if self.quadtree.block_bounds.len() != self.blocks.blocks.len() {
-            errors.push(format!(
-                "quadtree: {} blocks, the package has {}",
-                self.quadtree.block_bounds.len(),
-                self.blocks.blocks.len()
+        let nodes = self.cluster_tree.as_ref().map_or(0, |t| t.nodes.len());
+        let view = self.gpu_scene.view();
+        if view.building_count as usize != n || view.cluster_count() != nodes {
+            errors.push((
+                "gpu scene, buildings, cluster tree",
+                format!(
+                    "{} buildings and {} clusters, the package has {n} and {nodes}",
+                    view.building_count,
+                    view.cluster_count()
+                ),
+            ));
+        } else if let Some((i, b)) = self
+            .buildings
+            .iter()
+            .enumerate()
+            .find(|(i, b)| !record_in_box(&view.records[*i], b.bounds()))
+        {
+            errors.push((
+                "gpu scene, buildings",
+                format!("building {i} ({}) is drawn outside its box", b.source_id),
             ));
         }
-        for (k, (block, bb)) in self
-            .blocks
-            .blocks
+        if let Some((i, b)) = self
+            .buildings
             .iter()
-            .zip(&self.quadtree.block_bounds)
             .enumerate()
+            .find(|(i, b)| b.id.index() != *i)
         {
-            if block.bounds_min != bb.min || block.bounds_max != bb.max {
-                errors.push(format!(
-                    "quadtree: box of block {k} differs from the block's"
-                ));
-                break;
-            }
+            errors.push(("buildings", format!("building {i} has id {}", b.id.0)));
         }
-        if let Some(occ) = &self.occluders {
-            if let Err(e) = occ.check_invariants() {
-                errors.push(format!("occluders: {e}"));
-            }
-            if occ.per_building.len() != n {
-                errors.push(format!(
-                    "occluders: {} outcomes for {n} buildings",
-                    occ.per_building.len()
-                ));
-            }
+        if let Err(e) = self.blocks.check_invariants(n) {
+            errors.push(("blocks, buildings", e));
         }
-        let nodes = self.cluster_tree.as_ref().map_or(0, |t| t.nodes.len());
-        if let Err(e) = self.gpu_scene.view().check_invariants(n, nodes) {
-            errors.push(format!("gpu scene: {e}"));
-        } else if GpuScene::build(&self.city(), self.cluster_tree.as_ref()) != self.gpu_scene {
-            errors.push("gpu scene: differs from the one built from the buildings and tree".into());
+        if let Err(e) = self.quadtree.check_invariants() {
+            errors.push(("quadtree", e));
         }
-        if let Some(tree) = &self.cluster_tree {
-            if let Err(e) = tree.check_invariants(&self.city()) {
-                errors.push(format!("cluster tree: {e}"));
-            }
-            if tree.building_order.len() != n {
-                errors.push(format!(
-                    "cluster tree: {} buildings, the package has {n}",
-                    tree.building_order.len()
-                ));
-            }
+        if self.quadtree.block_bounds.len() != self.blocks.blocks.len() {
+            errors.push((
+                "quadtree, blocks",
+                format!(
+                    "{} blocks in the quadtree, {} in the blocks",
+                    self.quadtree.block_bounds.len(),
+                    self.blocks.blocks.len()
+                ),
+            ));
+        } else if let Some(k) = (self.blocks.blocks.iter().zip(&self.quadtree.block_bounds))
+            .position(|(block, bb)| block.bounds_min != bb.min || block.bounds_max != bb.max)
+        {
+            errors.push((
+                "quadtree, blocks",
+                format!("the box of block {k} differs from the block's"),
+            ));
+        }
+        if let Some(occ) = &self.occluders
+            && let Err(e) = occluder_ranges(occ, &self.buildings)
+        {
+            errors.push(("occluders, buildings", e));
+        }
+        if let Some(tree) = &self.cluster_tree
+            && let Err(e) = tree_ranges(tree, &self.buildings)
+        {
+            errors.push(("cluster tree, buildings", e));
         }
         if errors.is_empty() {
             Ok(())
@@ -221,6 +229,166 @@ impl ScenePackage {
             Err(errors)
         }
     }
+
+    /// Runs every structure's invariant checker: city, blocks, quadtree, occluders and tree,
+    /// and the agreement of the sections ([`Self::check_sections`]). Returns every violation
+    /// found, one per structure.
+    pub fn check_invariants(&self) -> Result<(), Vec<String>> {
+        let mut errors: Vec<String> = match self.check_sections() {
+            Ok(()) => Vec::new(),
+            Err(e) => e.into_iter().map(|(s, r)| format!("{s}: {r}")).collect(),
+        };
+        let n = self.buildings.len();
+        if let Err(e) = self.city().check_invariants() {
+            errors.push(format!("city: {e}"));
+        }
+        if let Some(occ) = &self.occluders
+            && let Err(e) = occ.check_invariants()
+        {
+            errors.push(format!("occluders: {e}"));
+        }
+        let nodes = self.cluster_tree.as_ref().map_or(0, |t| t.nodes.len());
+        if let Err(e) = self.gpu_scene.view().check_invariants(n, nodes) {
+            errors.push(format!("gpu scene: {e}"));
+        } else if GpuScene::build(&self.city(), self.cluster_tree.as_ref()) != self.gpu_scene {
+            errors.push("gpu scene: differs from the one built from the buildings and tree".into());
+        }
+        if let Some(tree) = &self.cluster_tree
+            && let Err(e) = tree.check_invariants(&self.city())
+        {
+            errors.push(format!("cluster tree: {e}"));
+        }
+        if errors.is_empty() {
+            Ok(())
+        } else {
+            Err(errors)
+        }
+    }
+}
+
+/// Slack of the box tests between sections (metres): boxes are rounded to `f32`, footprint
+/// repairs grow slivers to boxes of a few centimetres.
+const BOX_SLACK_M: f32 = 1.0;
+
+/// Whether a draw record's box lies in `bounds` (a building's box) up to [`BOX_SLACK_M`].
+fn record_in_box(
+    record: &citywalk_shaders::BuildingRecord,
+    (lo, hi): (glam::Vec3, glam::Vec3),
+) -> bool {
+    let (rlo, rhi) = (
+        glam::Vec3::from_array(record.bounds_min_m),
+        glam::Vec3::from_array(record.bounds_max_m),
+    );
+    // An empty record (a building without triangles) has an inverted box.
+    rlo.cmpgt(rhi).any() || (rlo.cmpge(lo - BOX_SLACK_M).all() && rhi.cmple(hi + BOX_SLACK_M).all())
+}
+
+/// One outcome per building in order, contiguous ranges inside the occluders, each occluder
+/// of its building and inside its box in plan.
+fn occluder_ranges(occ: &OccluderSet, buildings: &[Building]) -> Result<(), String> {
+    if occ.per_building.len() != buildings.len() {
+        return Err(format!(
+            "{} outcomes for {} buildings",
+            occ.per_building.len(),
+            buildings.len()
+        ));
+    }
+    let mut next = 0u32;
+    for (i, (outcome, b)) in occ.per_building.iter().zip(buildings).enumerate() {
+        let range = &outcome.occluder_range;
+        if outcome.building.index() != i || range.start != next || range.end < range.start {
+            return Err(format!(
+                "outcome {i}: building {} range {range:?}",
+                outcome.building.0
+            ));
+        }
+        next = range.end;
+        let Some(these) = occ.occluders.get(range.start as usize..range.end as usize) else {
+            return Err(format!(
+                "building {i}: range {range:?} beyond {} occluders",
+                occ.occluders.len()
+            ));
+        };
+        let (lo, hi) = b.bounds();
+        for o in these {
+            let inside = o.footprint.bounding_rect().is_none_or(|r| {
+                let (rlo, rhi) = (r.min(), r.max());
+                rlo.x as f32 >= lo.x - BOX_SLACK_M
+                    && rlo.y as f32 >= lo.y - BOX_SLACK_M
+                    && rhi.x as f32 <= hi.x + BOX_SLACK_M
+                    && rhi.y as f32 <= hi.y + BOX_SLACK_M
+            });
+            if o.building.index() != i || !inside {
+                return Err(format!(
+                    "an occluder of building {i} ({}) lies outside it",
+                    b.source_id
+                ));
+            }
+        }
+    }
+    if next as usize != occ.occluders.len() {
+        return Err(format!(
+            "{} occluders, the ranges cover {next}",
+            occ.occluders.len()
+        ));
+    }
+    Ok(())
+}
+
+/// `building_order` a permutation of the buildings, the root over all of them, node ranges in
+/// it, and each node's outline inside the box of its buildings.
+fn tree_ranges(tree: &ClusterTree, buildings: &[Building]) -> Result<(), String> {
+    let n = buildings.len();
+    if tree.building_order.len() != n {
+        return Err(format!(
+            "{} buildings in the tree, {n} in the package",
+            tree.building_order.len()
+        ));
+    }
+    let mut seen = vec![false; n];
+    for b in &tree.building_order {
+        match seen.get_mut(b.index()) {
+            Some(s) if !*s => *s = true,
+            _ => return Err(format!("building {} missing or repeated in the tree", b.0)),
+        }
+    }
+    let boxes: Vec<(glam::Vec3, glam::Vec3)> = tree
+        .building_order
+        .iter()
+        .map(|b| buildings[b.index()].bounds())
+        .collect();
+    for (k, node) in tree.nodes.iter().enumerate() {
+        let (first, end) = (node.buildings.0 as usize, node.buildings.1 as usize);
+        let Some(members) = boxes.get(first..end).filter(|m| !m.is_empty()) else {
+            return Err(format!("node {k}: buildings {first}..{end} of {n}"));
+        };
+        let (lo, hi) = members
+            .iter()
+            .fold((glam::Vec3::MAX, glam::Vec3::MIN), |(a, b), (l, h)| {
+                (a.min(*l), b.max(*h))
+            });
+        let outside = node.footprint.first().into_iter().flatten().any(|&v| {
+            tree.vertices.get(v as usize).is_none_or(|&[x, y]| {
+                let (x, y) = (x as f32, y as f32);
+                x < lo.x - BOX_SLACK_M
+                    || y < lo.y - BOX_SLACK_M
+                    || x > hi.x + BOX_SLACK_M
+                    || y > hi.y + BOX_SLACK_M
+            })
+        });
+        let (nlo, nhi) = (
+            glam::Vec3::from_array(node.bounds_min),
+            glam::Vec3::from_array(node.bounds_max),
+        );
+        let box_differs = (nlo - lo).abs().max_element() > BOX_SLACK_M
+            || (nhi - hi).abs().max_element() > BOX_SLACK_M;
+        if outside || box_differs {
+            return Err(format!(
+                "node {k}: outline or box not that of its buildings"
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// Checks, before any work is done, that [`ScenePackage::write`] could write to `path`: it does

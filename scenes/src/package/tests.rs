@@ -281,7 +281,7 @@ fn the_package_checker_reports_broken_structures() {
         .check_invariants()
         .expect_err("a building without a block");
     assert!(
-        errors.iter().any(|e| e.starts_with("blocks:")),
+        errors.iter().any(|e| e.starts_with("blocks, buildings:")),
         "{errors:?}"
     );
 
@@ -289,7 +289,7 @@ fn the_package_checker_reports_broken_structures() {
     moved.quadtree.block_bounds[0].max[0] += 1.0;
     let errors = moved.check_invariants().expect_err("boxes disagree");
     assert!(
-        errors.iter().any(|e| e.starts_with("quadtree:")),
+        errors.iter().any(|e| e.starts_with("quadtree, blocks:")),
         "{errors:?}"
     );
 }
@@ -422,7 +422,7 @@ fn an_inconsistent_gpu_scene_is_refused() {
     other.gpu_scene = GpuScene::build(&city_of(&other.buildings[..1]), None);
     let bytes = other.to_bytes(WriteOptions::default()).expect("encode");
     match ScenePackage::from_bytes(&bytes) {
-        Err(PackageError::Decode { section, reason }) if section == "gpu scene" => {
+        Err(PackageError::Inconsistent { sections, reason }) if sections.contains("gpu scene") => {
             assert!(reason.contains("1 buildings"), "{reason}");
         }
         other => panic!("{other:?}"),
