@@ -7,8 +7,8 @@
 //! from the top level down, each adding the newly exposed triangle pieces to the one above.
 
 use geo::{
-    Area, BooleanOps, BoundingRect, Coord, Covers, Intersects, Line, LineString, MultiPolygon,
-    Polygon, unary_union,
+    Area, BooleanOps, BoundingRect, Coord, Intersects, Line, LineString, MultiPolygon, Polygon,
+    PreparedGeometry, Relate, unary_union,
 };
 use glam::DVec3;
 
@@ -300,34 +300,61 @@ fn clean(mp: MultiPolygon<f64>) -> MultiPolygon<f64> {
     )
 }
 
+/// The candidate levels with their regions prepared once for many edge tests
+/// ([`edge_height`]): geo's `covers` on a plain polygon builds the region's intersection graph
+/// and R-tree again for every call (Amsterdam `glb/2.glb` without its sidecar: over 100 s in
+/// this test alone).
+pub struct PreparedLevels<'a> {
+    levels: Vec<(f64, PreparedGeometry<'a, &'a MultiPolygon<f64>>)>,
+}
+
+impl std::fmt::Debug for PreparedLevels<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_list()
+            .entries(self.levels.iter().map(|(z, _)| z))
+            .finish()
+    }
+}
+
+impl<'a> PreparedLevels<'a> {
+    pub fn new(candidates: &'a [LevelCandidate]) -> PreparedLevels<'a> {
+        PreparedLevels {
+            levels: candidates
+                .iter()
+                .map(|c| (c.z_m, PreparedGeometry::from(&c.region)))
+                .collect(),
+        }
+    }
+}
+
 /// Height of the wall-oriented facade wall on edge `a`–`b` of the footprint of the level at
 /// `level_z_m` (§3.4: "the minimum Z found along the edge"), quantised down to the candidate
 /// level heights: the highest candidate whose conservative region covers the whole edge, or
 /// the level's own height. Candidates are ascending and their regions nested, so a binary
 /// search finds it.
 pub fn edge_height(
-    candidates: &[LevelCandidate],
+    candidates: &PreparedLevels<'_>,
     level_z_m: f64,
     a: Coord<f64>,
     b: Coord<f64>,
 ) -> f64 {
     let line = Line::new(a, b);
-    let higher: Vec<&LevelCandidate> = candidates.iter().filter(|c| c.z_m > level_z_m).collect();
+    let higher: Vec<_> = candidates
+        .levels
+        .iter()
+        .filter(|(z, _)| *z > level_z_m)
+        .collect();
     // Largest k such that higher[..k] all cover the edge.
     let (mut lo, mut hi) = (0usize, higher.len());
     while lo < hi {
         let mid = (lo + hi).div_ceil(2);
-        if higher[mid - 1].region.covers(&line) {
+        if higher[mid - 1].1.relate(&line).is_covers() {
             lo = mid;
         } else {
             hi = mid - 1;
         }
     }
-    if lo == 0 {
-        level_z_m
-    } else {
-        higher[lo - 1].z_m
-    }
+    if lo == 0 { level_z_m } else { higher[lo - 1].0 }
 }
 
 #[cfg(test)]

@@ -262,6 +262,7 @@ fn mesh_occluders(
     // Each candidate's facade (built lazily for the benefit rule, which needs only the kept
     // levels): the simplified footprint, its base and the facade mesh; `None` when the
     // footprint vanished or the level is no higher than the ground under it.
+    let prepared = footprint::PreparedLevels::new(&candidates);
     let facade_of = |c: &LevelCandidate| -> Option<(MultiPolygon<f64>, f64, TriangleMesh)> {
         let footprint = simplify::simplify_footprint(&c.region, params);
         if footprint.0.is_empty() {
@@ -269,7 +270,7 @@ fn mesh_occluders(
         }
         let base_m = regions.base_under(&footprint);
         let mesh = facade::facade_mesh(&footprint, base_m, c.z_m, params.facade, |a, b| {
-            footprint::edge_height(&candidates, c.z_m, a, b)
+            footprint::edge_height(&prepared, c.z_m, a, b)
         });
         (!mesh.indices.is_empty()).then_some((footprint, base_m, mesh))
     };
