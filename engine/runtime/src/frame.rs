@@ -473,11 +473,8 @@ impl CullingRenderer {
         let stamps = stamps.clone();
         let view_proj = Self::view_proj(camera, (width, height));
         let frustum = Frustum::from_view_proj(view_proj);
-        let occluders_drawn = match occluders.filter(|_| options.occluders) {
-            Some(meshes) => meshes.select(camera, &frustum, height, options.occluder_min_px),
-            None => Vec::new(),
-        };
-        let occluder_meshes = occluders.filter(|_| !occluders_drawn.is_empty());
+        let (occluder_meshes, occluders_drawn) =
+            select_occluders(occluders, options, camera, &frustum, height);
         let gated = options.occluder_gate && occluder_meshes.is_some();
         let uniforms = view_uniforms(camera, width, height, &self.style);
         gpu.queue
@@ -538,12 +535,7 @@ impl CullingRenderer {
         gpu.queue.submit([encoder.finish()]);
         let reported = report.is_some();
         if let Some((ticket, layout, timed)) = report {
-            let occluder_triangles = occluder_meshes.map_or(0, |meshes| {
-                occluders_drawn
-                    .iter()
-                    .map(|&i| u64::from(meshes.occluders[i].triangles))
-                    .sum()
-            });
+            let occluder_triangles = occluder_triangles(occluder_meshes, &occluders_drawn);
             let pending = PendingFrame {
                 number,
                 buildings: frame.building_count as usize,
@@ -980,6 +972,33 @@ impl CullingRenderer {
         self.targets = Some(Targets::new(gpu, &self.copy_layout, width, height)?);
         Ok(())
     }
+}
+
+/// The occluders a frame draws (`options.occluders`: those whose bounding sphere projects to
+/// more than `options.occluder_min_px` pixels, by [`OccluderMeshes::select`]) and their meshes
+/// (`None` when none is selected).
+fn select_occluders<'a>(
+    occluders: Option<&'a OccluderMeshes>,
+    options: &CullingOptions,
+    camera: &Camera,
+    frustum: &Frustum,
+    height: u32,
+) -> (Option<&'a OccluderMeshes>, Vec<usize>) {
+    let selected = match occluders.filter(|_| options.occluders) {
+        Some(meshes) => meshes.select(camera, frustum, height, options.occluder_min_px),
+        None => Vec::new(),
+    };
+    (occluders.filter(|_| !selected.is_empty()), selected)
+}
+
+/// Triangles of the `selected` occluders of `meshes`.
+fn occluder_triangles(meshes: Option<&OccluderMeshes>, selected: &[usize]) -> u64 {
+    meshes.map_or(0, |m| {
+        selected
+            .iter()
+            .map(|&i| u64::from(m.occluders[i].triangles))
+            .sum()
+    })
 }
 
 /// Indirect draw commands and the buffer word counting them.

@@ -29,7 +29,7 @@ use citywalk_shaders::constants::{
 use super::report_ring::{ReadSlot, SlotLayout};
 use super::{
     CullingOptions, CullingRenderer, FrameError, FrameOutput, FrameStats, FrameTicket,
-    IndirectDraws, OccluderMeshes, PendingFrame, Visibility,
+    IndirectDraws, OccluderMeshes, PendingFrame, Visibility, occluder_triangles, select_occluders,
 };
 use crate::camera::Camera;
 use crate::gpu::GpuContext;
@@ -93,11 +93,7 @@ impl CullingRenderer {
         let (lists, last_half, early_valid) = visibility.tree_lists(gpu, capacity, frame_stamp);
         let view_proj = Self::view_proj(camera, (width, height));
         let frustum = Frustum::from_view_proj(view_proj);
-        let selected = match occluders.filter(|_| options.occluders) {
-            Some(meshes) => meshes.select(camera, &frustum, height, options.occluder_min_px),
-            None => Vec::new(),
-        };
-        let meshes = occluders.filter(|_| !selected.is_empty());
+        let (meshes, selected) = select_occluders(occluders, options, camera, &frustum, height);
         // No occluder gate in a tree frame (`options.occluder_gate` is not read): its early set
         // is only last frame's kept buildings still in the cut, and the gate would cost a second
         // occluder pass and pyramid. Measured on lavapipe: with the gate's occlusion test in
@@ -151,11 +147,7 @@ impl CullingRenderer {
                 self.timer.compute_pass_writes("early_cull"),
             );
         }
-        let early_draws = IndirectDraws {
-            commands: self.tree_cull.early_commands(),
-            count: self.tree_cull.counters(),
-            count_offset: u64::from(TREE_C_EARLY_DRAWS) * 4,
-        };
+        let early_draws = self.tree_draws(self.tree_cull.early_commands(), TREE_C_EARLY_DRAWS);
         self.early_pass(
             &mut encoder,
             &lod.gpu_scene,
@@ -175,11 +167,7 @@ impl CullingRenderer {
                 self.timer.compute_pass_writes("cull"),
             );
         }
-        let late_draws = IndirectDraws {
-            commands: self.tree_cull.late_commands(),
-            count: self.tree_cull.counters(),
-            count_offset: u64::from(TREE_C_LATE_DRAWS) * 4,
-        };
+        let late_draws = self.tree_draws(self.tree_cull.late_commands(), TREE_C_LATE_DRAWS);
         self.late_pass(
             &mut encoder,
             &lod.gpu_scene,
@@ -192,12 +180,7 @@ impl CullingRenderer {
         visibility.tree_written(frame_stamp);
         let reported = report.is_some();
         if let Some((ticket, layout, timed)) = report {
-            let occluder_triangles = meshes.map_or(0, |m| {
-                selected
-                    .iter()
-                    .map(|&i| u64::from(m.occluders[i].triangles))
-                    .sum()
-            });
+            let occluder_triangles = occluder_triangles(meshes, &selected);
             let pending = PendingFrame {
                 number,
                 buildings: lod.building_count as usize,
@@ -217,6 +200,15 @@ impl CullingRenderer {
             self.reports.submitted(ticket, layout, pending);
         }
         Ok(FrameTicket { number, reported })
+    }
+
+    /// The tree cull's `commands`, counted by its counter word `count_word`.
+    fn tree_draws<'a>(&'a self, commands: &'a wgpu::Buffer, count_word: u32) -> IndirectDraws<'a> {
+        IndirectDraws {
+            commands,
+            count: self.tree_cull.counters(),
+            count_offset: u64::from(count_word) * 4,
+        }
     }
 
     /// Renders one LOD frame whose cut the GPU computes ([`CullingRenderer::submit_tree`]) and
