@@ -194,3 +194,27 @@ fn issue14_case11_a_section_from_another_package_is_refused_on_open_naming_the_s
         }
     }
 }
+
+#[test]
+fn issue14_small_the_unknown_extension_message_names_every_extension_read() {
+    let path = std::env::temp_dir().join("citywalk-issue14-unknown.xyz");
+    std::fs::write(&path, b"not a city").unwrap();
+    let message = citywalk_scenes::load::detect_format(&path)
+        .unwrap_err()
+        .to_string();
+    std::fs::remove_file(&path).ok();
+    for ext in [
+        ".osm.pbf",
+        ".geojson",
+        ".city.json",
+        ".glb",
+        ".gltf",
+        ".b3dm",
+    ] {
+        assert!(message.contains(ext), "{ext} missing from: {message}");
+    }
+    assert!(
+        message.contains("citywalk-issue14-unknown.xyz"),
+        "{message}"
+    );
+}

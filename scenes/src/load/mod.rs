@@ -92,7 +92,8 @@ pub fn detect_format(path: &Path) -> Result<InputFormat, LoadError> {
     }
     Err(LoadError::Unsupported {
         path: path.to_path_buf(),
-        reason: "unknown extension (expected .osm.pbf, .geojson, .json, .city.json, .glb, .gltf)"
+        reason: "unknown extension (expected .osm.pbf, .pbf, .geojson, .json, .city.json, \
+                 .cityjson, .glb, .gltf, .b3dm)"
             .into(),
     })
 }
