@@ -541,7 +541,7 @@ mod tests {
         let mut text = b"v 1 2 3\r\n".to_vec();
         text.extend(std::iter::repeat_n(b'f', MAX_LINE_BYTES + 10));
         text.extend_from_slice(b"\nlast");
-        let mut reader = std::io::BufReader::with_capacity(1000, text.as_slice());
+        let mut reader = BufReader::with_capacity(1000, text.as_slice());
         let mut buf = Vec::new();
         assert_eq!(
             read_line_bounded(&mut reader, &mut buf).unwrap(),
