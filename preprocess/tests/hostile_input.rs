@@ -210,6 +210,7 @@ fn issue14_small_the_unknown_extension_message_names_every_extension_read() {
         ".glb",
         ".gltf",
         ".b3dm",
+        ".obj",
     ] {
         assert!(message.contains(ext), "{ext} missing from: {message}");
     }

@@ -31,12 +31,11 @@ use glam::{DVec3, Vec3};
 use serde_json::{Map, Value};
 
 use super::LoadOptions;
-use super::mesh_building::{MeshBuilding, MeshPart, assemble};
+use super::mesh_building::{MeshBuilding, MeshPart, assemble, xy_extent_centre};
 use crate::city::{City, TriangleMesh};
 use crate::frame::{Crs, Frame};
 use crate::mesh_footprint::triangulate_planar_polygon;
 use crate::report::{LoadError, LoadReport, LoadWarning, RejectReason};
-use crate::validate::MAX_LOCAL_COORDINATE_M;
 
 const FORMAT: &str = "CityJSON";
 
@@ -223,30 +222,6 @@ fn reference_system(root: &Map<String, Value>) -> Result<Option<String>, String>
         Some(code) if rs.to_ascii_uppercase().contains("EPSG") => Ok(Some(format!("EPSG:{code}"))),
         _ => Ok(Some(rs.to_string())),
     }
-}
-
-/// Centre of the vertices' xy extent, z = 0. An outlier further than the local range from the
-/// bulk of the data would drag the centre away from every building, so when the extent is
-/// wider than that the per-axis median is used instead.
-fn xy_extent_centre(vertices: &[DVec3]) -> [f64; 3] {
-    let finite: Vec<DVec3> = vertices.iter().copied().filter(|p| p.is_finite()).collect();
-    let Some(&first) = finite.first() else {
-        return [0.0; 3];
-    };
-    let (lo, hi) = finite
-        .iter()
-        .fold((first, first), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
-    let span = hi - lo;
-    if span.x.max(span.y) <= MAX_LOCAL_COORDINATE_M {
-        let c = (lo + hi) * 0.5;
-        return [c.x.round(), c.y.round(), 0.0];
-    }
-    let median = |f: fn(&DVec3) -> f64| {
-        let mut v: Vec<f64> = finite.iter().map(f).collect();
-        v.sort_by(f64::total_cmp);
-        v.get(v.len() / 2).copied().unwrap_or(0.0)
-    };
-    [median(|p| p.x).round(), median(|p| p.y).round(), 0.0]
 }
 
 fn object_type(object: &Value) -> Option<&str> {

@@ -11,6 +11,8 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
+use glam::DVec3;
+
 use crate::city::{Building, BuildingId, BuildingPart, City, HeightSource, TriangleMesh};
 use crate::frame::Frame;
 use crate::mesh_footprint::{footprint_from_mesh, union_footprints};
@@ -259,4 +261,28 @@ fn finish(parts: Vec<BuildingPart>) -> Result<Finished, RejectReason> {
         .fold(f32::NEG_INFINITY, f32::max);
     check_heights(base_m, top_m)?;
     Ok((footprint, base_m, top_m, parts))
+}
+
+/// Centre of the vertices' xy extent, z = 0. An outlier further than the local range from the
+/// bulk of the data would drag the centre away from every building, so when the extent is
+/// wider than that the per-axis median is used instead.
+pub(crate) fn xy_extent_centre(vertices: &[DVec3]) -> [f64; 3] {
+    let finite: Vec<DVec3> = vertices.iter().copied().filter(|p| p.is_finite()).collect();
+    let Some(&first) = finite.first() else {
+        return [0.0; 3];
+    };
+    let (lo, hi) = finite
+        .iter()
+        .fold((first, first), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+    let span = hi - lo;
+    if span.x.max(span.y) <= MAX_LOCAL_COORDINATE_M {
+        let c = (lo + hi) * 0.5;
+        return [c.x.round(), c.y.round(), 0.0];
+    }
+    let median = |f: fn(&DVec3) -> f64| {
+        let mut v: Vec<f64> = finite.iter().map(f).collect();
+        v.sort_by(f64::total_cmp);
+        v.get(v.len() / 2).copied().unwrap_or(0.0)
+    };
+    [median(|p| p.x).round(), median(|p| p.y).round(), 0.0]
 }

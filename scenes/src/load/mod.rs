@@ -1,7 +1,9 @@
 //! Loading any supported input into a [`City`].
 //!
 //! The format is chosen by file extension, and for `.json` by content (CityJSON has
-//! `"type": "CityJSON"`, GeoJSON `"type": "FeatureCollection"`).
+//! `"type": "CityJSON"`, GeoJSON `"type": "FeatureCollection"`). Wavefront OBJ (`.obj`)
+//! names neither CRS nor up axis: [`LoadOptions::source_crs`] and [`LoadOptions::up_axis`]
+//! give them.
 
 use std::path::{Path, PathBuf};
 
@@ -16,6 +18,7 @@ pub mod geojson;
 pub mod gltf;
 pub mod heights;
 mod mesh_building;
+pub mod obj;
 pub mod osm;
 
 /// Options shared by the loaders.
@@ -32,6 +35,42 @@ pub struct LoadOptions {
     pub height_property: Option<String>,
     /// Whether to load streets (OSM `highway=*` ways) as well as buildings.
     pub load_streets: bool,
+    /// The CRS of inputs that name none (OBJ), as `EPSG:NNNN` ([`parse_crs`]); `None` leaves
+    /// them in a local frame. Inputs that name their own CRS keep it.
+    pub source_crs: Option<String>,
+    /// Which source axis points up, for inputs that do not say (OBJ).
+    pub up_axis: UpAxis,
+    /// OBJ: an object or group is a building when its name, a group name or a material it
+    /// uses contains one of these (ASCII case-insensitive). The default `building` matches
+    /// 3dfier's `Building` material (and `BuildingRoof`, `BuildingWall`, ...).
+    pub obj_building_markers: Vec<String>,
+}
+
+/// The up axis of a source without one.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum UpAxis {
+    /// `(x, y, z)` = (east, north, up), as 3dfier writes projected coordinates.
+    #[default]
+    Z,
+    /// `(x, y, z)` = (east, up, south), the glTF / Blender convention: north is `-z`.
+    Y,
+}
+
+/// Checks a `--crs` value: `EPSG:NNNN` (any case) of a projected CRS in metres, returned as
+/// `EPSG:NNNN`. Geographic CRSs (degrees) are refused: an OBJ model is in metres.
+pub fn parse_crs(s: &str) -> Result<String, String> {
+    let code = s
+        .trim()
+        .split_once(':')
+        .filter(|(authority, _)| authority.eq_ignore_ascii_case("EPSG"))
+        .and_then(|(_, code)| code.parse::<u32>().ok())
+        .ok_or_else(|| format!("expected EPSG:NNNN, got {s:?}"))?;
+    if matches!(code, 4326 | 4979 | 4258 | 4937 | 7912 | 4289) {
+        return Err(format!(
+            "EPSG:{code} is geographic (degrees); a projected CRS in metres is expected"
+        ));
+    }
+    Ok(format!("EPSG:{code}"))
 }
 
 impl Default for LoadOptions {
@@ -41,6 +80,9 @@ impl Default for LoadOptions {
             default_height_m: 9.0,
             height_property: None,
             load_streets: true,
+            source_crs: None,
+            up_axis: UpAxis::Z,
+            obj_building_markers: vec!["building".to_string()],
         }
     }
 }
@@ -52,6 +94,7 @@ pub enum InputFormat {
     GeoJson,
     CityJson,
     Gltf,
+    Obj,
 }
 
 /// Detects the format of `path` from its extension and, for `.json`, its first bytes.
@@ -68,6 +111,9 @@ pub fn detect_format(path: &Path) -> Result<InputFormat, LoadError> {
     }
     if name.ends_with(".glb") || name.ends_with(".gltf") || name.ends_with(".b3dm") {
         return Ok(InputFormat::Gltf);
+    }
+    if name.ends_with(".obj") {
+        return Ok(InputFormat::Obj);
     }
     if name.ends_with(".city.json") || name.ends_with(".cityjson") {
         return Ok(InputFormat::CityJson);
@@ -93,7 +139,7 @@ pub fn detect_format(path: &Path) -> Result<InputFormat, LoadError> {
     Err(LoadError::Unsupported {
         path: path.to_path_buf(),
         reason: "unknown extension (expected .osm.pbf, .pbf, .geojson, .json, .city.json, \
-                 .cityjson, .glb, .gltf, .b3dm)"
+                 .cityjson, .glb, .gltf, .b3dm, .obj)"
             .into(),
     })
 }
@@ -121,6 +167,7 @@ pub fn load_city(path: &Path, options: &LoadOptions) -> Result<City, LoadError> 
         InputFormat::GeoJson => geojson::load(path, options)?,
         InputFormat::CityJson => cityjson::load(path, options)?,
         InputFormat::Gltf => gltf::load(path, options)?,
+        InputFormat::Obj => obj::load(path, options)?,
     };
     debug_assert!(city.report.is_balanced());
     city.report.log_items();
