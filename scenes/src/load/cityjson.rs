@@ -27,14 +27,13 @@
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::path::Path;
 
-use glam::{DVec3, Vec3};
+use glam::DVec3;
 use serde_json::{Map, Value};
 
 use super::LoadOptions;
-use super::mesh_building::{MeshBuilding, MeshPart, assemble, xy_extent_centre};
+use super::mesh_building::{MeshBuilding, MeshPart, append_surface, assemble, xy_extent_centre};
 use crate::city::{City, TriangleMesh};
 use crate::frame::{Crs, Frame};
-use crate::mesh_footprint::triangulate_planar_polygon;
 use crate::report::{LoadError, LoadReport, LoadWarning, RejectReason};
 
 const FORMAT: &str = "CityJSON";
@@ -383,25 +382,9 @@ impl<'a> Reader<'a> {
             if non_finite {
                 continue;
             }
-            // Degenerate surfaces (slivers, repeated points) carry no area: skipped.
-            let Ok(triangles) = triangulate_planar_polygon(&rings) else {
-                continue;
-            };
-            for t in triangles {
-                for flat in t {
-                    let Some(&vertex) = ids.get(flat) else {
-                        continue;
-                    };
-                    let next = mesh.positions.len() as u32;
-                    let local = *local_index.entry(vertex).or_insert_with(|| {
-                        let p = self.vertices[vertex] - self.origin;
-                        mesh.positions
-                            .push(Vec3::new(p.x as f32, p.y as f32, p.z as f32));
-                        next
-                    });
-                    mesh.indices.push(local);
-                }
-            }
+            append_surface(&mut mesh, &mut local_index, &rings, &ids, |v| {
+                self.vertices[v] - self.origin
+            });
         }
         if non_finite {
             return Ok(Err(RejectReason::NonFiniteCoordinate));

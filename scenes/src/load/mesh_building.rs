@@ -8,13 +8,14 @@
 //! its parts' meshes and its footprint the union of theirs. Finally the frame's origin is
 //! raised to the lowest building base, so the city stands on the ground plane z = 0.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
 
-use glam::DVec3;
+use glam::{DVec3, Vec3};
 
 use crate::city::{Building, BuildingId, BuildingPart, City, HeightSource, TriangleMesh};
 use crate::frame::Frame;
+use crate::mesh_footprint::triangulate_planar_polygon;
 use crate::mesh_footprint::{footprint_from_mesh, union_footprints};
 use crate::report::{LoadError, LoadReport, LoadWarning, RejectReason, Rejection};
 use crate::validate::{MAX_LOCAL_COORDINATE_M, check_heights};
@@ -285,4 +286,34 @@ pub(crate) fn xy_extent_centre(vertices: &[DVec3]) -> [f64; 3] {
         v.get(v.len() / 2).copied().unwrap_or(0.0)
     };
     [median(|p| p.x).round(), median(|p| p.y).round(), 0.0]
+}
+
+/// Appends one planar surface (outer ring, then holes, in the local frame) to a building's
+/// `mesh`, triangulated; `corner_ids` are the surface's source vertex ids in ring order, so a
+/// vertex shared by several surfaces is stored once (`local` maps source id to mesh index).
+/// `position` gives a source vertex in the local frame. A degenerate surface (a sliver,
+/// repeated corners) carries no area and adds nothing.
+pub(crate) fn append_surface<K: Copy + Eq + std::hash::Hash>(
+    mesh: &mut TriangleMesh,
+    local: &mut HashMap<K, u32>,
+    rings: &[Vec<DVec3>],
+    corner_ids: &[K],
+    position: impl Fn(K) -> DVec3,
+) {
+    let Ok(triangles) = triangulate_planar_polygon(rings) else {
+        return;
+    };
+    for flat in triangles.into_iter().flatten() {
+        let Some(&vertex) = corner_ids.get(flat) else {
+            continue;
+        };
+        let next = mesh.positions.len() as u32;
+        let index = *local.entry(vertex).or_insert_with(|| {
+            let p = position(vertex);
+            mesh.positions
+                .push(Vec3::new(p.x as f32, p.y as f32, p.z as f32));
+            next
+        });
+        mesh.indices.push(index);
+    }
 }

@@ -29,13 +29,12 @@ use std::collections::{BTreeMap, HashMap};
 use std::io::{BufRead, BufReader};
 use std::path::Path;
 
-use glam::{DVec3, Vec3};
+use glam::DVec3;
 
-use super::mesh_building::{MeshBuilding, MeshPart, assemble, xy_extent_centre};
+use super::mesh_building::{MeshBuilding, MeshPart, append_surface, assemble, xy_extent_centre};
 use super::{LoadOptions, UpAxis};
 use crate::city::{City, TriangleMesh};
 use crate::frame::{Crs, Frame};
-use crate::mesh_footprint::triangulate_planar_polygon;
 use crate::report::{LoadError, LoadReport, LoadWarning, RejectReason};
 
 const FORMAT: &str = "OBJ";
@@ -241,25 +240,13 @@ impl Object {
                 }
                 ring.push(*p - origin);
             }
-            // Degenerate faces (slivers, repeated corners) carry no area: skipped.
-            let Ok(triangles) = triangulate_planar_polygon(std::slice::from_ref(&ring)) else {
-                continue;
-            };
-            for t in triangles {
-                for flat in t {
-                    let Some(&vertex) = corners.get(flat) else {
-                        continue;
-                    };
-                    let next = mesh.positions.len() as u32;
-                    let index = *local.entry(vertex).or_insert_with(|| {
-                        let p = vertices[vertex as usize] - origin;
-                        mesh.positions
-                            .push(Vec3::new(p.x as f32, p.y as f32, p.z as f32));
-                        next
-                    });
-                    mesh.indices.push(index);
-                }
-            }
+            append_surface(
+                &mut mesh,
+                &mut local,
+                std::slice::from_ref(&ring),
+                corners,
+                |v| vertices[v as usize] - origin,
+            );
         }
         if mesh.indices.is_empty() {
             return Err(RejectReason::ZeroArea);
