@@ -224,7 +224,7 @@ pub fn preprocess(
 
     let mut gpu_scene = None;
     run(Stage::GpuScene, &mut || {
-        let scene = GpuScene::build(&city, cluster_tree.as_ref());
+        let scene = GpuScene::build(&city, cluster_tree.as_ref(), occluders.as_ref());
         let view = scene.view();
         let s = format!(
             "{} records, {} vertices, {} triangles, {} cull parts, {} MB",

@@ -174,3 +174,36 @@ fn generated_300_seed_11_tree_is_valid() {
 fn generated_400_seed_5_without_streets_tree_is_valid() {
     pipeline_tree_is_valid(400, 5, false);
 }
+
+/// Issue 13: the runtime opens a package without decoding the occluder set or the cluster
+/// meshes; it draws both from the GPU scene, which must hold exactly the set's arrays.
+#[test]
+fn a_package_opened_to_draw_has_the_occluder_sets_arrays_and_no_set() {
+    use citywalk_scenes::occluder_draws::OccluderArrays;
+    let pkg = preprocess(generated(300, 11), &PreprocessParams::default(), &NoProgress)
+        .expect("preprocess");
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("city.cwk");
+    pkg.write(&path, WriteOptions::default()).expect("write");
+    let full = ScenePackage::read(&path).expect("read");
+    let to_draw = ScenePackage::read_runtime(&path).expect("read to draw");
+    let set = full.occluders.as_ref().expect("an occluder set");
+    let arrays = OccluderArrays::of(set);
+    assert!(!arrays.records.is_empty(), "the city has occluders");
+    assert_eq!(to_draw.occluders, None, "the set is not decoded to draw");
+    let view = to_draw.gpu_scene.view();
+    assert!(to_draw.gpu_scene.is_mapped());
+    assert_eq!(view.occluders, arrays.view());
+    assert_eq!(
+        view.occluders.check_invariants(full.buildings.len() as u32),
+        Ok(())
+    );
+    assert_eq!(to_draw.buildings, full.buildings);
+    // The cluster meshes are stored once, in the GPU scene: a full read restores them, a read
+    // to draw leaves them there.
+    assert_eq!(full.cluster_tree, pkg.cluster_tree);
+    let mut tree = full.cluster_tree.expect("a tree");
+    assert!(tree.nodes.iter().any(|n| !n.mesh.indices.is_empty()));
+    tree.nodes.iter_mut().for_each(|n| n.mesh = Default::default());
+    assert_eq!(to_draw.cluster_tree, Some(tree));
+}

@@ -200,6 +200,10 @@ pub struct ClusterNode {
     pub landmarks: Vec<BuildingId>,
     /// The hull extruded to `height_m` (walls and a constrained-Delaunay roof); empty for
     /// leaves, which are drawn with the building's own geometry.
+    ///
+    /// Not serialized: a package stores the cluster meshes once, in its GPU scene, and a full
+    /// decode restores them from there ([`crate::package::format`]).
+    #[serde(skip)]
     pub mesh: TriangleMesh,
     /// The urban block of the node's buildings, or `None` above the block level.
     pub block: Option<u32>,

@@ -16,6 +16,7 @@ pub mod generate;
 pub mod load;
 pub mod mesh_footprint;
 pub mod occluder;
+pub mod occluder_draws;
 pub mod package;
 pub mod quadtree;
 pub mod report;

@@ -37,7 +37,6 @@ fn every_stage_combination_and_debug_view_renders_and_reports_its_counts() {
     let package = preprocess(city, &PreprocessParams::default(), &NoProgress).expect("preprocess");
     let scene = ViewerScene {
         city: package.city(),
-        occluders: package.occluders.clone(),
         cluster_tree: package.cluster_tree.clone(),
         blocks: Some((package.blocks.clone(), package.quadtree.clone())),
         // As `citywalk view` opens a package: the geometry uploaded from its GPU section.

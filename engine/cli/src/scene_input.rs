@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use citywalk_preprocess::pipeline::{NoProgress, PreprocessParams, preprocess};
-use citywalk_scenes::package::{MAGIC, ScenePackage};
+use citywalk_scenes::package::{Decode, MAGIC, ScenePackage};
 use citywalk_scenes::{LoadOptions, load_cities};
 
 /// Whether `path` is a scene package, judged by its first bytes (the magic), not its name.
@@ -30,14 +30,22 @@ pub fn is_package(path: &Path) -> anyhow::Result<bool> {
 /// The package at `path` when it is one (a file starting with the package magic, or named
 /// `*.cwk`, which then must be a valid package); `None` for any other input.
 pub fn open_package(path: &Path) -> anyhow::Result<Option<ScenePackage>> {
+    open_package_as(path, Decode::All)
+}
+
+/// [`open_package`] decoding only what `what` names.
+fn open_package_as(path: &Path, what: Decode) -> anyhow::Result<Option<ScenePackage>> {
     let named_package = path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("cwk"));
     if !(is_package(path)? || named_package) {
         return Ok(None);
     }
-    ScenePackage::read(path)
-        .map(Some)
+    let read = match what {
+        Decode::All => ScenePackage::read(path),
+        Decode::Runtime => ScenePackage::read_runtime(path),
+    };
+    read.map(Some)
         .with_context(|| format!("cannot read the scene package {}", path.display()))
 }
 
@@ -45,7 +53,17 @@ pub fn open_package(path: &Path) -> anyhow::Result<Option<ScenePackage>> {
 /// `*.cwk`, which then must be a valid package), or the input at `path` preprocessed with the
 /// default parameters (no progress bars; logs through `tracing`).
 pub fn load_scene(path: &Path) -> anyhow::Result<ScenePackage> {
-    if let Some(package) = open_package(path)? {
+    load_scene_as(path, Decode::All)
+}
+
+/// [`load_scene`] for drawing it ([`Decode::Runtime`]): a package's occluder set is not
+/// decoded (`None`); the occluders are drawn from its GPU scene.
+pub fn load_scene_to_draw(path: &Path) -> anyhow::Result<ScenePackage> {
+    load_scene_as(path, Decode::Runtime)
+}
+
+fn load_scene_as(path: &Path, what: Decode) -> anyhow::Result<ScenePackage> {
+    if let Some(package) = open_package_as(path, what)? {
         return Ok(package);
     }
     tracing::info!(input = %path.display(), "not a scene package: loading and preprocessing it");
@@ -58,8 +76,8 @@ pub fn load_scene(path: &Path) -> anyhow::Result<ScenePackage> {
 /// Opens the city of a scene for drawing: a package's buildings and streets as stored, or any
 /// other input loaded as it is (no preprocessing: rendering and viewing need only the city).
 pub fn load_city(path: &Path) -> anyhow::Result<citywalk_scenes::City> {
-    if let Some(package) = open_package(path)? {
-        return Ok(package.city());
+    if let Some(package) = open_package_as(path, Decode::Runtime)? {
+        return Ok(package.into_city());
     }
     citywalk_scenes::load_city(path, &LoadOptions::default())
         .with_context(|| format!("cannot load {}", path.display()))

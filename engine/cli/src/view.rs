@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use citywalk_runtime::camera_path_io::PlayEnd;
 use citywalk_runtime::controller::Mode;
+use citywalk_scenes::City;
 use citywalk_scenes::package::ScenePackage;
 use citywalk_viewer::{
     CriterionKind, DebugView, FramePlan, PlayRequest, RenderSettings, ScreenshotRequest,
@@ -171,31 +172,48 @@ fn load_scene(path: &Path) -> anyhow::Result<ViewerScene> {
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("cwk"));
     let scene = if crate::scene_input::is_package(path)? || named_package {
-        let package = ScenePackage::read(path)
+        // What drawing needs: the occluders come from the GPU scene, not the occluder set.
+        let package = ScenePackage::read_runtime(path)
             .with_context(|| format!("cannot read the scene package {}", path.display()))?;
+        let ScenePackage {
+            frame,
+            buildings,
+            streets,
+            blocks,
+            quadtree,
+            cluster_tree,
+            provenance,
+            gpu_scene,
+            ..
+        } = package;
         ViewerScene {
-            city: package.city(),
-            occluders: package.occluders,
-            cluster_tree: package.cluster_tree,
-            blocks: Some((package.blocks, package.quadtree)),
-            gpu_scene: Some(package.gpu_scene),
+            city: City {
+                frame,
+                buildings,
+                streets,
+                report: provenance.load_report,
+            },
+            cluster_tree,
+            blocks: Some((blocks, quadtree)),
+            gpu_scene: Some(gpu_scene),
         }
     } else {
         ViewerScene {
             city: crate::scene_input::load_city(path)?,
-            occluders: None,
             cluster_tree: None,
             blocks: None,
             gpu_scene: None,
         }
     };
     let city = &scene.city;
-    let occluders = &scene.occluders;
     tracing::info!(
         buildings = city.buildings.len(),
         streets = city.streets.len(),
         rejected = city.report.rejected.len(),
-        occluders = occluders.as_ref().map_or(0, |o| o.occluders.len()),
+        occluders = scene
+            .gpu_scene
+            .as_ref()
+            .map_or(0, |g| g.view().occluders.records.len()),
         cluster_tree = scene.cluster_tree.is_some(),
         "loaded {}",
         path.display()

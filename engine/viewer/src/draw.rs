@@ -3,7 +3,6 @@
 
 use citywalk_scenes::blocks::UrbanBlocks;
 use citywalk_scenes::cluster_tree::ClusterTree;
-use citywalk_scenes::occluder::OccluderSet;
 use citywalk_scenes::package::GpuScene;
 use citywalk_scenes::quadtree::BQuadtree;
 
@@ -27,14 +26,12 @@ use citywalk_runtime::scene_gpu::SceneGpu;
 #[derive(Debug)]
 pub struct ViewerScene {
     pub city: citywalk_scenes::City,
-    /// A scene package's virtual occluders.
-    pub occluders: Option<OccluderSet>,
     /// A scene package's cluster tree (the LOD cut needs it).
     pub cluster_tree: Option<ClusterTree>,
     /// A scene package's urban blocks and B-Quadtree (frustum culling of whole blocks).
     pub blocks: Option<(UrbanBlocks, BQuadtree)>,
-    /// A scene package's GPU-ready geometry (uploaded from the mapping; `None`: built from the
-    /// city at load).
+    /// A scene package's GPU-ready geometry and virtual occluders (uploaded from the mapping;
+    /// `None`: built from the city at load, without occluders, which come from preprocessing).
     pub gpu_scene: Option<GpuScene>,
 }
 
@@ -43,9 +40,9 @@ impl ViewerScene {
     pub fn features(&self) -> SceneFeatures {
         SceneFeatures {
             occluders: self
-                .occluders
+                .gpu_scene
                 .as_ref()
-                .is_some_and(|o| !o.occluders.is_empty()),
+                .is_some_and(|g| !g.view().occluders.records.is_empty()),
             cluster_tree: self.cluster_tree.is_some(),
             quadtree: self.blocks.is_some(),
         }
@@ -95,7 +92,7 @@ pub struct FrameDrawer {
 impl FrameDrawer {
     /// Uploads `scene` and makes every pipeline for colour targets of `format`.
     pub fn new(gpu: &GpuContext, format: wgpu::TextureFormat, scene: ViewerScene) -> FrameDrawer {
-        let occluders = scene.occluders.filter(|o| !o.occluders.is_empty());
+        let mut occluders = None;
         let (plain, lod) = match &scene.gpu_scene {
             Some(package) => {
                 let view = package.view();
@@ -103,6 +100,12 @@ impl FrameDrawer {
                 let lod = scene
                     .cluster_tree
                     .map(|tree| LodScene::upload_package(gpu, &plain, &view, tree));
+                if !view.occluders.records.is_empty() {
+                    occluders = Some((
+                        OccluderMeshes::upload_package(gpu, &view),
+                        OccluderOverlayMeshes::upload_package(gpu, &view),
+                    ));
+                }
                 (plain, lod)
             }
             None => (
@@ -112,17 +115,14 @@ impl FrameDrawer {
                     .map(|tree| LodScene::upload(gpu, &scene.city, tree)),
             ),
         };
+        let (occluders, occluder_overlay_meshes) = occluders.unzip();
         FrameDrawer {
             runner: FrameRunner::new(gpu, format),
             scene: plain,
             lod,
             blocks: scene.blocks,
-            occluder_overlay_meshes: occluders
-                .as_ref()
-                .map(|set| OccluderOverlayMeshes::upload(gpu, set)),
-            occluders: occluders
-                .as_ref()
-                .map(|set| OccluderMeshes::upload(gpu, set)),
+            occluder_overlay_meshes,
+            occluders,
             visibility: Visibility::default(),
             last_report: None,
             auto: None,

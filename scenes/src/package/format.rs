@@ -21,7 +21,9 @@ use std::sync::Arc;
 use serde::Serialize;
 use serde::de::DeserializeOwned;
 
-use super::{GpuScene, PackageError, ScenePackage, StageTiming, WriteOptions};
+use super::{GpuScene, GpuSceneView, PackageError, ScenePackage, StageTiming, WriteOptions};
+use crate::TriangleMesh;
+use crate::cluster_tree::ClusterTree;
 
 /// The first four bytes of every package.
 pub const MAGIC: [u8; 4] = *b"CWK\0";
@@ -34,7 +36,11 @@ pub const MAGIC: [u8; 4] = *b"CWK\0";
 ///   parts of buildings and cluster meshes, as raw little-endian arrays read in place).
 /// - 4: the provenance's load report counts streets found and lists the rejected streets
 ///   (`streets_found`, `streets_rejected`).
-pub const FORMAT_VERSION: u32 = 4;
+/// - 5: the GPU scene holds the drawable occluders' arrays
+///   ([`crate::occluder_draws::OccluderArrays`]), so the runtime opens a package without
+///   decoding the occluder set; the cluster tree section no longer repeats the cluster meshes
+///   the GPU scene holds (a full decode restores them from there).
+pub const FORMAT_VERSION: u32 = 5;
 /// Sections start at multiples of this (a cache line, and enough for any scalar type).
 pub const SECTION_ALIGN: u64 = 64;
 /// The most sections a package may have.
@@ -377,6 +383,18 @@ pub fn verify(bytes: &[u8]) -> Result<Vec<SectionEntry>, PackageError> {
     Ok(entries)
 }
 
+/// Which sections a decode turns into values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Decode {
+    /// Every section.
+    All,
+    /// What drawing the scene needs: every section but the occluder set (the runtime draws the
+    /// occluders from the GPU scene's arrays), which is left `None`, and the cluster tree's
+    /// meshes, left empty (the runtime draws them from the GPU scene too). At a million
+    /// buildings the two are more than a gigabyte of heap no frame reads.
+    Runtime,
+}
+
 /// Decodes a package from bytes (verifying it first).
 pub fn decode(bytes: &[u8]) -> Result<ScenePackage, PackageError> {
     let entries = verify(bytes)?;
@@ -419,18 +437,19 @@ pub fn decode_verified(
         let payload = &bytes[e.offset as usize..(e.offset + e.length) as usize];
         GpuScene::from_payload(payload).map_err(gpu_scene_error)
     })?;
-    decode_with(bytes, entries, gpu_scene)
+    decode_with(bytes, entries, gpu_scene, Decode::All)
 }
 
 /// [`decode_verified`] for a memory map: the GPU scene stays in the mapping.
 pub(super) fn decode_mapped(
     map: &Arc<memmap2::Mmap>,
     entries: &[SectionEntry],
+    what: Decode,
 ) -> Result<ScenePackage, PackageError> {
     let gpu_scene = gpu_scene_entry(entries).and_then(|e| {
         GpuScene::mapped(map, e.offset as usize, e.length as usize).map_err(gpu_scene_error)
     })?;
-    decode_with(map, entries, gpu_scene)
+    decode_with(map, entries, gpu_scene, what)
 }
 
 fn gpu_scene_entry(entries: &[SectionEntry]) -> Result<&SectionEntry, PackageError> {
@@ -452,19 +471,31 @@ fn decode_with(
     bytes: &[u8],
     entries: &[SectionEntry],
     gpu_scene: GpuScene,
+    what: Decode,
 ) -> Result<ScenePackage, PackageError> {
     use SectionKind as K;
+    let has_occluders = entries.iter().any(|e| e.kind == K::Occluders as u32);
+    if !has_occluders && !gpu_scene.view().occluders.records.is_empty() {
+        return Err(PackageError::Inconsistent {
+            sections: "gpu scene, occluders".into(),
+            reason: "the gpu scene draws occluders the package does not have".into(),
+        });
+    }
+    let occluder_set = |bytes, entries| match what {
+        Decode::All => decode_one(bytes, entries, K::Occluders),
+        Decode::Runtime => Ok(None),
+    };
     // The three large sections decode on threads of their own in a large package (a million
     // buildings take seconds each); the result does not depend on the order.
     let (buildings, occluders, cluster_tree) = if bytes.len() < PARALLEL_DECODE_BYTES {
         (
             decode_one(bytes, entries, K::Buildings),
-            decode_one(bytes, entries, K::Occluders),
+            occluder_set(bytes, entries),
             decode_one(bytes, entries, K::ClusterTree),
         )
     } else {
         std::thread::scope(|scope| {
-            let occluders = scope.spawn(|| decode_one(bytes, entries, K::Occluders));
+            let occluders = scope.spawn(|| occluder_set(bytes, entries));
             let cluster_tree = scope.spawn(|| decode_one(bytes, entries, K::ClusterTree));
             let buildings = decode_one(bytes, entries, K::Buildings);
             fn join<T>(r: std::thread::Result<T>) -> T {
@@ -473,6 +504,15 @@ fn decode_with(
             (buildings, join(occluders.join()), join(cluster_tree.join()))
         })
     };
+    let mut cluster_tree = cluster_tree?;
+    if let (Some(tree), Decode::All) = (&mut cluster_tree, what) {
+        restore_cluster_meshes(tree, &gpu_scene.view()).map_err(|reason| {
+            PackageError::Inconsistent {
+                sections: "cluster tree, gpu scene".into(),
+                reason,
+            }
+        })?;
+    }
     let pkg = ScenePackage {
         frame: required(decode_one(bytes, entries, K::Frame)?, K::Frame)?,
         buildings: required(buildings?, K::Buildings)?,
@@ -481,7 +521,7 @@ fn decode_with(
         quadtree: required(decode_one(bytes, entries, K::Quadtree)?, K::Quadtree)?,
         provenance: required(decode_one(bytes, entries, K::Provenance)?, K::Provenance)?,
         occluders: occluders?,
-        cluster_tree: cluster_tree?,
+        cluster_tree,
         timings: decode_one::<Vec<StageTiming>>(bytes, entries, K::Timings)?.unwrap_or_default(),
         gpu_scene,
     };
@@ -499,6 +539,38 @@ fn decode_with(
         });
     }
     Ok(pkg)
+}
+
+/// Gives every node of `tree` its cluster mesh back from the GPU scene, which stores it once
+/// (the tree section does not): the vertices and indices of the node's draw record, exactly as
+/// [`crate::scene_geometry::lod_geometry`] laid them out.
+fn restore_cluster_meshes(tree: &mut ClusterTree, scene: &GpuSceneView<'_>) -> Result<(), String> {
+    if scene.cluster_count() != tree.nodes.len() {
+        return Err(format!(
+            "{} cluster records for {} nodes",
+            scene.cluster_count(),
+            tree.nodes.len()
+        ));
+    }
+    let clusters = &scene.records[scene.building_count as usize..];
+    for (n, (node, r)) in tree.nodes.iter_mut().zip(clusters).enumerate() {
+        let base = r.base_vertex as usize;
+        let first = r.first_index as usize;
+        let (Some(vertices), Some(indices)) = (
+            scene.vertices.get(base..base + r.vertex_count as usize),
+            scene.indices.get(first..first + r.index_count as usize),
+        ) else {
+            return Err(format!("node {n}: its record's ranges are past the arrays"));
+        };
+        node.mesh = TriangleMesh {
+            positions: vertices
+                .iter()
+                .map(|v| glam::Vec3::from_array(v.position_m))
+                .collect(),
+            indices: indices.to_vec(),
+        };
+    }
+    Ok(())
 }
 
 #[cfg(test)]

@@ -15,6 +15,9 @@
 //! [CullPart; part_count]         the buildings' cull parts (clusters have none)
 //! [BuildingRecord; record_count] the occlusion cull's records (cluster boxes widened)
 //! [u32; record_count]            per draw id, the draw id of the cluster above it
+//! [SceneVertex; occluder_vertex_count]  the virtual occluders' vertices
+//! [u32; occluder_index_count]           relative to each occluder's base_vertex
+//! [OccluderRecord; occluder_count]      one per drawable occluder ([`OccluderArrays`])
 //! ```
 //!
 //! Without a cluster tree the scene is the buildings alone (`record_count == building_count`,
@@ -30,6 +33,8 @@ use glam::Vec3;
 
 use crate::City;
 use crate::cluster_tree::ClusterTree;
+use crate::occluder::OccluderSet;
+use crate::occluder_draws::{OccluderArrays, OccluderArraysView, OccluderRecord};
 use crate::scene_geometry::{SceneGeometry, cull_records, draw_id_parents, lod_geometry};
 
 // The arrays are the GPU's little-endian layout, read in place.
@@ -48,8 +53,11 @@ struct Header {
     vertex_count: u32,
     index_count: u32,
     part_count: u32,
+    occluder_vertex_count: u32,
+    occluder_index_count: u32,
+    occluder_count: u32,
     /// Zero: room for later counts without moving the rest.
-    reserved: [u32; 7],
+    reserved: [u32; 4],
     ground: DrawIndexedIndirectArgs,
     bounds_min_m: [f32; 3],
     bounds_max_m: [f32; 3],
@@ -69,6 +77,9 @@ struct Layout {
     parts: (usize, usize),
     cull_records: (usize, usize),
     parents: (usize, usize),
+    occluder_vertices: (usize, usize),
+    occluder_indices: (usize, usize),
+    occluder_records: (usize, usize),
     len: usize,
 }
 
@@ -89,6 +100,9 @@ impl Layout {
         let parts = array(h.part_count, size_of::<CullPart>())?;
         let cull_records = array(h.record_count, size_of::<BuildingRecord>())?;
         let parents = array(h.record_count, 4)?;
+        let occluder_vertices = array(h.occluder_vertex_count, size_of::<SceneVertex>())?;
+        let occluder_indices = array(h.occluder_index_count, 4)?;
+        let occluder_records = array(h.occluder_count, size_of::<OccluderRecord>())?;
         Some(Layout {
             header,
             vertices,
@@ -97,6 +111,9 @@ impl Layout {
             parts,
             cull_records,
             parents,
+            occluder_vertices,
+            occluder_indices,
+            occluder_records,
             len: at,
         })
     }
@@ -136,6 +153,8 @@ pub struct GpuSceneView<'a> {
     pub cull_records: &'a [BuildingRecord],
     /// One per draw id, [`NO_PARENT`] at the top (every draw id without a tree).
     pub parents: &'a [u32],
+    /// The virtual occluders, as the runtime draws them (empty without the occluder stage).
+    pub occluders: OccluderArraysView<'a>,
     pub ground: DrawIndexedIndirectArgs,
     /// Bounds of every record (buildings and cluster meshes).
     pub bounds: (Vec3, Vec3),
@@ -143,29 +162,37 @@ pub struct GpuSceneView<'a> {
 
 impl GpuScene {
     /// Meshes the buildings of `city` and the cluster meshes of `tree` (built from `city`), with
-    /// cull parts and records: what the runtime would otherwise compute at load.
-    pub fn build(city: &City, tree: Option<&ClusterTree>) -> GpuScene {
+    /// cull parts and records, and lays out the drawable `occluders`: what the runtime would
+    /// otherwise compute at load.
+    pub fn build(
+        city: &City,
+        tree: Option<&ClusterTree>,
+        occluders: Option<&OccluderSet>,
+    ) -> GpuScene {
         let n = city.buildings.len() as u32;
+        let occluders = occluders.map(OccluderArrays::of).unwrap_or_default();
         match tree {
             Some(tree) => {
                 let geometry = lod_geometry(city, tree);
                 let cull = cull_records(&geometry.records, n, tree);
-                GpuScene::from_arrays(n, &geometry, &cull, &draw_id_parents(tree, n))
+                let parents = draw_id_parents(tree, n);
+                GpuScene::from_arrays(n, &geometry, &cull, &parents, &occluders)
             }
             None => {
                 let geometry = SceneGeometry::from_city(city);
-                GpuScene::from_arrays(n, &geometry, &geometry.records, &[])
+                GpuScene::from_arrays(n, &geometry, &geometry.records, &[], &occluders)
             }
         }
     }
 
     /// Lays out `geometry` (whose first `building_count` records are buildings) with its cull
-    /// records and parents (one per record, or none without a tree).
+    /// records and parents (one per record, or none without a tree), and the occluders.
     pub fn from_arrays(
         building_count: u32,
         geometry: &SceneGeometry,
         cull_records: &[BuildingRecord],
         parents: &[u32],
+        occluders: &OccluderArrays,
     ) -> GpuScene {
         let header = Header {
             building_count,
@@ -173,7 +200,10 @@ impl GpuScene {
             vertex_count: geometry.vertices.len() as u32,
             index_count: geometry.indices.len() as u32,
             part_count: geometry.parts.len() as u32,
-            reserved: [0; 7],
+            occluder_vertex_count: occluders.vertices.len() as u32,
+            occluder_index_count: occluders.indices.len() as u32,
+            occluder_count: occluders.records.len() as u32,
+            reserved: [0; 4],
             ground: geometry.ground,
             bounds_min_m: geometry.bounds.0.to_array(),
             bounds_max_m: geometry.bounds.1.to_array(),
@@ -207,6 +237,12 @@ impl GpuScene {
             &no_parents
         };
         put(layout.parents, bytemuck::cast_slice(parents));
+        put(
+            layout.occluder_vertices,
+            bytemuck::cast_slice(&occluders.vertices),
+        );
+        put(layout.occluder_indices, bytemuck::cast_slice(&occluders.indices));
+        put(layout.occluder_records, bytemuck::cast_slice(&occluders.records));
         GpuScene {
             storage: Storage::Owned(words),
             layout,
@@ -276,6 +312,11 @@ impl GpuScene {
             parts: cast(bytes, l.parts),
             cull_records: cast(bytes, l.cull_records),
             parents: cast(bytes, l.parents),
+            occluders: OccluderArraysView {
+                vertices: cast(bytes, l.occluder_vertices),
+                indices: cast(bytes, l.occluder_indices),
+                records: cast(bytes, l.occluder_records),
+            },
             ground: l.header.ground,
             bounds: (
                 Vec3::from_array(l.header.bounds_min_m),
@@ -306,8 +347,9 @@ impl GpuSceneView<'_> {
 
     /// Checks everything [`validate`] does not: the layout of the records
     /// ([`crate::scene_geometry::check_layout`]), that the cull records keep the draw records'
-    /// ranges, the parents point up to cluster draw ids, and that `building_count` buildings and
-    /// `nodes` tree nodes make the records.
+    /// ranges, the parents point up to cluster draw ids, that `building_count` buildings and
+    /// `nodes` tree nodes make the records, and the occluders' arrays
+    /// ([`OccluderArraysView::check_invariants`]).
     pub fn check_invariants(&self, buildings: usize, nodes: usize) -> Result<(), String> {
         if self.building_count as usize != buildings || self.cluster_count() != nodes {
             return Err(format!(
@@ -337,7 +379,7 @@ impl GpuSceneView<'_> {
         }) {
             return Err(format!("draw id {i}: parent {p} is not a cluster above it"));
         }
-        Ok(())
+        self.occluders.check_invariants(self.building_count)
     }
 }
 
@@ -348,7 +390,7 @@ fn validate(payload: &[u8]) -> Result<Layout, String> {
         .get(..HEADER_LEN)
         .map(bytemuck::pod_read_unaligned)
         .ok_or_else(|| format!("{} bytes, shorter than the header", payload.len()))?;
-    if header.reserved != [0; 7] || header.padding != 0 {
+    if header.reserved != [0; 4] || header.padding != 0 {
         return Err("reserved header fields set".into());
     }
     if header.building_count > header.record_count {
@@ -372,6 +414,9 @@ fn validate(payload: &[u8]) -> Result<Layout, String> {
         layout.parts,
         layout.cull_records,
         layout.parents,
+        layout.occluder_vertices,
+        layout.occluder_indices,
+        layout.occluder_records,
     ];
     let mut end = HEADER_LEN;
     for (start, stop) in arrays {
@@ -406,6 +451,20 @@ fn validate(payload: &[u8]) -> Result<Layout, String> {
             ));
         }
     }
+    let occluders = payload[layout.occluder_records.0..layout.occluder_records.1]
+        .chunks_exact(size_of::<OccluderRecord>())
+        .map(bytemuck::pod_read_unaligned::<OccluderRecord>);
+    for (i, r) in occluders.enumerate() {
+        let inside = |first: u32, count: u32, len: u32| {
+            u64::from(first) + u64::from(count) <= u64::from(len)
+        };
+        if !inside(r.first_index, r.index_count, h.occluder_index_count)
+            || !inside(r.base_vertex, r.vertex_count, h.occluder_vertex_count)
+            || r.building >= h.building_count
+        {
+            return Err(format!("occluder {i}: ranges past the arrays"));
+        }
+    }
     let g = h.ground;
     if u64::from(g.first_index) + u64::from(g.index_count) > u64::from(h.index_count)
         || g.base_vertex < 0
@@ -431,6 +490,7 @@ impl fmt::Debug for GpuScene {
             .field("vertices", &h.vertex_count)
             .field("indices", &h.index_count)
             .field("parts", &h.part_count)
+            .field("occluders", &h.occluder_count)
             .field("mapped", &self.is_mapped())
             .finish()
     }

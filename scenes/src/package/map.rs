@@ -75,7 +75,13 @@ impl PackageFile {
 
     /// Decodes the whole package; its GPU scene stays in the mapping (which it keeps alive).
     pub fn decode(&self) -> Result<ScenePackage, PackageError> {
-        format::decode_mapped(&self.map, &self.sections)
+        format::decode_mapped(&self.map, &self.sections, format::Decode::All)
+    }
+
+    /// Decodes what drawing the scene needs ([`format::Decode::Runtime`]: no occluder set;
+    /// the occluders are drawn from the GPU scene's arrays).
+    pub fn decode_runtime(&self) -> Result<ScenePackage, PackageError> {
+        format::decode_mapped(&self.map, &self.sections, format::Decode::Runtime)
     }
 }
 

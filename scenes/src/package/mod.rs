@@ -28,7 +28,7 @@ pub mod gpu_scene;
 mod map;
 
 pub use error::PackageError;
-pub use format::{FORMAT_VERSION, MAGIC, SectionKind};
+pub use format::{Decode, FORMAT_VERSION, MAGIC, SectionKind};
 pub use gpu_scene::{GpuScene, GpuSceneView};
 pub use map::PackageFile;
 
@@ -106,6 +106,16 @@ impl ScenePackage {
         }
     }
 
+    /// The city the package was made from, moved out of it (no copy of the buildings).
+    pub fn into_city(self) -> City {
+        City {
+            frame: self.frame,
+            buildings: self.buildings,
+            streets: self.streets,
+            report: self.provenance.load_report,
+        }
+    }
+
     /// Encodes the package.
     pub fn to_bytes(&self, options: WriteOptions) -> Result<Vec<u8>, PackageError> {
         format::encode(self, options)
@@ -151,6 +161,12 @@ impl ScenePackage {
     /// scene is alive).
     pub fn read(path: &Path) -> Result<ScenePackage, PackageError> {
         PackageFile::open(path)?.decode()
+    }
+
+    /// [`ScenePackage::read`] of what drawing the scene needs: `occluders` is left `None`, the
+    /// runtime draws them from the GPU scene ([`GpuSceneView::occluders`]).
+    pub fn read_runtime(path: &Path) -> Result<ScenePackage, PackageError> {
+        PackageFile::open(path)?.decode_runtime()
     }
 
     /// The cheap checks that the sections belong together, run whenever a package is opened:
@@ -218,6 +234,18 @@ impl ScenePackage {
         {
             errors.push(("occluders, buildings", e));
         }
+        if let Some(occ) = &self.occluders
+            && view.occluders.records.len() > occ.occluders.len()
+        {
+            errors.push((
+                "gpu scene, occluders",
+                format!(
+                    "{} occluders drawn, the occluder set has {}",
+                    view.occluders.records.len(),
+                    occ.occluders.len()
+                ),
+            ));
+        }
         if let Some(tree) = &self.cluster_tree
             && let Err(e) = tree_ranges(tree, &self.buildings)
         {
@@ -250,7 +278,12 @@ impl ScenePackage {
         let nodes = self.cluster_tree.as_ref().map_or(0, |t| t.nodes.len());
         if let Err(e) = self.gpu_scene.view().check_invariants(n, nodes) {
             errors.push(format!("gpu scene: {e}"));
-        } else if GpuScene::build(&self.city(), self.cluster_tree.as_ref()) != self.gpu_scene {
+        } else if GpuScene::build(
+            &self.city(),
+            self.cluster_tree.as_ref(),
+            self.occluders.as_ref(),
+        ) != self.gpu_scene
+        {
             errors.push("gpu scene: differs from the one built from the buildings and tree".into());
         }
         if let Some(tree) = &self.cluster_tree

@@ -72,7 +72,7 @@ pub(crate) fn small_package() -> ScenePackage {
     };
     let mut counts = BTreeMap::new();
     counts.insert("blocks".to_string(), 1);
-    let gpu_scene = GpuScene::build(&city_of(&buildings), None);
+    let gpu_scene = GpuScene::build(&city_of(&buildings), None, None);
     ScenePackage {
         frame: Frame::wgs84(-8.61, 41.15),
         buildings,
@@ -397,7 +397,8 @@ fn an_inconsistent_gpu_scene_is_refused() {
                 p[12..16].copy_from_slice(&n.to_le_bytes());
             }),
         ),
-        ("reserved", Box::new(|p| p[20] = 1)),
+        // Header words 8..12 are reserved (after the five counts and three occluder counts).
+        ("reserved", Box::new(|p| p[32] = 1)),
         ("padding", Box::new(|p| *p.last_mut().unwrap() = 1)),
         // The first draw record (after the header, the vertices and the indices, padded to 16
         // bytes): its index count (at 28 in the record) past the index array.
@@ -419,7 +420,7 @@ fn an_inconsistent_gpu_scene_is_refused() {
 
     // A scene of other buildings than the package's.
     let mut other = small_package();
-    other.gpu_scene = GpuScene::build(&city_of(&other.buildings[..1]), None);
+    other.gpu_scene = GpuScene::build(&city_of(&other.buildings[..1]), None, None);
     let bytes = other.to_bytes(WriteOptions::default()).expect("encode");
     match ScenePackage::from_bytes(&bytes) {
         Err(PackageError::Inconsistent { sections, reason }) if sections.contains("gpu scene") => {
@@ -432,7 +433,7 @@ fn an_inconsistent_gpu_scene_is_refused() {
     let mut moved = small_package();
     let mut geometry = moved.gpu_scene.geometry();
     geometry.vertices[0].position_m[2] += 1.0;
-    moved.gpu_scene = GpuScene::from_arrays(2, &geometry, &geometry.records, &[]);
+    moved.gpu_scene = GpuScene::from_arrays(2, &geometry, &geometry.records, &[], &Default::default());
     let errors = moved.check_invariants().expect_err("moved vertex");
     assert!(
         errors.iter().any(|e| e.starts_with("gpu scene:")),
@@ -441,7 +442,7 @@ fn an_inconsistent_gpu_scene_is_refused() {
     let mut relabelled = small_package();
     let mut geometry = relabelled.gpu_scene.geometry();
     geometry.vertices[0].building_id = 1;
-    relabelled.gpu_scene = GpuScene::from_arrays(2, &geometry, &geometry.records, &[]);
+    relabelled.gpu_scene = GpuScene::from_arrays(2, &geometry, &geometry.records, &[], &Default::default());
     let errors = relabelled
         .check_invariants()
         .expect_err("vertex of another building");

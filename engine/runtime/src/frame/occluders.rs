@@ -5,7 +5,9 @@ use std::borrow::Cow;
 
 use citywalk_scenes::frustum::{Containment, Frustum};
 use citywalk_scenes::occluder::OccluderSet;
-use citywalk_shaders::{DrawIndexedIndirectArgs, SceneVertex};
+use citywalk_scenes::occluder_draws::{OccluderArrays, OccluderArraysView, OccluderRecord};
+use citywalk_scenes::package::GpuSceneView;
+use citywalk_shaders::DrawIndexedIndirectArgs;
 use glam::Vec3;
 
 use crate::camera::Camera;
@@ -20,6 +22,27 @@ pub struct OccluderDraw {
     pub bounds_min_m: Vec3,
     pub bounds_max_m: Vec3,
     pub triangles: u32,
+}
+
+impl OccluderDraw {
+    fn of(r: &OccluderRecord) -> OccluderDraw {
+        let (lo, hi) = r.bounds();
+        OccluderDraw {
+            building: r.building,
+            draw: DrawIndexedIndirectArgs {
+                index_count: r.index_count,
+                instance_count: 1,
+                first_index: r.first_index,
+                // Below 2^31: the package's check and `OccluderArrays::of` keep the vertex
+                // count in u32 and a scene that large does not fit a GPU buffer.
+                base_vertex: r.base_vertex as i32,
+                first_instance: 0,
+            },
+            bounds_min_m: lo,
+            bounds_max_m: hi,
+            triangles: r.index_count / 3,
+        }
+    }
 }
 
 /// Every occluder mesh of a scene in one vertex and one index buffer, with per-occluder ranges.
@@ -53,52 +76,23 @@ impl Sphere {
 }
 
 impl OccluderMeshes {
-    /// Uploads every occluder of `set` (vertices carry the occluder's building id). Triangles
-    /// with an index outside their mesh and non-finite meshes are left out.
+    /// Uploads every drawable occluder of `set` ([`OccluderArrays::of`]: vertices carry the
+    /// occluder's building id; triangles with an index outside their mesh and non-finite meshes
+    /// are left out).
     pub fn upload(gpu: &GpuContext, set: &OccluderSet) -> OccluderMeshes {
-        let mut vertices: Vec<SceneVertex> = Vec::new();
-        let mut indices: Vec<u32> = Vec::new();
-        let mut occluders = Vec::new();
-        for o in &set.occluders {
-            let Some((lo, hi)) = o.mesh.bounds() else {
-                continue;
-            };
-            if !(lo.is_finite() && hi.is_finite()) {
-                continue;
-            }
-            let n = o.mesh.positions.len() as u32;
-            let first_index = indices.len() as u32;
-            for t in o.mesh.indices.chunks_exact(3) {
-                if t.iter().all(|&v| v < n) {
-                    indices.extend_from_slice(t);
-                }
-            }
-            let index_count = indices.len() as u32 - first_index;
-            if index_count == 0 {
-                continue;
-            }
-            let base_vertex = vertices.len() as i32;
-            vertices.extend(o.mesh.positions.iter().map(|p| SceneVertex {
-                position_m: p.to_array(),
-                building_id: o.building.0,
-            }));
-            occluders.push(OccluderDraw {
-                building: o.building.0,
-                draw: DrawIndexedIndirectArgs {
-                    index_count,
-                    instance_count: 1,
-                    first_index,
-                    base_vertex,
-                    first_instance: 0,
-                },
-                bounds_min_m: lo,
-                bounds_max_m: hi,
-                triangles: index_count / 3,
-            });
-        }
+        Self::upload_arrays(gpu, OccluderArrays::of(set).view())
+    }
+
+    /// Uploads the occluders of a package's GPU scene, straight from its mapping.
+    pub fn upload_package(gpu: &GpuContext, scene: &GpuSceneView<'_>) -> OccluderMeshes {
+        Self::upload_arrays(gpu, scene.occluders)
+    }
+
+    fn upload_arrays(gpu: &GpuContext, arrays: OccluderArraysView<'_>) -> OccluderMeshes {
+        let occluders: Vec<OccluderDraw> = arrays.records.iter().map(OccluderDraw::of).collect();
         // Buffers are never empty, so they can always be bound.
         let (vertex_buffer, index_buffer) =
-            crate::render::mesh_buffers(&gpu.device, "occluder", vertices, indices);
+            crate::render::mesh_buffers(&gpu.device, "occluder", arrays.vertices, arrays.indices);
         OccluderMeshes {
             vertex_buffer,
             index_buffer,

@@ -105,7 +105,7 @@ impl LodScene {
     /// Meshes and uploads the buildings of `city` and the cluster meshes of `tree` (built from
     /// `city`), as preprocessing does for a package ([`GpuScene::build`]).
     pub fn upload(gpu: &GpuContext, city: &City, tree: ClusterTree) -> LodScene {
-        let scene = GpuScene::build(city, Some(&tree));
+        let scene = GpuScene::build(city, Some(&tree), None);
         let view = scene.view();
         Self::upload_package(gpu, &SceneGpu::upload_package(gpu, &view), &view, tree)
     }

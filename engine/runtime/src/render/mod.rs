@@ -201,27 +201,32 @@ pub fn fullscreen_pipeline(
 pub(crate) fn mesh_buffers(
     device: &wgpu::Device,
     label: &str,
-    mut vertices: Vec<citywalk_shaders::SceneVertex>,
-    mut indices: Vec<u32>,
+    vertices: &[citywalk_shaders::SceneVertex],
+    indices: &[u32],
 ) -> (wgpu::Buffer, wgpu::Buffer) {
     use wgpu::util::DeviceExt;
-    if vertices.is_empty() {
-        vertices.push(citywalk_shaders::SceneVertex {
-            position_m: [0.0; 3],
-            building_id: 0,
-        });
-    }
-    if indices.is_empty() {
-        indices.extend_from_slice(&[0, 0, 0]);
-    }
+    let one_vertex = [citywalk_shaders::SceneVertex {
+        position_m: [0.0; 3],
+        building_id: 0,
+    }];
+    let vertices = if vertices.is_empty() {
+        &one_vertex[..]
+    } else {
+        vertices
+    };
+    let indices = if indices.is_empty() {
+        &[0, 0, 0][..]
+    } else {
+        indices
+    };
     let vertex_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
         label: Some(&format!("{label} vertices")),
-        contents: bytemuck::cast_slice(&vertices),
+        contents: bytemuck::cast_slice(vertices),
         usage: wgpu::BufferUsages::VERTEX,
     });
     let index_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
         label: Some(&format!("{label} indices")),
-        contents: bytemuck::cast_slice(&indices),
+        contents: bytemuck::cast_slice(indices),
         usage: wgpu::BufferUsages::INDEX,
     });
     (vertex_buffer, index_buffer)

@@ -6,8 +6,9 @@
 //! the scene, which they lie inside.
 
 use citywalk_scenes::occluder::OccluderSet;
+use citywalk_scenes::occluder_draws::{OccluderArrays, OccluderArraysView};
+use citywalk_scenes::package::GpuSceneView;
 use citywalk_shaders::DEBUG_OCCLUDERS_WGSL;
-use citywalk_shaders::SceneVertex;
 #[cfg(doc)]
 use citywalk_shaders::constants::{DEBUG_OCCLUDER_RGB, DEBUG_OCCLUDER_SELECTED_RGB};
 
@@ -38,44 +39,37 @@ pub struct OccluderOverlayMeshes {
 }
 
 impl OccluderOverlayMeshes {
-    /// Uploads the occluders of `set`; triangles with an index outside their mesh and meshes
-    /// with non-finite bounds are left out (the rule of [`crate::frame::OccluderMeshes::upload`]).
+    /// Uploads the occluders of `set`, as [`crate::frame::OccluderMeshes::upload`] draws them.
     pub fn upload(gpu: &GpuContext, set: &OccluderSet) -> OccluderOverlayMeshes {
-        let mut vertices: Vec<SceneVertex> = Vec::new();
-        let mut indices: Vec<u32> = Vec::new();
-        let mut ranges = Vec::new();
-        for o in &set.occluders {
-            let mesh = &o.mesh;
-            let Some((lo, hi)) = mesh.bounds() else {
-                continue;
-            };
-            if !(lo.is_finite() && hi.is_finite()) {
-                continue;
-            }
-            let n = mesh.positions.len() as u32;
-            let base = vertices.len() as u32;
-            let first_index = indices.len() as u32;
-            for t in mesh.indices.chunks_exact(3) {
-                if t.iter().all(|&v| v < n) {
-                    indices.extend(t.iter().map(|&v| base + v));
-                }
-            }
-            let index_count = indices.len() as u32 - first_index;
-            if index_count == 0 {
-                continue;
-            }
-            vertices.extend(mesh.positions.iter().map(|p| SceneVertex {
-                position_m: p.to_array(),
-                building_id: o.building.0,
-            }));
+        Self::upload_arrays(gpu, OccluderArrays::of(set).view())
+    }
+
+    /// Uploads the occluders of a package's GPU scene.
+    pub fn upload_package(gpu: &GpuContext, scene: &GpuSceneView<'_>) -> OccluderOverlayMeshes {
+        Self::upload_arrays(gpu, scene.occluders)
+    }
+
+    /// The arrays with absolute indices (each occluder's base vertex added), so the whole set is
+    /// one draw.
+    fn upload_arrays(gpu: &GpuContext, arrays: OccluderArraysView<'_>) -> OccluderOverlayMeshes {
+        let mut indices: Vec<u32> = Vec::with_capacity(arrays.indices.len());
+        let mut ranges = Vec::with_capacity(arrays.records.len());
+        for r in arrays.records {
+            let first = r.first_index as usize;
+            let relative = &arrays.indices[first..first + r.index_count as usize];
             ranges.push(OccluderRange {
-                building: o.building.0,
-                first_index,
-                index_count,
+                building: r.building,
+                first_index: indices.len() as u32,
+                index_count: r.index_count,
             });
+            indices.extend(relative.iter().map(|&v| r.base_vertex + v));
         }
-        let (vertex_buffer, index_buffer) =
-            crate::render::mesh_buffers(&gpu.device, "debug occluder", vertices, indices);
+        let (vertex_buffer, index_buffer) = crate::render::mesh_buffers(
+            &gpu.device,
+            "debug occluder",
+            arrays.vertices,
+            &indices,
+        );
         OccluderOverlayMeshes {
             vertex_buffer,
             index_buffer,
