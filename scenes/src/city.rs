@@ -107,7 +107,12 @@ pub struct Building {
     pub source_id: String,
     /// Outline of the whole building in the local frame (the union of its parts' outlines).
     pub footprint: MultiPolygon<f64>,
-    /// The vertical parts; never empty.
+    /// The vertical parts; never empty (but for a package read only to draw it,
+    /// [`crate::package::Decode::Runtime`]).
+    ///
+    /// Not serialized with the building: a package keeps parts and tags in a section of their
+    /// own, which drawing the scene never decodes ([`crate::package::format`]).
+    #[serde(skip)]
     pub parts: Vec<BuildingPart>,
     /// Lowest base over all parts (metres).
     pub base_m: f32,
@@ -116,7 +121,8 @@ pub struct Building {
     pub height_source: HeightSource,
     /// The source's own geometry when it has true 3D geometry (CityJSON, glTF).
     pub mesh: Option<TriangleMesh>,
-    /// Source attributes / tags, as strings.
+    /// Source attributes / tags, as strings (in the package's section with the parts).
+    #[serde(skip)]
     pub tags: BTreeMap<String, String>,
 }
 

@@ -80,6 +80,8 @@ fn report(records: &[FrameRecord]) -> BenchReport {
             device_type: "test".into(),
         },
         size: [W, H],
+        scenes: Vec::new(),
+        peak_resident_mib: None,
         entries: summarise(records),
     }
 }

@@ -10,5 +10,7 @@ pub mod plots;
 pub mod run;
 
 pub use mode::Mode;
-pub use output::{AdapterSummary, BenchReport, ModeSummary, summarise, write_outputs};
+pub use output::{
+    AdapterSummary, BenchReport, ModeSummary, SceneLoad, resident_mib, summarise, write_outputs,
+};
 pub use run::{BenchConfig, BenchError, BenchRenderers, BenchScene, FrameRecord, run_path};

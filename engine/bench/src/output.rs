@@ -94,12 +94,43 @@ pub struct AdapterSummary {
     pub device_type: String,
 }
 
+/// How long a scene took to open, and the process's memory once it was ready.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SceneLoad {
+    pub scene: String,
+    pub buildings: usize,
+    pub triangles: usize,
+    /// From the start of reading the scene to everything uploaded and ready for the first
+    /// frame (seconds, wall clock).
+    pub ready_s: f64,
+    /// Resident memory of the process when the scene was ready (MiB; `None` where the
+    /// platform does not say). With a software adapter the GPU's buffers are in it too.
+    pub resident_mib: Option<f64>,
+}
+
 /// Everything `bench.json` holds.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct BenchReport {
     pub adapter: AdapterSummary,
     pub size: [u32; 2],
+    /// One per scene, in the order benchmarked.
+    pub scenes: Vec<SceneLoad>,
+    /// The process's peak resident memory at the end of the run (MiB; `None` where the
+    /// platform does not say).
+    pub peak_resident_mib: Option<f64>,
     pub entries: Vec<ModeSummary>,
+}
+
+/// The process's resident memory now and its peak so far (MiB), from `/proc/self/status`
+/// (`VmRSS`, `VmHWM`); `None` off Linux.
+pub fn resident_mib() -> (Option<f64>, Option<f64>) {
+    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+    let field = |name: &str| {
+        let line = status.lines().find(|l| l.starts_with(name))?;
+        let kib: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+        Some(kib / 1024.0)
+    };
+    (field("VmRSS:"), field("VmHWM:"))
 }
 
 impl BenchReport {
@@ -313,6 +344,27 @@ pub fn summary_markdown(report: &BenchReport) -> String {
         report.size[0],
         report.size[1]
     );
+    if !report.scenes.is_empty() {
+        out.push_str("| scene | buildings | triangles | ready (s) | resident (MiB) |\n");
+        out.push_str("|---|---:|---:|---:|---:|\n");
+        for l in &report.scenes {
+            let _ = writeln!(
+                out,
+                "| {} | {} | {} | {:.2} | {} |",
+                l.scene,
+                l.buildings,
+                l.triangles,
+                l.ready_s,
+                l.resident_mib.map_or("n/a".to_string(), |m| format!("{m:.0}"))
+            );
+        }
+        let peak = report.peak_resident_mib;
+        let _ = writeln!(
+            out,
+            "\nPeak resident memory of the run: {} MiB.\n",
+            peak.map_or("n/a".to_string(), |m| format!("{m:.0}"))
+        );
+    }
     out.push_str(
         "| scene | path | mode | frames | false culls | visible | drawn | clusters | culled | triangles | \
          draw calls | frame ms (median) | p95 | p99 | max | CPU ms (median / p99 / max) | \
@@ -470,6 +522,8 @@ mod tests {
                 device_type: "c".into(),
             },
             size: [64, 48],
+            scenes: Vec::new(),
+            peak_resident_mib: None,
             entries,
         }
     }

@@ -11,7 +11,7 @@ use citywalk_bench::decimate::decimate_city;
 use citywalk_bench::plots::write_plots;
 use citywalk_bench::{
     AdapterSummary, BenchConfig, BenchRenderers, BenchReport, BenchScene, FrameRecord, Mode,
-    run_path, summarise, write_outputs,
+    SceneLoad, resident_mib, run_path, summarise, write_outputs,
 };
 use citywalk_runtime::gpu::GpuContext;
 use citywalk_runtime::lod::LodCriterion;
@@ -22,7 +22,7 @@ use citywalk_scenes::camera_path::{self, CameraPath};
 use citywalk_scenes::package::ScenePackage;
 
 use crate::path_arg::GENERATED;
-use crate::scene_input::load_scene_to_draw;
+use crate::scene_input::{load_scene, load_scene_to_draw};
 
 /// Arguments of `citywalk bench`.
 #[derive(Debug, clap::Args)]
@@ -173,9 +173,16 @@ pub fn run_benchmark_with(
     eprintln!("adapter: {}", gpu.adapter_summary());
     let mut renderers = BenchRenderers::new(&gpu);
     let mut records: Vec<FrameRecord> = Vec::new();
+    let mut loads = Vec::new();
     for scene_path in scenes {
         let started = Instant::now();
-        let package = load_scene_to_draw(scene_path)?;
+        // The decimated baseline meshes the buildings from their parts, which a package read
+        // only to draw leaves out.
+        let package = if baseline.is_some() {
+            load_scene(scene_path)?
+        } else {
+            load_scene_to_draw(scene_path)?
+        };
         // Moved apart, not cloned: at a million buildings each copy is gigabytes.
         let ScenePackage {
             frame,
@@ -218,12 +225,21 @@ pub fn run_benchmark_with(
             lod,
             occluders,
         };
+        let load = SceneLoad {
+            scene: name.clone(),
+            buildings: scene.gpu_scene.building_count(),
+            triangles: scene.gpu_scene.triangle_count,
+            ready_s: started.elapsed().as_secs_f64(),
+            resident_mib: resident_mib().0,
+        };
         eprintln!(
-            "{name}: {} buildings, {} triangles, ready in {:.1} s",
-            scene.gpu_scene.building_count(),
-            scene.gpu_scene.triangle_count,
-            started.elapsed().as_secs_f64()
+            "{name}: {} buildings, {} triangles, ready in {:.1} s, {} MiB resident",
+            load.buildings,
+            load.triangles,
+            load.ready_s,
+            load.resident_mib.map_or("?".into(), |m| format!("{m:.0}"))
         );
+        loads.push(load);
         let mut paths: Vec<CameraPath> = path_kinds
             .iter()
             .map(|kind| match kind.as_str() {
@@ -282,6 +298,8 @@ pub fn run_benchmark_with(
             device_type: format!("{:?}", info.device_type),
         },
         size: [config.width, config.height],
+        scenes: loads,
+        peak_resident_mib: resident_mib().1,
         entries: summarise(&records),
     };
     write_outputs(out, &records, &report)?;

@@ -76,7 +76,7 @@ fn load_scene_as(path: &Path, what: Decode) -> anyhow::Result<ScenePackage> {
 /// Opens the city of a scene for drawing: a package's buildings and streets as stored, or any
 /// other input loaded as it is (no preprocessing: rendering and viewing need only the city).
 pub fn load_city(path: &Path) -> anyhow::Result<citywalk_scenes::City> {
-    if let Some(package) = open_package_as(path, Decode::Runtime)? {
+    if let Some(package) = open_package(path)? {
         return Ok(package.into_city());
     }
     citywalk_scenes::load_city(path, &LoadOptions::default())

@@ -122,6 +122,15 @@ fn bench_writes_its_files_and_plots() {
     }
     assert_eq!(json["entries"][2]["false_culls"], 0);
     assert_eq!(json["size"], serde_json::json!([96, 64]));
+    // The scene's load: its buildings, a time and the process's memory then and at its peak.
+    let scenes = json["scenes"].as_array().expect("scenes");
+    assert_eq!(scenes.len(), 1, "{scenes:?}");
+    assert_eq!(scenes[0]["scene"], "tiny");
+    assert!(scenes[0]["buildings"].as_u64().expect("buildings") > 0);
+    assert!(scenes[0]["ready_s"].as_f64().expect("ready_s") > 0.0);
+    let resident = scenes[0]["resident_mib"].as_f64().expect("resident_mib");
+    let peak = json["peak_resident_mib"].as_f64().expect("peak_resident_mib");
+    assert!(resident > 1.0 && peak >= resident, "{resident} {peak}");
     assert_eq!(printed, json);
     let summary = std::fs::read_to_string(out.join("summary.md")).expect("summary.md");
     assert!(

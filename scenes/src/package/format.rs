@@ -39,7 +39,8 @@ pub const MAGIC: [u8; 4] = *b"CWK\0";
 /// - 5: the GPU scene holds the drawable occluders' arrays
 ///   ([`crate::occluder_draws::OccluderArrays`]), so the runtime opens a package without
 ///   decoding the occluder set; the cluster tree section no longer repeats the cluster meshes
-///   the GPU scene holds (a full decode restores them from there).
+///   the GPU scene holds (a full decode restores them from there); the buildings' parts and
+///   tags moved to a section of their own ([`SectionKind::BuildingDetails`]).
 pub const FORMAT_VERSION: u32 = 5;
 /// Sections start at multiples of this (a cache line, and enough for any scalar type).
 pub const SECTION_ALIGN: u64 = 64;
@@ -73,10 +74,14 @@ pub enum SectionKind {
     Timings = 9,
     /// [`super::GpuScene`]: raw arrays, not postcard.
     GpuScene = 10,
+    /// Per building, its parts and tags (`Vec<(Vec<BuildingPart>, BTreeMap<String, String>)>`,
+    /// in building order): what preprocessing and inspection read and drawing does not, kept
+    /// apart from the buildings so a package opened to draw does not decode them.
+    BuildingDetails = 11,
 }
 
 impl SectionKind {
-    pub const ALL: [SectionKind; 10] = [
+    pub const ALL: [SectionKind; 11] = [
         SectionKind::Frame,
         SectionKind::Buildings,
         SectionKind::Streets,
@@ -87,6 +92,7 @@ impl SectionKind {
         SectionKind::ClusterTree,
         SectionKind::Timings,
         SectionKind::GpuScene,
+        SectionKind::BuildingDetails,
     ];
 
     pub fn from_u32(v: u32) -> Option<SectionKind> {
@@ -105,11 +111,13 @@ impl SectionKind {
             SectionKind::ClusterTree => "cluster tree",
             SectionKind::Timings => "timings",
             SectionKind::GpuScene => "gpu scene",
+            SectionKind::BuildingDetails => "building details",
         }
     }
 
     fn required(self) -> bool {
-        (self as u32) <= SectionKind::Provenance as u32 || self == SectionKind::GpuScene
+        (self as u32) <= SectionKind::Provenance as u32
+            || matches!(self, SectionKind::GpuScene | SectionKind::BuildingDetails)
     }
 }
 
@@ -154,6 +162,8 @@ pub fn encode(pkg: &ScenePackage, options: WriteOptions) -> Result<Vec<u8>, Pack
         payloads.push(encode_one(SectionKind::Timings, &pkg.timings)?);
     }
     payloads.push((SectionKind::GpuScene, pkg.gpu_scene.bytes().to_vec()));
+    let details: Vec<_> = pkg.buildings.iter().map(|b| (&b.parts, &b.tags)).collect();
+    payloads.push(encode_one(SectionKind::BuildingDetails, &details)?);
 
     let table_end = (HEADER_LEN + ENTRY_LEN * payloads.len()) as u64;
     let mut entries = Vec::with_capacity(payloads.len());
@@ -389,9 +399,10 @@ pub enum Decode {
     /// Every section.
     All,
     /// What drawing the scene needs: every section but the occluder set (the runtime draws the
-    /// occluders from the GPU scene's arrays), which is left `None`, and the cluster tree's
-    /// meshes, left empty (the runtime draws them from the GPU scene too). At a million
-    /// buildings the two are more than a gigabyte of heap no frame reads.
+    /// occluders from the GPU scene's arrays), which is left `None`, the cluster tree's meshes
+    /// (drawn from the GPU scene too) and the buildings' parts and tags, left empty. At a
+    /// million buildings these are gigabytes of heap and seconds of decoding no frame reads;
+    /// what is left (footprints, heights, source meshes) is what camera paths and walking need.
     Runtime,
 }
 
@@ -423,6 +434,9 @@ pub fn decode_one<T: DeserializeOwned>(
     }
     Ok(Some(value))
 }
+
+/// One building's entry of [`SectionKind::BuildingDetails`].
+type BuildingDetails = (Vec<crate::BuildingPart>, std::collections::BTreeMap<String, String>);
 
 fn required<T>(value: Option<T>, kind: SectionKind) -> Result<T, PackageError> {
     value.ok_or_else(|| PackageError::Malformed(format!("missing section {}", kind.name())))
@@ -489,7 +503,7 @@ fn decode_with(
     // buildings take seconds each); the result does not depend on the order.
     let (buildings, occluders, cluster_tree) = if bytes.len() < PARALLEL_DECODE_BYTES {
         (
-            decode_one(bytes, entries, K::Buildings),
+            decode_one::<Vec<crate::Building>>(bytes, entries, K::Buildings),
             occluder_set(bytes, entries),
             decode_one(bytes, entries, K::ClusterTree),
         )
@@ -504,6 +518,27 @@ fn decode_with(
             (buildings, join(occluders.join()), join(cluster_tree.join()))
         })
     };
+    let mut buildings = required(buildings?, K::Buildings)?;
+    if what == Decode::All {
+        let details: Vec<BuildingDetails> = required(
+            decode_one(bytes, entries, K::BuildingDetails)?,
+            K::BuildingDetails,
+        )?;
+        if details.len() != buildings.len() {
+            return Err(PackageError::Inconsistent {
+                sections: "building details, buildings".into(),
+                reason: format!(
+                    "details of {} buildings for {}",
+                    details.len(),
+                    buildings.len()
+                ),
+            });
+        }
+        for (b, (parts, tags)) in buildings.iter_mut().zip(details) {
+            b.parts = parts;
+            b.tags = tags;
+        }
+    }
     let mut cluster_tree = cluster_tree?;
     if let (Some(tree), Decode::All) = (&mut cluster_tree, what) {
         restore_cluster_meshes(tree, &gpu_scene.view()).map_err(|reason| {
@@ -515,7 +550,7 @@ fn decode_with(
     }
     let pkg = ScenePackage {
         frame: required(decode_one(bytes, entries, K::Frame)?, K::Frame)?,
-        buildings: required(buildings?, K::Buildings)?,
+        buildings,
         streets: required(decode_one(bytes, entries, K::Streets)?, K::Streets)?,
         blocks: required(decode_one(bytes, entries, K::Blocks)?, K::Blocks)?,
         quadtree: required(decode_one(bytes, entries, K::Quadtree)?, K::Quadtree)?,

@@ -357,23 +357,31 @@ fn an_old_package_is_refused_naming_the_file_and_the_fix() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-/// `bytes` with the GPU scene's payload (the last section) replaced by `edit` of it, the
-/// checksums made to match: what a faulty writer could produce.
+/// `bytes` with the GPU scene's payload replaced by `edit` of it, the sections after it moved
+/// and the checksums made to match: what a faulty writer could produce.
 fn with_gpu_payload(bytes: &[u8], edit: impl FnOnce(&mut Vec<u8>)) -> Vec<u8> {
     let entries = format::verify(bytes).expect("verify");
-    let (i, e) = (entries.iter().enumerate())
-        .find(|(_, e)| e.kind == SectionKind::GpuScene as u32)
+    let mut payloads: Vec<Vec<u8>> = entries
+        .iter()
+        .map(|e| bytes[e.offset as usize..(e.offset + e.length) as usize].to_vec())
+        .collect();
+    let i = (entries.iter())
+        .position(|e| e.kind == SectionKind::GpuScene as u32)
         .expect("gpu scene section");
-    assert_eq!(i, entries.len() - 1, "the gpu scene is the last section");
-    let mut payload = bytes[e.offset as usize..].to_vec();
-    edit(&mut payload);
-    let mut out = bytes[..e.offset as usize].to_vec();
-    let entry = 16 + 32 * i;
-    out[entry + 16..entry + 24].copy_from_slice(&(payload.len() as u64).to_le_bytes());
-    out[entry + 24..entry + 28].copy_from_slice(&crc32fast::hash(&payload).to_le_bytes());
+    edit(&mut payloads[i]);
+    // The header and table as they were, then each payload at the next aligned offset.
+    let mut out = bytes[..16 + 32 * entries.len()].to_vec();
+    for (k, payload) in payloads.iter().enumerate() {
+        let offset = (out.len() as u64).next_multiple_of(format::SECTION_ALIGN);
+        out.resize(offset as usize, 0);
+        let entry = 16 + 32 * k;
+        out[entry + 8..entry + 16].copy_from_slice(&offset.to_le_bytes());
+        out[entry + 16..entry + 24].copy_from_slice(&(payload.len() as u64).to_le_bytes());
+        out[entry + 24..entry + 28].copy_from_slice(&crc32fast::hash(payload).to_le_bytes());
+        out.extend_from_slice(payload);
+    }
     let crc = format::header_crc(&out);
     out[12..16].copy_from_slice(&crc.to_le_bytes());
-    out.extend_from_slice(&payload);
     out
 }
 
