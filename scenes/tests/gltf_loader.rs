@@ -364,8 +364,8 @@ fn bad_files_are_errors_naming_file_and_problem() {
     let mut header = good.clone();
     header[4] = 7;
     expect_error("header.glb", &header, "version");
-    // Truncated buffer: the BIN chunk is cut short.
-    expect_error("cut.glb", &good[..good.len() - 40], "read");
+    // Truncated buffer: the BIN chunk is cut short (shorter than the GLB header says).
+    expect_error("cut.glb", &good[..good.len() - 40], "length");
     // Not glTF at all.
     expect_error("junk.glb", b"hello world", "json");
     // An index out of range.
@@ -391,6 +391,49 @@ fn bad_files_are_errors_naming_file_and_problem() {
     let mut tile = make_b3dm(r#"{"blockid":["A"]}"#, &good);
     tile[12] = 0xff;
     expect_error("bad.b3dm", &tile, "b3dm");
+}
+
+/// Issue 14: a GLB whose header `length` is not the file's length was accepted.
+#[test]
+fn issue14_small_glb_length_must_match_the_file() {
+    let good = make_glb(&[([0.0, 0.0, 0.0], [2.0, 4.0, 10.0], 0)], false, "");
+    let set_length = |bytes: &mut Vec<u8>, length: usize| {
+        bytes[8..12].copy_from_slice(&(length as u32).to_le_bytes());
+    };
+    // Header smaller than the file: the tail after it would be ignored.
+    let mut short_header = good.clone();
+    set_length(&mut short_header, good.len() - 8);
+    expect_error("short_header.glb", &short_header, "length");
+    // Extra bytes after a correct header (a concatenated or damaged file).
+    let mut trailing = good.clone();
+    trailing.extend([0u8; 16]);
+    expect_error("trailing.glb", &trailing, "length");
+    // Header larger than the file.
+    let mut long_header = good.clone();
+    set_length(&mut long_header, good.len() + 4);
+    expect_error("long_header.glb", &long_header, "length");
+    // A length below the header itself.
+    let mut tiny = good.clone();
+    set_length(&mut tiny, 4);
+    expect_error("tiny.glb", &tiny, "length");
+    // Inside a b3dm: 8-byte alignment padding after the GLB is allowed, more is not.
+    let mut padded = good.clone();
+    padded.extend([0u8; 4]);
+    let tile = make_b3dm(r#"{"blockid":["A"]}"#, &padded);
+    assert!(gltf_loader::load_bytes(Path::new("padded.b3dm"), &tile).is_ok());
+    let tile = make_b3dm(r#"{"blockid":["A"]}"#, &short_header);
+    expect_error("short_header.b3dm", &tile, "length");
+    // The file name reaches the error through `load_city` as well.
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("on_disk.glb");
+    std::fs::write(&file, &trailing).unwrap();
+    let msg = load_city(&file, &LoadOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        msg.contains("on_disk.glb") && msg.contains("length"),
+        "{msg}"
+    );
 }
 
 #[test]

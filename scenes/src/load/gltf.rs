@@ -49,6 +49,7 @@ use crate::report::{LoadError, LoadReport, LoadWarning};
 
 mod accessor;
 mod b3dm;
+mod glb;
 mod tileset;
 mod uri;
 
@@ -341,6 +342,9 @@ struct Feature {
 
 /// Parses the glTF and gathers its triangles by feature.
 fn read_features(path: &Path, bytes: &[u8], batch: &BatchInfo) -> Result<Vec<Feature>, LoadError> {
+    if bytes.starts_with(b"glTF") {
+        glb::check_header(bytes, false).map_err(|r| malformed(path, r))?;
+    }
     let gltf = ::gltf::Gltf::from_slice_without_validation(bytes)
         .map_err(|e| malformed(path, e.to_string()))?;
     validate(&gltf.document).map_err(|r| malformed(path, r))?;
