@@ -436,6 +436,39 @@ fn issue14_small_glb_length_must_match_the_file() {
     );
 }
 
+/// Issue 14: `asset.version "3.0"` was accepted; a reader must refuse a major version it does
+/// not know.
+#[test]
+fn issue14_small_gltf_asset_version_other_than_2_is_refused() {
+    let good = make_glb(&[([0.0, 0.0, 0.0], [2.0, 4.0, 10.0], 0)], false, "");
+    let with_version = |version: &[u8; 3]| {
+        let needle = br#""version":"2.0""#;
+        let at = good
+            .windows(needle.len())
+            .position(|w| w == needle)
+            .unwrap();
+        let mut bytes = good.clone();
+        bytes[at + 11..at + 14].copy_from_slice(version);
+        bytes
+    };
+    assert!(gltf_loader::load_bytes(Path::new("v21.glb"), &with_version(b"2.1")).is_ok());
+    for version in [b"3.0", b"1.0", b"9.9"] {
+        let name = format!("v{}.glb", String::from_utf8_lossy(version));
+        let bytes = with_version(version);
+        let msg = gltf_loader::load_bytes(Path::new(&name), &bytes)
+            .unwrap_err()
+            .to_string();
+        assert!(msg.contains(&name), "{msg}");
+        assert!(
+            msg.contains(&format!("{:?}", String::from_utf8_lossy(version))),
+            "{msg}"
+        );
+    }
+    // A .gltf (JSON) file says the same.
+    let json = r#"{"asset":{"version":"3.0"},"scenes":[{"nodes":[]}]}"#;
+    expect_error("three.gltf", json.as_bytes(), "3.0");
+}
+
 #[test]
 fn degenerate_building_is_rejected_and_others_load() {
     // A flat box (zero height) and a good one, as two batches.

@@ -347,6 +347,8 @@ fn read_features(path: &Path, bytes: &[u8], batch: &BatchInfo) -> Result<Vec<Fea
     }
     let gltf = ::gltf::Gltf::from_slice_without_validation(bytes)
         .map_err(|e| malformed(path, e.to_string()))?;
+    glb::check_asset_version(&gltf.document.as_json().asset.version)
+        .map_err(|r| malformed(path, r))?;
     validate(&gltf.document).map_err(|r| malformed(path, r))?;
     let buffers = import_buffers(path, &gltf.document, gltf.blob.as_deref())
         .map_err(|r| malformed(path, r))?;

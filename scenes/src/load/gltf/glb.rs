@@ -1,4 +1,4 @@
-//! The binary glTF (GLB) container header.
+//! The binary glTF (GLB) container header and the glTF `asset.version`.
 //!
 //! GLB layout (glTF 2.0 §4.4.3 "Header"): `magic "glTF", version 2, length`, where `length` is
 //! the whole GLB in bytes. The `gltf` crate only checks that the file is not shorter than
@@ -39,6 +39,18 @@ pub(crate) fn check_header(bytes: &[u8], in_b3dm: bool) -> Result<usize, String>
     Ok(length)
 }
 
+/// Checks the glTF `asset.version` (`"major.minor"`, glTF 2.0 §3.2 "Asset"): only major
+/// version 2 is read; a reader must refuse a major version it does not know.
+pub(crate) fn check_asset_version(version: &str) -> Result<(), String> {
+    let major = version.split_once('.').map(|(major, _)| major);
+    match major {
+        Some("2") => Ok(()),
+        _ => Err(format!(
+            "glTF asset.version {version:?}: only glTF 2.x is read"
+        )),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -62,5 +74,14 @@ mod tests {
         // Inside a b3dm, up to 7 bytes of alignment padding may follow.
         assert!(check_header(&header(2, 36, 40), true).is_ok());
         assert!(check_header(&header(2, 32, 40), true).is_err());
+    }
+
+    #[test]
+    fn only_major_version_2() {
+        assert!(check_asset_version("2.0").is_ok());
+        assert!(check_asset_version("2.1").is_ok());
+        for bad in ["3.0", "1.0", "20.0", "2", "", "two"] {
+            assert!(check_asset_version(bad).is_err(), "{bad}");
+        }
     }
 }
