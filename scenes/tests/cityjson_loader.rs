@@ -538,3 +538,17 @@ fn one_bad_object_is_rejected_and_the_others_load() {
     );
     city.check_invariants().unwrap();
 }
+
+/// Issue 14: a UTF-8 byte order mark before a CityJSON gave "expected value at line 1 column 1".
+#[test]
+fn issue14_small_cityjson_with_bom_loads() {
+    let bytes = [b"\xEF\xBB\xBF".as_slice(), cube_1_1().as_bytes()].concat();
+    let city = cityjson::load_bytes(Path::new("bom.city.json"), &bytes).unwrap();
+    assert_eq!(city.buildings.len(), 1);
+    // As `.json`, detected by content and loaded from a file.
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("bom.json");
+    std::fs::write(&path, &bytes).unwrap();
+    let city = load_city(&path, &LoadOptions::default()).unwrap();
+    assert_eq!(city.buildings.len(), 1);
+}

@@ -771,3 +771,54 @@ fn heights_are_judged_above_the_files_ground() {
         city.frame.origin
     );
 }
+
+/// Issue 14: a UTF-8 byte order mark before the JSON of a .gltf, a tileset or a batch-table
+/// sidecar gave "expected value at line 1 column 1".
+#[test]
+fn issue14_small_gltf_tileset_and_sidecar_json_with_bom_load() {
+    const BOM: &[u8] = b"\xEF\xBB\xBF";
+    let with_bom = |text: &[u8]| [BOM, text].concat();
+    let root = tempfile::tempdir().unwrap();
+    // A .gltf with an external buffer.
+    let (json, bin) = split_gltf("box.bin");
+    std::fs::write(root.path().join("box.gltf"), with_bom(json.as_bytes())).unwrap();
+    std::fs::write(root.path().join("box.bin"), &bin).unwrap();
+    let city = load_city(&root.path().join("box.gltf"), &LoadOptions::default()).unwrap();
+    assert_eq!(city.buildings.len(), 1);
+    // A GLB with a sidecar batch table naming its batch.
+    let glb = make_glb(&[([0.0, 0.0, 0.0], [4.0, 4.0, 3.0], 0)], true, "");
+    std::fs::write(root.path().join("b.glb"), &glb).unwrap();
+    std::fs::write(
+        root.path().join("b.batch.json"),
+        with_bom(br#"{"batch_table":{"id":["named"]}}"#),
+    )
+    .unwrap();
+    let city = load_city(&root.path().join("b.glb"), &LoadOptions::default()).unwrap();
+    assert_eq!(city.buildings[0].source_id, "named");
+    // A tileset of one b3dm, read as the input and found beside its tile.
+    let dir = root.path().join("set");
+    std::fs::create_dir_all(dir.join("t")).unwrap();
+    let tileset = r#"{"asset":{"version":"1.0"},"geometricError":10,"root":{
+        "boundingVolume":{"box":[0,0,0, 100,0,0, 0,100,0, 0,0,100]},"geometricError":10,
+        "children":[{"boundingVolume":{"box":[0,0,0, 100,0,0, 0,100,0, 0,0,100]},
+          "geometricError":0,"content":{"uri":"t/a.b3dm"},
+          "transform":[1,0,0,0, 0,1,0,0, 0,0,1,0, 10,20,0,1]}]}}"#;
+    std::fs::write(dir.join("tileset.json"), with_bom(tileset.as_bytes())).unwrap();
+    std::fs::write(dir.join("t/a.b3dm"), make_b3dm(r#"{"id":["house"]}"#, &glb)).unwrap();
+    for input in [dir.join("tileset.json"), dir.join("t/a.b3dm")] {
+        let city = load_city(&input, &LoadOptions::default()).unwrap();
+        assert_eq!(city.buildings.len(), 1, "{}", input.display());
+        // Placed by the tileset's transform: the tile was found and read.
+        let r = city.buildings[0].footprint.bounding_rect().unwrap();
+        assert!(
+            (r.min().x - 10.0).abs() < 1e-3,
+            "{}: {r:?}",
+            input.display()
+        );
+        assert!(
+            city.report.warnings.is_empty(),
+            "{:?}",
+            city.report.warnings
+        );
+    }
+}

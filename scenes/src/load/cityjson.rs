@@ -57,8 +57,8 @@ pub fn load_bytes(path: &Path, bytes: &[u8]) -> Result<City, LoadError> {
         format: FORMAT,
         reason,
     };
-    let root: Value =
-        serde_json::from_slice(bytes).map_err(|e| malformed(format!("invalid JSON: {e}")))?;
+    let root: Value = serde_json::from_slice(super::without_bom(bytes))
+        .map_err(|e| malformed(format!("invalid JSON: {e}")))?;
     let root = root
         .as_object()
         .ok_or_else(|| malformed("top level is not an object".into()))?;

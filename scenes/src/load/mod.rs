@@ -144,6 +144,16 @@ pub fn detect_format(path: &Path) -> Result<InputFormat, LoadError> {
     })
 }
 
+/// The UTF-8 byte order mark. RFC 8259 §8.1 forbids writing it in JSON but lets a parser
+/// ignore it; Windows editors and some exporters write it, and `serde_json` refuses it.
+pub(crate) const UTF8_BOM: &[u8] = b"\xEF\xBB\xBF";
+
+/// `bytes` without a leading UTF-8 byte order mark: every JSON input (GeoJSON, CityJSON, glTF,
+/// tileset, batch table) goes through this or skips the mark the same way.
+pub(crate) fn without_bom(bytes: &[u8]) -> &[u8] {
+    bytes.strip_prefix(UTF8_BOM).unwrap_or(bytes)
+}
+
 fn read_head(path: &Path, len: usize) -> Result<Vec<u8>, LoadError> {
     use std::io::Read;
     let file = std::fs::File::open(path).map_err(|source| LoadError::Io {
