@@ -552,3 +552,18 @@ fn issue14_small_cityjson_with_bom_loads() {
     let city = load_city(&path, &LoadOptions::default()).unwrap();
     assert_eq!(city.buildings.len(), 1);
 }
+
+/// Issue 14: `"version": 1.1` (a number) said `no "version"`; the version must be a string, and
+/// the error says so and what it found.
+#[test]
+fn issue14_small_cityjson_numeric_version_says_it_must_be_a_string() {
+    let numeric = cube_1_1().replace(r#""version":"1.1""#, r#""version":1.1"#);
+    assert_ne!(numeric, cube_1_1());
+    expect_error(&numeric, "must be a string");
+    expect_error(&numeric, "found the number 1.1");
+    let array = cube_1_1().replace(r#""version":"1.1""#, r#""version":[1,1]"#);
+    expect_error(&array, "found an array [1,1]");
+    // Still: no version at all is named as such.
+    let missing = cube_1_1().replace(r#""version":"1.1","#, "");
+    expect_error(&missing, "no \"version\"");
+}
