@@ -131,3 +131,21 @@ fn rejections_and_warnings_name_their_building_everywhere() {
     let json: serde_json::Value = serde_json::from_slice(&out.stdout).expect("inspect json");
     assert_eq!(json["rejected"][0]["source_id"], "b99", "{json}");
 }
+
+/// Issue 14: `generate --buildings 0` succeeded though the range is 1 to 20,000,000. Out of
+/// range counts are refused with the range, exit code 1, and no file written.
+#[test]
+fn issue14_small_generate_refuses_building_counts_out_of_range() {
+    let dir = temp_dir("hostile-generate");
+    for count in ["0", "20000001"] {
+        let file = dir.join(format!("city{count}.geojson"));
+        let out = citywalk(&["generate", "--buildings", count, "-o", path_str(&file)]);
+        let all = text(&out);
+        assert_eq!(out.status.code(), Some(1), "{all}");
+        assert!(
+            all.contains("buildings") && all.contains("1..=20000000"),
+            "{all}"
+        );
+        assert!(!file.exists(), "{all}");
+    }
+}
