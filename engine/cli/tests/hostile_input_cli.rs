@@ -149,3 +149,46 @@ fn issue14_small_generate_refuses_building_counts_out_of_range() {
         assert!(!file.exists(), "{all}");
     }
 }
+
+/// Issue 14: `bench --frames 0` and `bench --paths ""` succeeded, measuring nothing. Both are
+/// refused with a message before any GPU work; `--paths ""` with a `--path-file` stays valid
+/// (it fails here only on the missing file, named).
+#[test]
+fn issue14_small_bench_refuses_zero_frames_and_no_paths() {
+    let dir = temp_dir("hostile-bench");
+    let city = small_city(&dir);
+    let out_dir = dir.join("out");
+    let out = path_str(&out_dir);
+    let zero = citywalk(&["bench", &city, "--out", out, "--frames", "0"]);
+    let all = text(&zero);
+    assert_eq!(zero.status.code(), Some(2), "{all}");
+    assert!(
+        all.contains("--frames") && all.contains("0 is not in 1.."),
+        "{all}"
+    );
+    let none = citywalk(&["bench", &city, "--out", out, "--paths", ""]);
+    let all = text(&none);
+    assert_eq!(none.status.code(), Some(1), "{all}");
+    assert!(all.contains("no camera path"), "{all}");
+    assert!(
+        !out_dir.exists(),
+        "nothing measured, nothing written: {all}"
+    );
+    let missing = dir.join("missing.path");
+    let replay = citywalk(&[
+        "bench",
+        &city,
+        "--out",
+        out,
+        "--paths",
+        "",
+        "--path-file",
+        path_str(&missing),
+    ]);
+    let all = text(&replay);
+    assert_eq!(replay.status.code(), Some(1), "{all}");
+    assert!(
+        all.contains("missing.path") && !all.contains("no camera path"),
+        "{all}"
+    );
+}
