@@ -192,3 +192,44 @@ fn issue14_small_bench_refuses_zero_frames_and_no_paths() {
         "{all}"
     );
 }
+
+/// Issue 14: `inspect tree --size` clamped out-of-range sizes silently. They are refused with
+/// the range, before the scene is read.
+#[test]
+fn issue14_small_inspect_tree_refuses_sizes_out_of_range() {
+    let dir = temp_dir("hostile-tree-size");
+    let city = small_city(&dir);
+    let png = dir.join("tree.png");
+    for size in ["10", "63", "16385", "100000"] {
+        let out = citywalk(&[
+            "inspect",
+            "tree",
+            &city,
+            "--size",
+            size,
+            "-o",
+            path_str(&png),
+        ]);
+        let all = text(&out);
+        assert_eq!(out.status.code(), Some(2), "{all}");
+        assert!(
+            all.contains("--size") && all.contains("64..=16384"),
+            "{all}"
+        );
+        assert!(!png.exists(), "{all}");
+    }
+    // The smallest size in range is drawn at that size (the PNG header's width and height).
+    let out = citywalk(&[
+        "inspect",
+        "tree",
+        &city,
+        "--size",
+        "64",
+        "-o",
+        path_str(&png),
+    ]);
+    assert!(out.status.success(), "{}", text(&out));
+    let bytes = std::fs::read(&png).expect("tree.png");
+    let dim = |at: usize| u32::from_be_bytes(bytes[at..at + 4].try_into().unwrap());
+    assert_eq!(dim(16).max(dim(20)), 64, "{}x{}", dim(16), dim(20));
+}
