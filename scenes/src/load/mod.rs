@@ -14,6 +14,7 @@ use crate::report::LoadError;
 
 mod assemble;
 pub mod cityjson;
+mod duplicates;
 pub mod geojson;
 pub mod gltf;
 pub mod heights;
@@ -88,7 +89,7 @@ impl Default for LoadOptions {
 }
 
 /// The input formats citywalk reads.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum InputFormat {
     OsmPbf,
     GeoJson,
@@ -185,17 +186,43 @@ pub fn load_city(path: &Path, options: &LoadOptions) -> Result<City, LoadError> 
 }
 
 /// Loads several input files into one city, in the frame of the first. All inputs must share
-/// one coordinate reference system.
+/// one coordinate reference system. A file given twice, a file already read as part of an
+/// earlier input, and a building repeated under one source id are kept once, each with a
+/// warning ([`duplicates`]).
 pub fn load_cities(paths: &[PathBuf], options: &LoadOptions) -> Result<City, LoadError> {
-    let (first, rest) = paths.split_first().ok_or_else(|| LoadError::Unsupported {
+    let mut read = duplicates::ReadFiles::default();
+    let mut skipped = Vec::new();
+    let mut spans = Vec::new();
+    let mut merged: Option<City> = None;
+    for path in paths {
+        if let Some(warning) = read.skip(path) {
+            tracing::warn!("{warning}");
+            skipped.push(warning);
+            continue;
+        }
+        let format = detect_format(path)?;
+        let other = load_city(path, options)?;
+        read.add(path, &other.report.files);
+        let start = merged.as_ref().map_or(0, |c| c.buildings.len());
+        let city = match merged.as_mut() {
+            None => merged.insert(other),
+            Some(city) => {
+                merge_into(city, other, path)?;
+                city
+            }
+        };
+        spans.push(duplicates::InputSpan {
+            file: path.clone(),
+            format,
+            buildings: start..city.buildings.len(),
+        });
+    }
+    let mut city = merged.ok_or_else(|| LoadError::Unsupported {
         path: PathBuf::new(),
         reason: "no input file given".into(),
     })?;
-    let mut city = load_city(first, options)?;
-    for path in rest {
-        let other = load_city(path, options)?;
-        merge_into(&mut city, other, path)?;
-    }
+    city.report.warnings.extend(skipped);
+    duplicates::drop_duplicate_buildings(&mut city, &spans);
     if city.buildings.iter().any(|b| b.mesh.is_some()) {
         // Each mesh file rested on its own lowest base; the merged city rests on the lowest.
         mesh_building::rest_on_ground(&mut city);
