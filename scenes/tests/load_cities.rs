@@ -124,3 +124,57 @@ fn issue14_small_shared_id_of_different_buildings_keeps_both() {
     );
     assert_eq!(city.report.buildings_found, 2, "{}", city.report);
 }
+
+/// Issue 14: two cities 4,375 km apart merged into one frame without a warning. An input whose
+/// buildings lie more than 100 km from every earlier input's gets a warning naming both files
+/// and the distance; inputs side by side get none.
+#[test]
+fn issue14_small_inputs_far_apart_are_warned_of() {
+    let dir = tempfile::tempdir().unwrap();
+    let lonlat = |name: &str, lon: f64, lat: f64| {
+        let s = 0.0002;
+        let feature = json!({"type": "Feature", "id": format!("{name}1"),
+            "properties": {"height": 10},
+            "geometry": {"type": "Polygon", "coordinates": [[[lon, lat], [lon + s, lat],
+                [lon + s, lat + s], [lon, lat + s], [lon, lat]]]}});
+        let path = dir.path().join(format!("{name}.geojson"));
+        let doc = json!({"type": "FeatureCollection", "features": [feature]});
+        std::fs::write(&path, doc.to_string()).unwrap();
+        path
+    };
+    // New York and Porto, about 5,300 km apart; a second New York block 1 km away.
+    let nyc = lonlat("nyc", -74.0, 40.74);
+    let nyc_east = lonlat("nyc_east", -73.988, 40.74);
+    let porto = lonlat("porto", -8.61, 41.15);
+    let near = load(&[nyc.clone(), nyc_east.clone()]);
+    assert!(
+        warnings_with(&near, "km from").is_empty(),
+        "{:?}",
+        near.report.warnings
+    );
+    let far = load(&[nyc.clone(), nyc_east, porto.clone()]);
+    let warned = warnings_with(&far, "km from");
+    assert_eq!(warned.len(), 1, "{:?}", far.report.warnings);
+    assert_eq!(warned[0].file, porto);
+    // The nearest earlier input is named, with the distance (the frame is centred on New York;
+    // great-circle distance 5,300 km, the planar one differs by the projection's scale).
+    let msg = &warned[0].message;
+    assert!(msg.contains("nyc"), "{msg}");
+    let km: f64 = msg
+        .split(" km from")
+        .next()
+        .and_then(|s| s.rsplit(' ').next())
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("no distance in {msg}"));
+    assert!((4_000.0..7_000.0).contains(&km), "{msg}");
+    // In local metres: 150 km apart warns, 50 km does not.
+    let a = write_geojson(dir.path(), "a.geojson", vec![square("a", 0.0, 10.0)]);
+    let b = write_geojson(dir.path(), "b.geojson", vec![square("b", 50_000.0, 10.0)]);
+    let c = write_geojson(dir.path(), "c.geojson", vec![square("c", -150_000.0, 10.0)]);
+    assert!(warnings_with(&load(&[a.clone(), b.clone()]), "km from").is_empty());
+    let city = load(&[a, b, c.clone()]);
+    let warned = warnings_with(&city, "km from");
+    assert_eq!(warned.len(), 1, "{:?}", city.report.warnings);
+    assert_eq!(warned[0].file, c);
+    assert!(warned[0].message.contains("150 km from"), "{}", warned[0]);
+}

@@ -233,3 +233,65 @@ fn issue14_small_inspect_tree_refuses_sizes_out_of_range() {
     let dim = |at: usize| u32::from_be_bytes(bytes[at..at + 4].try_into().unwrap());
     assert_eq!(dim(16).max(dim(20)), 64, "{}x{}", dim(16), dim(20));
 }
+
+/// Issue 14: an input given twice, and an input 150 km from the others, merged without a
+/// word. Both warnings, naming the files, reach `preprocess --json` and the package's
+/// provenance; the repeated file's buildings are counted once.
+#[test]
+fn issue14_small_repeated_and_far_apart_inputs_are_reported() {
+    let dir = temp_dir("hostile-merge");
+    let city = small_city(&dir);
+    let far = dir.join("far.geojson");
+    let x = 150_000.0;
+    let doc = serde_json::json!({"type": "FeatureCollection",
+        "crs": {"type": "name", "properties": {"name": "citywalk:local"}},
+        "features": [{"type": "Feature", "id": "far1", "properties": {"height": 10},
+            "geometry": {"type": "Polygon", "coordinates":
+                [[[x, 0.0], [x + 20.0, 0.0], [x + 20.0, 20.0], [x, 20.0], [x, 0.0]]]}}]});
+    std::fs::write(&far, doc.to_string()).unwrap();
+    let package = dir.join("merged.cwk");
+    let out = citywalk(&[
+        "preprocess",
+        &city,
+        &city,
+        path_str(&far),
+        "-o",
+        path_str(&package),
+        "--no-occluders",
+        "--json",
+    ]);
+    assert!(out.status.success(), "{}", text(&out));
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json summary");
+    assert_eq!(json["buildings_found"], 13, "{json}");
+    let warnings = json["load_warnings"].as_array().unwrap();
+    let with = |needle: &str| {
+        warnings
+            .iter()
+            .filter(|w| w["reason"].as_str().is_some_and(|r| r.contains(needle)))
+            .collect::<Vec<_>>()
+    };
+    let twice = with("given twice");
+    assert_eq!(twice.len(), 1, "{json}");
+    assert_eq!(twice[0]["file"], city.as_str());
+    let apart = with("150 km from");
+    assert_eq!(apart.len(), 1, "{json}");
+    assert_eq!(apart[0]["file"], path_str(&far));
+    assert!(
+        apart[0]["reason"].as_str().unwrap().contains(&city),
+        "{json}"
+    );
+    let pkg = citywalk_scenes::package::ScenePackage::read(&package).expect("package");
+    let report = &pkg.provenance.load_report;
+    assert!(
+        report
+            .warnings
+            .iter()
+            .any(|w| w.message.contains("given twice"))
+    );
+    assert!(
+        report
+            .warnings
+            .iter()
+            .any(|w| w.message.contains("150 km from"))
+    );
+}

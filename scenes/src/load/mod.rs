@@ -15,6 +15,7 @@ use crate::report::LoadError;
 mod assemble;
 pub mod cityjson;
 mod duplicates;
+mod far_apart;
 pub mod geojson;
 pub mod gltf;
 pub mod heights;
@@ -188,7 +189,7 @@ pub fn load_city(path: &Path, options: &LoadOptions) -> Result<City, LoadError> 
 /// Loads several input files into one city, in the frame of the first. All inputs must share
 /// one coordinate reference system. A file given twice, a file already read as part of an
 /// earlier input, and a building repeated under one source id are kept once, each with a
-/// warning ([`duplicates`]).
+/// warning ([`duplicates`]); inputs far apart are warned of ([`far_apart`]).
 pub fn load_cities(paths: &[PathBuf], options: &LoadOptions) -> Result<City, LoadError> {
     let mut read = duplicates::ReadFiles::default();
     let mut skipped = Vec::new();
@@ -222,6 +223,7 @@ pub fn load_cities(paths: &[PathBuf], options: &LoadOptions) -> Result<City, Loa
         reason: "no input file given".into(),
     })?;
     city.report.warnings.extend(skipped);
+    far_apart::warn_far_apart(&mut city, &spans);
     duplicates::drop_duplicate_buildings(&mut city, &spans);
     if city.buildings.iter().any(|b| b.mesh.is_some()) {
         // Each mesh file rested on its own lowest base; the merged city rests on the lowest.
