@@ -193,6 +193,28 @@ fn issue14_small_bench_refuses_zero_frames_and_no_paths() {
     );
 }
 
+/// Issue 14: with `RUST_BACKTRACE=1` every ordinary error printed a backtrace. Errors the user
+/// caused print their message (and causes) only, with exit code 1.
+#[test]
+fn issue14_small_user_errors_print_no_backtrace() {
+    let dir = temp_dir("hostile-user-errors");
+    let missing = dir.join("missing.geojson");
+    let unknown = dir.join("city.xyz");
+    std::fs::write(&unknown, b"x").unwrap();
+    let package = dir.join("out.cwk");
+    for input in [&missing, &unknown] {
+        let out = citywalk(&["preprocess", path_str(input), "-o", path_str(&package)]);
+        let all = text(&out);
+        assert_eq!(out.status.code(), Some(1), "{all}");
+        assert!(all.contains(path_str(input)), "{all}");
+        assert!(
+            !all.contains("backtrace") && !all.contains("Stack backtrace"),
+            "{all}"
+        );
+        assert!(!all.contains("at ./") && !all.contains("main.rs"), "{all}");
+    }
+}
+
 /// Issue 14: `inspect tree --size` clamped out-of-range sizes silently. They are refused with
 /// the range, before the scene is read.
 #[test]
