@@ -366,12 +366,20 @@ impl Obstacles {
 /// (the median base of the buildings around, for mesh cities on sloping terrain), looking along
 /// the walk.
 pub fn street_walk(city: &City, frames: usize) -> CameraPath {
-    let frames = frames.max(2);
     along_street(city, "street", |length| {
-        (0..frames)
-            .map(|i| i as f64 / (frames - 1) as f64 * length)
-            .collect()
+        (0..frames).map(|i| spread(i, frames) * length).collect()
     })
+}
+
+/// Where frame `i` of `frames` lies from the start (0) to the end (1) of a generated path,
+/// evenly spaced; a path of one frame is its start. Exactly `frames` frames, never more:
+/// `bench --frames 1` measures one frame.
+fn spread(i: usize, frames: usize) -> f64 {
+    if frames > 1 {
+        i as f64 / (frames - 1) as f64
+    } else {
+        0.0
+    }
 }
 
 /// Metres the eye moves between two frames of the [`walkthrough`]: 3 m, so 180 m/s at 60 frames
@@ -385,9 +393,8 @@ pub const WALKTHROUGH_STEP_M: f64 = 3.0;
 /// apart in a large city, each frame nearly a cold start for the two-phase cull, which carries
 /// last frame's visible set), this is the walk a user makes in the viewer.
 pub fn walkthrough(city: &City, frames: usize) -> CameraPath {
-    let frames = frames.max(2);
     along_street(city, "walk", |length| {
-        let span = WALKTHROUGH_STEP_M * (frames - 1) as f64;
+        let span = WALKTHROUGH_STEP_M * frames.saturating_sub(1) as f64;
         let start = ((length - span) * 0.5).max(0.0);
         (0..frames)
             .map(|i| start + i as f64 * WALKTHROUGH_STEP_M)
@@ -434,7 +441,6 @@ pub fn flyover(city: &City, frames: usize) -> CameraPath {
     const PITCH_DEG: f32 = -40.0;
     let core = CoreExtent::of(city);
     let altitude = (core.top_m * 2.0).max(0.35 * core.size());
-    let frames = frames.max(2);
     let (a, b) = (core.lo, core.hi);
     let dir = (b - a).normalize_or(glam::Vec2::X);
     // Horizontal distance from the camera to the point it looks at.
@@ -442,8 +448,7 @@ pub fn flyover(city: &City, frames: usize) -> CameraPath {
     let yaw = dir.y.atan2(dir.x).to_degrees();
     let poses = (0..frames)
         .map(|i| {
-            let t = i as f32 / (frames - 1) as f32;
-            let look_at = a.lerp(b, t);
+            let look_at = a.lerp(b, spread(i, frames) as f32);
             let p = look_at - dir * lead;
             CameraPose {
                 position: Vec3::new(p.x, p.y, altitude),
@@ -472,10 +477,9 @@ pub fn dive(city: &City, frames: usize) -> CameraPath {
     let ground = Vec3::new(target.x as f32, target.y as f32, EYE_HEIGHT_M);
     let back = -Vec3::new(dir.x as f32, dir.y as f32, 0.0);
     let sky = ground + back * 0.6 * extent + Vec3::Z * (core.top_m * 2.0 + 0.5 * extent);
-    let frames = frames.max(2);
     let poses = (0..frames)
         .map(|i| {
-            let t = i as f32 / (frames - 1) as f32;
+            let t = spread(i, frames) as f32;
             // Ease in height faster than distance so the end is a street-level glide.
             let s = 1.0 - (1.0 - t).powi(2);
             let mut p = sky.lerp(ground, s);
@@ -811,6 +815,21 @@ mod tests {
             "{}",
             long.poses.len()
         );
+    }
+
+    /// Issue 14: `bench --frames 1` gave 2 frames (every generator raised the count to 2).
+    #[test]
+    fn issue14_small_generated_paths_have_exactly_the_frames_asked_for() {
+        let c = city(true);
+        for frames in [0, 1, 2, 7] {
+            for path in default_paths(&c, frames) {
+                assert_eq!(path.poses.len(), frames, "{} with {frames}", path.name);
+            }
+        }
+        // One frame is the path's start.
+        assert_eq!(street_walk(&c, 1).poses[0], street_walk(&c, 5).poses[0]);
+        assert_eq!(flyover(&c, 1).poses[0], flyover(&c, 5).poses[0]);
+        assert_eq!(dive(&c, 1).poses[0], dive(&c, 5).poses[0]);
     }
 
     #[test]

@@ -538,3 +538,32 @@ fn one_bad_object_is_rejected_and_the_others_load() {
     );
     city.check_invariants().unwrap();
 }
+
+/// Issue 14: a UTF-8 byte order mark before a CityJSON gave "expected value at line 1 column 1".
+#[test]
+fn issue14_small_cityjson_with_bom_loads() {
+    let bytes = [b"\xEF\xBB\xBF".as_slice(), cube_1_1().as_bytes()].concat();
+    let city = cityjson::load_bytes(Path::new("bom.city.json"), &bytes).unwrap();
+    assert_eq!(city.buildings.len(), 1);
+    // As `.json`, detected by content and loaded from a file.
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("bom.json");
+    std::fs::write(&path, &bytes).unwrap();
+    let city = load_city(&path, &LoadOptions::default()).unwrap();
+    assert_eq!(city.buildings.len(), 1);
+}
+
+/// Issue 14: `"version": 1.1` (a number) said `no "version"`; the version must be a string, and
+/// the error says so and what it found.
+#[test]
+fn issue14_small_cityjson_numeric_version_says_it_must_be_a_string() {
+    let numeric = cube_1_1().replace(r#""version":"1.1""#, r#""version":1.1"#);
+    assert_ne!(numeric, cube_1_1());
+    expect_error(&numeric, "must be a string");
+    expect_error(&numeric, "found the number 1.1");
+    let array = cube_1_1().replace(r#""version":"1.1""#, r#""version":[1,1]"#);
+    expect_error(&array, "found an array [1,1]");
+    // Still: no version at all is named as such.
+    let missing = cube_1_1().replace(r#""version":"1.1","#, "");
+    expect_error(&missing, "no \"version\"");
+}

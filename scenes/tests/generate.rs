@@ -87,12 +87,21 @@ fn building_count_is_exact() {
         assert_eq!(city.report.buildings_loaded, n);
         assert!(city.report.is_balanced());
     }
-    assert!(
-        generate_city(&GenerateParams::new(0, 1))
-            .unwrap()
-            .buildings
-            .is_empty()
-    );
+}
+
+/// Issue 14: `generate --buildings 0` succeeded though the range is 1 to 20,000,000.
+#[test]
+fn issue14_small_generate_refuses_building_counts_out_of_range() {
+    for n in [0, citywalk_scenes::generate::MAX_BUILDINGS + 1] {
+        let err = generate_city(&GenerateParams::new(n, 1))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("buildings"), "{err}");
+        assert!(
+            err.contains(&format!("{n} is outside 1..=20000000")),
+            "{err}"
+        );
+    }
 }
 
 #[test]

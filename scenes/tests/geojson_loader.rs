@@ -558,3 +558,21 @@ fn malformed_streets_are_counted_and_rejected_with_their_ids() {
     );
     assert!(!reason("null").is_empty() && !reason("text").is_empty());
 }
+
+/// Issue 14: a UTF-8 byte order mark before a GeoJSON gave "expected value at line 1 column 1".
+#[test]
+fn issue14_small_geojson_with_bom_loads() {
+    let text = collection(vec![
+        polygon(0.0, 0.0, 0.0001, json!({"height": 10})),
+        polygon(0.001, 0.0, 0.0001, json!({"height": 12})),
+    ])
+    .to_string();
+    let bytes = [b"\xEF\xBB\xBF".as_slice(), text.as_bytes()].concat();
+    // Both by extension and, as `.json`, by content.
+    for name in ["bom.geojson", "bom.json"] {
+        let path = temp_file(name, &bytes);
+        let city = citywalk_scenes::load_city(&path, &LoadOptions::default()).unwrap();
+        assert_eq!(city.buildings.len(), 2, "{name}");
+        assert!(city.report.is_balanced());
+    }
+}

@@ -364,8 +364,8 @@ fn bad_files_are_errors_naming_file_and_problem() {
     let mut header = good.clone();
     header[4] = 7;
     expect_error("header.glb", &header, "version");
-    // Truncated buffer: the BIN chunk is cut short.
-    expect_error("cut.glb", &good[..good.len() - 40], "read");
+    // Truncated buffer: the BIN chunk is cut short (shorter than the GLB header says).
+    expect_error("cut.glb", &good[..good.len() - 40], "length");
     // Not glTF at all.
     expect_error("junk.glb", b"hello world", "json");
     // An index out of range.
@@ -391,6 +391,82 @@ fn bad_files_are_errors_naming_file_and_problem() {
     let mut tile = make_b3dm(r#"{"blockid":["A"]}"#, &good);
     tile[12] = 0xff;
     expect_error("bad.b3dm", &tile, "b3dm");
+}
+
+/// Issue 14: a GLB whose header `length` is not the file's length was accepted.
+#[test]
+fn issue14_small_glb_length_must_match_the_file() {
+    let good = make_glb(&[([0.0, 0.0, 0.0], [2.0, 4.0, 10.0], 0)], false, "");
+    let set_length = |bytes: &mut Vec<u8>, length: usize| {
+        bytes[8..12].copy_from_slice(&(length as u32).to_le_bytes());
+    };
+    // Header smaller than the file: the tail after it would be ignored.
+    let mut short_header = good.clone();
+    set_length(&mut short_header, good.len() - 8);
+    expect_error("short_header.glb", &short_header, "length");
+    // Extra bytes after a correct header (a concatenated or damaged file).
+    let mut trailing = good.clone();
+    trailing.extend([0u8; 16]);
+    expect_error("trailing.glb", &trailing, "length");
+    // Header larger than the file.
+    let mut long_header = good.clone();
+    set_length(&mut long_header, good.len() + 4);
+    expect_error("long_header.glb", &long_header, "length");
+    // A length below the header itself.
+    let mut tiny = good.clone();
+    set_length(&mut tiny, 4);
+    expect_error("tiny.glb", &tiny, "length");
+    // Inside a b3dm: 8-byte alignment padding after the GLB is allowed, more is not.
+    let mut padded = good.clone();
+    padded.extend([0u8; 4]);
+    let tile = make_b3dm(r#"{"blockid":["A"]}"#, &padded);
+    assert!(gltf_loader::load_bytes(Path::new("padded.b3dm"), &tile).is_ok());
+    let tile = make_b3dm(r#"{"blockid":["A"]}"#, &short_header);
+    expect_error("short_header.b3dm", &tile, "length");
+    // The file name reaches the error through `load_city` as well.
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("on_disk.glb");
+    std::fs::write(&file, &trailing).unwrap();
+    let msg = load_city(&file, &LoadOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        msg.contains("on_disk.glb") && msg.contains("length"),
+        "{msg}"
+    );
+}
+
+/// Issue 14: `asset.version "3.0"` was accepted; a reader must refuse a major version it does
+/// not know.
+#[test]
+fn issue14_small_gltf_asset_version_other_than_2_is_refused() {
+    let good = make_glb(&[([0.0, 0.0, 0.0], [2.0, 4.0, 10.0], 0)], false, "");
+    let with_version = |version: &[u8; 3]| {
+        let needle = br#""version":"2.0""#;
+        let at = good
+            .windows(needle.len())
+            .position(|w| w == needle)
+            .unwrap();
+        let mut bytes = good.clone();
+        bytes[at + 11..at + 14].copy_from_slice(version);
+        bytes
+    };
+    assert!(gltf_loader::load_bytes(Path::new("v21.glb"), &with_version(b"2.1")).is_ok());
+    for version in [b"3.0", b"1.0", b"9.9"] {
+        let name = format!("v{}.glb", String::from_utf8_lossy(version));
+        let bytes = with_version(version);
+        let msg = gltf_loader::load_bytes(Path::new(&name), &bytes)
+            .unwrap_err()
+            .to_string();
+        assert!(msg.contains(&name), "{msg}");
+        assert!(
+            msg.contains(&format!("{:?}", String::from_utf8_lossy(version))),
+            "{msg}"
+        );
+    }
+    // A .gltf (JSON) file says the same.
+    let json = r#"{"asset":{"version":"3.0"},"scenes":[{"nodes":[]}]}"#;
+    expect_error("three.gltf", json.as_bytes(), "3.0");
 }
 
 #[test]
@@ -694,4 +770,55 @@ fn heights_are_judged_above_the_files_ground() {
         "{:?}",
         city.frame.origin
     );
+}
+
+/// Issue 14: a UTF-8 byte order mark before the JSON of a .gltf, a tileset or a batch-table
+/// sidecar gave "expected value at line 1 column 1".
+#[test]
+fn issue14_small_gltf_tileset_and_sidecar_json_with_bom_load() {
+    const BOM: &[u8] = b"\xEF\xBB\xBF";
+    let with_bom = |text: &[u8]| [BOM, text].concat();
+    let root = tempfile::tempdir().unwrap();
+    // A .gltf with an external buffer.
+    let (json, bin) = split_gltf("box.bin");
+    std::fs::write(root.path().join("box.gltf"), with_bom(json.as_bytes())).unwrap();
+    std::fs::write(root.path().join("box.bin"), &bin).unwrap();
+    let city = load_city(&root.path().join("box.gltf"), &LoadOptions::default()).unwrap();
+    assert_eq!(city.buildings.len(), 1);
+    // A GLB with a sidecar batch table naming its batch.
+    let glb = make_glb(&[([0.0, 0.0, 0.0], [4.0, 4.0, 3.0], 0)], true, "");
+    std::fs::write(root.path().join("b.glb"), &glb).unwrap();
+    std::fs::write(
+        root.path().join("b.batch.json"),
+        with_bom(br#"{"batch_table":{"id":["named"]}}"#),
+    )
+    .unwrap();
+    let city = load_city(&root.path().join("b.glb"), &LoadOptions::default()).unwrap();
+    assert_eq!(city.buildings[0].source_id, "named");
+    // A tileset of one b3dm, read as the input and found beside its tile.
+    let dir = root.path().join("set");
+    std::fs::create_dir_all(dir.join("t")).unwrap();
+    let tileset = r#"{"asset":{"version":"1.0"},"geometricError":10,"root":{
+        "boundingVolume":{"box":[0,0,0, 100,0,0, 0,100,0, 0,0,100]},"geometricError":10,
+        "children":[{"boundingVolume":{"box":[0,0,0, 100,0,0, 0,100,0, 0,0,100]},
+          "geometricError":0,"content":{"uri":"t/a.b3dm"},
+          "transform":[1,0,0,0, 0,1,0,0, 0,0,1,0, 10,20,0,1]}]}}"#;
+    std::fs::write(dir.join("tileset.json"), with_bom(tileset.as_bytes())).unwrap();
+    std::fs::write(dir.join("t/a.b3dm"), make_b3dm(r#"{"id":["house"]}"#, &glb)).unwrap();
+    for input in [dir.join("tileset.json"), dir.join("t/a.b3dm")] {
+        let city = load_city(&input, &LoadOptions::default()).unwrap();
+        assert_eq!(city.buildings.len(), 1, "{}", input.display());
+        // Placed by the tileset's transform: the tile was found and read.
+        let r = city.buildings[0].footprint.bounding_rect().unwrap();
+        assert!(
+            (r.min().x - 10.0).abs() < 1e-3,
+            "{}: {r:?}",
+            input.display()
+        );
+        assert!(
+            city.report.warnings.is_empty(),
+            "{:?}",
+            city.report.warnings
+        );
+    }
 }

@@ -623,3 +623,57 @@ fn a_damaged_or_unknown_block_is_named() {
         "{skipped:?}"
     );
 }
+
+/// Issue 14: a way repeated in one OSM file (and a building repeated across two extracts) was
+/// kept twice without a warning. The repeat is dropped with a warning naming `way/ID`, and the
+/// counts are those of the distinct buildings.
+#[test]
+fn issue14_small_duplicate_osm_id_is_dropped_with_a_warning() {
+    let mut osm = pbf::Osm::default();
+    let a = square(&mut osm, 1, 8.0, 47.0, 0.0002);
+    let b = square(&mut osm, 10, 8.001, 47.0, 0.0002);
+    let tags: pbf::Tags = vec![("building", "yes"), ("height", "12")];
+    osm.ways.push((100, tags.clone(), a.clone()));
+    osm.ways.push((200, tags.clone(), b));
+    osm.ways.push((100, tags, a));
+    let path = temp_file("dup-way.osm.pbf", &osm.encode());
+    let city =
+        citywalk_scenes::load_cities(std::slice::from_ref(&path), &LoadOptions::default()).unwrap();
+    let ids: Vec<&str> = city
+        .buildings
+        .iter()
+        .map(|b| b.source_id.as_str())
+        .collect();
+    assert_eq!(ids, ["way/100", "way/200"]);
+    let r = &city.report;
+    assert_eq!((r.buildings_found, r.buildings_loaded), (2, 2), "{r}");
+    assert!(r.is_balanced(), "{r}");
+    city.check_invariants().unwrap();
+    let warned: Vec<_> = r
+        .warnings
+        .iter()
+        .filter(|w| w.message.contains("duplicate dropped"))
+        .collect();
+    assert_eq!(warned.len(), 1, "{:?}", r.warnings);
+    assert_eq!(warned[0].source_id, "way/100");
+    assert!(
+        warned[0].message.contains("earlier in this file"),
+        "{}",
+        warned[0]
+    );
+
+    // The same extract under another name (overlapping extracts): every building once.
+    let copy = temp_file("dup-way-copy.osm.pbf", &std::fs::read(&path).unwrap());
+    let city =
+        citywalk_scenes::load_cities(&[path.clone(), copy], &LoadOptions::default()).unwrap();
+    assert_eq!(city.buildings.len(), 2);
+    assert_eq!(city.report.buildings_found, 2, "{}", city.report);
+    let dropped = city
+        .report
+        .warnings
+        .iter()
+        .filter(|w| w.message.contains("duplicate dropped"))
+        .count();
+    // The repeat inside the first file, then all three ways of the copy.
+    assert_eq!(dropped, 4, "{:?}", city.report.warnings);
+}

@@ -53,8 +53,8 @@ pub struct Args {
     /// yang-paper (δh = 20 px, δa = 200 px).
     #[arg(long, default_value = "auto")]
     pub lod_criterion: String,
-    /// Frames per generated path.
-    #[arg(long, default_value_t = 60)]
+    /// Frames per generated path (at least 1).
+    #[arg(long, default_value_t = 60, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     pub frames: usize,
     /// Viewport in pixels, WIDTHxHEIGHT.
     #[arg(long, default_value = "1280x720", value_parser = crate::cli_args::parse_size)]
@@ -95,6 +95,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         png_every: args.png_every,
     };
     let path_kinds = parse_path_kinds(&args.paths)?;
+    if path_kinds.is_empty() && args.path_files.is_empty() {
+        anyhow::bail!(
+            "no camera path to measure: --paths {:?} names none and no --path-file is given \
+             (paths: {})",
+            args.paths,
+            GENERATED.join(", ")
+        );
+    }
     let replayed: Vec<CameraPath> = args
         .path_files
         .iter()

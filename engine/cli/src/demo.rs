@@ -22,8 +22,8 @@ pub struct Args {
     /// Output folder.
     #[arg(long, default_value = "out/demo")]
     pub out: PathBuf,
-    /// Frames per path.
-    #[arg(long, default_value_t = 24)]
+    /// Frames per path (at least 1).
+    #[arg(long, default_value_t = 24, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     pub frames: usize,
     /// Viewport in pixels, WIDTHxHEIGHT.
     #[arg(long, default_value = "1280x720", value_parser = crate::cli_args::parse_size)]

@@ -185,3 +185,35 @@ fn unknown_and_unbuilt_modes_are_refused() {
     );
     std::fs::remove_dir_all(&dir).expect("clean up");
 }
+
+/// Issue 14: `bench --frames 1` measured 2 frames (every generated path was raised to two
+/// poses). One frame per generated path and mode now, in frames.csv and the path file.
+#[test]
+fn issue14_small_bench_frames_1_measures_one_frame() {
+    if !gpu_available("bench_cli frames 1") {
+        return;
+    }
+    let dir = temp_dir("bench-cli-one-frame");
+    let scene = dir.join("tiny.geojson");
+    write_scene(&scene);
+    let out = dir.join("out");
+    let run = Command::new(env!("CARGO_BIN_EXE_citywalk"))
+        .arg("bench")
+        .arg(&scene)
+        .arg("--out")
+        .arg(&out)
+        .args(["--paths", "street,dive", "--frames", "1", "--size", "96x64"])
+        .args(["--modes", "brute,frustum"])
+        .output()
+        .expect("run citywalk bench");
+    let log = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "citywalk bench failed:\n{log}");
+    let csv = std::fs::read_to_string(out.join("frames.csv")).expect("frames.csv");
+    // Header + 1 frame × 2 paths × 2 modes.
+    assert_eq!(csv.lines().count(), 1 + 2 * 2, "{csv}");
+    for path in ["street", "dive"] {
+        let file = std::fs::read_to_string(out.join(format!("tiny-{path}.path"))).unwrap();
+        let poses = file.lines().filter(|l| l.starts_with("pose ")).count();
+        assert_eq!(poses, 1, "{file}");
+    }
+}

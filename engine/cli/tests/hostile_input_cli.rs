@@ -131,3 +131,189 @@ fn rejections_and_warnings_name_their_building_everywhere() {
     let json: serde_json::Value = serde_json::from_slice(&out.stdout).expect("inspect json");
     assert_eq!(json["rejected"][0]["source_id"], "b99", "{json}");
 }
+
+/// Issue 14: `generate --buildings 0` succeeded though the range is 1 to 20,000,000. Out of
+/// range counts are refused with the range, exit code 1, and no file written.
+#[test]
+fn issue14_small_generate_refuses_building_counts_out_of_range() {
+    let dir = temp_dir("hostile-generate");
+    for count in ["0", "20000001"] {
+        let file = dir.join(format!("city{count}.geojson"));
+        let out = citywalk(&["generate", "--buildings", count, "-o", path_str(&file)]);
+        let all = text(&out);
+        assert_eq!(out.status.code(), Some(1), "{all}");
+        assert!(
+            all.contains("buildings") && all.contains("1..=20000000"),
+            "{all}"
+        );
+        assert!(!file.exists(), "{all}");
+    }
+}
+
+/// Issue 14: `bench --frames 0` and `bench --paths ""` succeeded, measuring nothing. Both are
+/// refused with a message before any GPU work; `--paths ""` with a `--path-file` stays valid
+/// (it fails here only on the missing file, named).
+#[test]
+fn issue14_small_bench_refuses_zero_frames_and_no_paths() {
+    let dir = temp_dir("hostile-bench");
+    let city = small_city(&dir);
+    let out_dir = dir.join("out");
+    let out = path_str(&out_dir);
+    let zero = citywalk(&["bench", &city, "--out", out, "--frames", "0"]);
+    let all = text(&zero);
+    assert_eq!(zero.status.code(), Some(2), "{all}");
+    assert!(
+        all.contains("--frames") && all.contains("0 is not in 1.."),
+        "{all}"
+    );
+    let none = citywalk(&["bench", &city, "--out", out, "--paths", ""]);
+    let all = text(&none);
+    assert_eq!(none.status.code(), Some(1), "{all}");
+    assert!(all.contains("no camera path"), "{all}");
+    assert!(
+        !out_dir.exists(),
+        "nothing measured, nothing written: {all}"
+    );
+    let missing = dir.join("missing.path");
+    let replay = citywalk(&[
+        "bench",
+        &city,
+        "--out",
+        out,
+        "--paths",
+        "",
+        "--path-file",
+        path_str(&missing),
+    ]);
+    let all = text(&replay);
+    assert_eq!(replay.status.code(), Some(1), "{all}");
+    assert!(
+        all.contains("missing.path") && !all.contains("no camera path"),
+        "{all}"
+    );
+}
+
+/// Issue 14: with `RUST_BACKTRACE=1` every ordinary error printed a backtrace. Errors the user
+/// caused print their message (and causes) only, with exit code 1.
+#[test]
+fn issue14_small_user_errors_print_no_backtrace() {
+    let dir = temp_dir("hostile-user-errors");
+    let missing = dir.join("missing.geojson");
+    let unknown = dir.join("city.xyz");
+    std::fs::write(&unknown, b"x").unwrap();
+    let package = dir.join("out.cwk");
+    for input in [&missing, &unknown] {
+        let out = citywalk(&["preprocess", path_str(input), "-o", path_str(&package)]);
+        let all = text(&out);
+        assert_eq!(out.status.code(), Some(1), "{all}");
+        assert!(all.contains(path_str(input)), "{all}");
+        assert!(
+            !all.contains("backtrace") && !all.contains("Stack backtrace"),
+            "{all}"
+        );
+        assert!(!all.contains("at ./") && !all.contains("main.rs"), "{all}");
+    }
+}
+
+/// Issue 14: `inspect tree --size` clamped out-of-range sizes silently. They are refused with
+/// the range, before the scene is read.
+#[test]
+fn issue14_small_inspect_tree_refuses_sizes_out_of_range() {
+    let dir = temp_dir("hostile-tree-size");
+    let city = small_city(&dir);
+    let png = dir.join("tree.png");
+    for size in ["10", "63", "16385", "100000"] {
+        let out = citywalk(&[
+            "inspect",
+            "tree",
+            &city,
+            "--size",
+            size,
+            "-o",
+            path_str(&png),
+        ]);
+        let all = text(&out);
+        assert_eq!(out.status.code(), Some(2), "{all}");
+        assert!(
+            all.contains("--size") && all.contains("64..=16384"),
+            "{all}"
+        );
+        assert!(!png.exists(), "{all}");
+    }
+    // The smallest size in range is drawn at that size (the PNG header's width and height).
+    let out = citywalk(&[
+        "inspect",
+        "tree",
+        &city,
+        "--size",
+        "64",
+        "-o",
+        path_str(&png),
+    ]);
+    assert!(out.status.success(), "{}", text(&out));
+    let bytes = std::fs::read(&png).expect("tree.png");
+    let dim = |at: usize| u32::from_be_bytes(bytes[at..at + 4].try_into().unwrap());
+    assert_eq!(dim(16).max(dim(20)), 64, "{}x{}", dim(16), dim(20));
+}
+
+/// Issue 14: an input given twice, and an input 150 km from the others, merged without a
+/// word. Both warnings, naming the files, reach `preprocess --json` and the package's
+/// provenance; the repeated file's buildings are counted once.
+#[test]
+fn issue14_small_repeated_and_far_apart_inputs_are_reported() {
+    let dir = temp_dir("hostile-merge");
+    let city = small_city(&dir);
+    let far = dir.join("far.geojson");
+    let x = 150_000.0;
+    let doc = serde_json::json!({"type": "FeatureCollection",
+        "crs": {"type": "name", "properties": {"name": "citywalk:local"}},
+        "features": [{"type": "Feature", "id": "far1", "properties": {"height": 10},
+            "geometry": {"type": "Polygon", "coordinates":
+                [[[x, 0.0], [x + 20.0, 0.0], [x + 20.0, 20.0], [x, 20.0], [x, 0.0]]]}}]});
+    std::fs::write(&far, doc.to_string()).unwrap();
+    let package = dir.join("merged.cwk");
+    let out = citywalk(&[
+        "preprocess",
+        &city,
+        &city,
+        path_str(&far),
+        "-o",
+        path_str(&package),
+        "--no-occluders",
+        "--json",
+    ]);
+    assert!(out.status.success(), "{}", text(&out));
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json summary");
+    assert_eq!(json["buildings_found"], 13, "{json}");
+    let warnings = json["load_warnings"].as_array().unwrap();
+    let with = |needle: &str| {
+        warnings
+            .iter()
+            .filter(|w| w["reason"].as_str().is_some_and(|r| r.contains(needle)))
+            .collect::<Vec<_>>()
+    };
+    let twice = with("given twice");
+    assert_eq!(twice.len(), 1, "{json}");
+    assert_eq!(twice[0]["file"], city.as_str());
+    let apart = with("150 km from");
+    assert_eq!(apart.len(), 1, "{json}");
+    assert_eq!(apart[0]["file"], path_str(&far));
+    assert!(
+        apart[0]["reason"].as_str().unwrap().contains(&city),
+        "{json}"
+    );
+    let pkg = citywalk_scenes::package::ScenePackage::read(&package).expect("package");
+    let report = &pkg.provenance.load_report;
+    assert!(
+        report
+            .warnings
+            .iter()
+            .any(|w| w.message.contains("given twice"))
+    );
+    assert!(
+        report
+            .warnings
+            .iter()
+            .any(|w| w.message.contains("150 km from"))
+    );
+}

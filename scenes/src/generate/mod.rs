@@ -149,10 +149,10 @@ impl GenerateParams {
 
     /// Checks the parameters' ranges.
     pub fn validate(&self) -> Result<(), GenerateError> {
-        if self.buildings > MAX_BUILDINGS {
+        if !(1..=MAX_BUILDINGS).contains(&self.buildings) {
             return Err(GenerateError::InvalidParameter {
                 name: "buildings",
-                reason: format!("{} is more than {MAX_BUILDINGS}", self.buildings),
+                reason: format!("{} is outside 1..={MAX_BUILDINGS}", self.buildings),
             });
         }
         if !(60.0..=400.0).contains(&self.block_size_m) {
@@ -351,7 +351,9 @@ fn shell_quads(shell: i64, column_m: f64, row_m: f64) -> Vec<Node> {
 /// Generates the city in memory: local frame, tagged heights, multi-level buildings as several
 /// parts, streets with their classes.
 pub fn generate_city(params: &GenerateParams) -> Result<City, GenerateError> {
-    let mut buildings = Vec::with_capacity(params.buildings.min(MAX_BUILDINGS));
+    // Checked before the vector is sized by the count.
+    params.validate()?;
+    let mut buildings = Vec::with_capacity(params.buildings);
     let (streets, summary) = generate(params, &mut |b| {
         buildings.push(b);
         Ok(())

@@ -57,18 +57,26 @@ pub fn load_bytes(path: &Path, bytes: &[u8]) -> Result<City, LoadError> {
         format: FORMAT,
         reason,
     };
-    let root: Value =
-        serde_json::from_slice(bytes).map_err(|e| malformed(format!("invalid JSON: {e}")))?;
+    let root: Value = serde_json::from_slice(super::without_bom(bytes))
+        .map_err(|e| malformed(format!("invalid JSON: {e}")))?;
     let root = root
         .as_object()
         .ok_or_else(|| malformed("top level is not an object".into()))?;
     if root.get("type").and_then(Value::as_str) != Some("CityJSON") {
         return Err(malformed("\"type\" is not \"CityJSON\"".into()));
     }
-    let version = root
-        .get("version")
-        .and_then(Value::as_str)
-        .ok_or_else(|| malformed("no \"version\"".into()))?;
+    // The CityJSON specification makes "version" a string ("1.1"); a number (1.1) is refused
+    // saying so and what was found, not taken for a missing member.
+    let version = match root.get("version") {
+        Some(Value::String(v)) => v.as_str(),
+        Some(other) => {
+            return Err(malformed(format!(
+                "\"version\" must be a string such as \"1.1\", found {} {other}",
+                json_kind(other)
+            )));
+        }
+        None => return Err(malformed("no \"version\"".into())),
+    };
     let major_minor = supported_version(version).ok_or_else(|| LoadError::Unsupported {
         path: path.to_path_buf(),
         reason: format!("CityJSON version {version:?} (1.0, 1.1 and 2.0 are supported)"),
@@ -169,6 +177,18 @@ fn parse_transform(t: &Value) -> Result<Transform, String> {
         scale: vec3("scale")?,
         translate: vec3("translate")?,
     })
+}
+
+/// What kind of JSON value `v` is, for messages.
+fn json_kind(v: &Value) -> &'static str {
+    match v {
+        Value::Null => "null",
+        Value::Bool(_) => "the boolean",
+        Value::Number(_) => "the number",
+        Value::String(_) => "the string",
+        Value::Array(_) => "an array",
+        Value::Object(_) => "an object",
+    }
 }
 
 fn number3(v: &[Value]) -> Option<DVec3> {

@@ -33,7 +33,7 @@
 use std::collections::BTreeMap;
 use std::fmt;
 use std::fs::File;
-use std::io::BufReader;
+use std::io::{BufRead, BufReader};
 use std::path::Path;
 
 use geo::Coord;
@@ -79,7 +79,15 @@ fn read(path: &Path, options: &LoadOptions) -> Result<RawCity, LoadError> {
         ignored: 0,
         index: 0,
     };
-    let mut de = serde_json::Deserializer::from_reader(BufReader::with_capacity(1 << 20, file));
+    let mut reader = BufReader::with_capacity(1 << 20, file);
+    let head = reader.fill_buf().map_err(|source| LoadError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    if head.starts_with(super::UTF8_BOM) {
+        reader.consume(super::UTF8_BOM.len());
+    }
+    let mut de = serde_json::Deserializer::from_reader(reader);
     let top = CollectionSeed { sink: &mut sink }
         .deserialize(&mut de)
         .map_err(|e| malformed(path, e.to_string()))?;

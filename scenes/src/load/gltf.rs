@@ -49,6 +49,7 @@ use crate::report::{LoadError, LoadReport, LoadWarning};
 
 mod accessor;
 mod b3dm;
+mod glb;
 mod tileset;
 mod uri;
 
@@ -135,6 +136,7 @@ impl BatchInfo {
 }
 
 fn load_any(path: &Path, bytes: &[u8], search: bool) -> Result<City, LoadError> {
+    let bytes = super::without_bom(bytes);
     if bytes.starts_with(b"b3dm") {
         let placement = if search {
             find_placement(path)?
@@ -177,7 +179,7 @@ fn find_placement(path: &Path) -> Result<(Option<Placement>, Vec<LoadWarning>), 
             continue;
         }
         let text = read(&candidate)?;
-        let Ok(json) = serde_json::from_slice::<Value>(&text) else {
+        let Ok(json) = serde_json::from_slice::<Value>(super::without_bom(&text)) else {
             continue;
         };
         if !tileset::looks_like_tileset(&json) {
@@ -249,7 +251,7 @@ fn find_sidecar(path: &Path) -> Result<BatchInfo, LoadError> {
         return Ok(BatchInfo::default());
     }
     let text = read(&sidecar)?;
-    let json: Value = serde_json::from_slice(&text)
+    let json: Value = serde_json::from_slice(super::without_bom(&text))
         .map_err(|e| malformed(&sidecar, format!("batch table sidecar is not JSON: {e}")))?;
     if !json.is_object() {
         return Err(malformed(&sidecar, "batch table sidecar is not an object"));
@@ -341,8 +343,15 @@ struct Feature {
 
 /// Parses the glTF and gathers its triangles by feature.
 fn read_features(path: &Path, bytes: &[u8], batch: &BatchInfo) -> Result<Vec<Feature>, LoadError> {
+    // A tileset's .gltf content may carry a byte order mark too.
+    let bytes = super::without_bom(bytes);
+    if bytes.starts_with(b"glTF") {
+        glb::check_header(bytes, false).map_err(|r| malformed(path, r))?;
+    }
     let gltf = ::gltf::Gltf::from_slice_without_validation(bytes)
         .map_err(|e| malformed(path, e.to_string()))?;
+    glb::check_asset_version(&gltf.document.as_json().asset.version)
+        .map_err(|r| malformed(path, r))?;
     validate(&gltf.document).map_err(|r| malformed(path, r))?;
     let buffers = import_buffers(path, &gltf.document, gltf.blob.as_deref())
         .map_err(|r| malformed(path, r))?;

@@ -14,6 +14,8 @@ use crate::report::LoadError;
 
 mod assemble;
 pub mod cityjson;
+mod duplicates;
+mod far_apart;
 pub mod geojson;
 pub mod gltf;
 pub mod heights;
@@ -88,7 +90,7 @@ impl Default for LoadOptions {
 }
 
 /// The input formats citywalk reads.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum InputFormat {
     OsmPbf,
     GeoJson,
@@ -144,6 +146,16 @@ pub fn detect_format(path: &Path) -> Result<InputFormat, LoadError> {
     })
 }
 
+/// The UTF-8 byte order mark. RFC 8259 §8.1 forbids writing it in JSON but lets a parser
+/// ignore it; Windows editors and some exporters write it, and `serde_json` refuses it.
+pub(crate) const UTF8_BOM: &[u8] = b"\xEF\xBB\xBF";
+
+/// `bytes` without a leading UTF-8 byte order mark: every JSON input (GeoJSON, CityJSON, glTF,
+/// tileset, batch table) goes through this or skips the mark the same way.
+pub(crate) fn without_bom(bytes: &[u8]) -> &[u8] {
+    bytes.strip_prefix(UTF8_BOM).unwrap_or(bytes)
+}
+
 fn read_head(path: &Path, len: usize) -> Result<Vec<u8>, LoadError> {
     use std::io::Read;
     let file = std::fs::File::open(path).map_err(|source| LoadError::Io {
@@ -175,17 +187,44 @@ pub fn load_city(path: &Path, options: &LoadOptions) -> Result<City, LoadError> 
 }
 
 /// Loads several input files into one city, in the frame of the first. All inputs must share
-/// one coordinate reference system.
+/// one coordinate reference system. A file given twice, a file already read as part of an
+/// earlier input, and a building repeated under one source id are kept once, each with a
+/// warning ([`duplicates`]); inputs far apart are warned of ([`far_apart`]).
 pub fn load_cities(paths: &[PathBuf], options: &LoadOptions) -> Result<City, LoadError> {
-    let (first, rest) = paths.split_first().ok_or_else(|| LoadError::Unsupported {
+    let mut read = duplicates::ReadFiles::default();
+    let mut skipped = Vec::new();
+    let mut spans = Vec::new();
+    let mut merged: Option<City> = None;
+    for path in paths {
+        if let Some(warning) = read.skip(path) {
+            tracing::warn!("{warning}");
+            skipped.push(warning);
+            continue;
+        }
+        let format = detect_format(path)?;
+        let other = load_city(path, options)?;
+        read.add(path, &other.report.files);
+        let start = merged.as_ref().map_or(0, |c| c.buildings.len());
+        let city = match merged.as_mut() {
+            None => merged.insert(other),
+            Some(city) => {
+                merge_into(city, other, path)?;
+                city
+            }
+        };
+        spans.push(duplicates::InputSpan {
+            file: path.clone(),
+            format,
+            buildings: start..city.buildings.len(),
+        });
+    }
+    let mut city = merged.ok_or_else(|| LoadError::Unsupported {
         path: PathBuf::new(),
         reason: "no input file given".into(),
     })?;
-    let mut city = load_city(first, options)?;
-    for path in rest {
-        let other = load_city(path, options)?;
-        merge_into(&mut city, other, path)?;
-    }
+    city.report.warnings.extend(skipped);
+    far_apart::warn_far_apart(&mut city, &spans);
+    duplicates::drop_duplicate_buildings(&mut city, &spans);
     if city.buildings.iter().any(|b| b.mesh.is_some()) {
         // Each mesh file rested on its own lowest base; the merged city rests on the lowest.
         mesh_building::rest_on_ground(&mut city);

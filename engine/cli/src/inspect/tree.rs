@@ -36,8 +36,8 @@ pub struct Args {
     /// Output PNG.
     #[arg(short = 'o', long = "output", default_value = "tree.png")]
     output: PathBuf,
-    /// Width of the longer image side (pixels).
-    #[arg(long, default_value_t = 1600)]
+    /// Width of the longer image side (pixels, 64 to 16,384).
+    #[arg(long, default_value_t = 1600, value_parser = clap::value_parser!(u32).range(64..=16_384))]
     size: u32,
     /// Use Chang et al.'s choices (size-weighted distance, four-case merging, smallest-area
     /// simplification) instead of Yang et al.'s (rebuilds a package's tree unless it was built
@@ -117,7 +117,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         anyhow::bail!("cluster tree invariants violated: {e}");
     }
     let cut = tree.cut_at_level(args.level);
-    let image = draw(&city, &tree, &cut, args.size.clamp(64, 16_384));
+    let image = draw(&city, &tree, &cut, args.size);
     image
         .save(&args.output)
         .with_context(|| format!("cannot write {}", args.output.display()))?;

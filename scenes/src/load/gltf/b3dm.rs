@@ -69,6 +69,9 @@ pub(crate) fn parse(bytes: &[u8]) -> Result<B3dm<'_>, String> {
     if !glb.starts_with(b"glTF") {
         return Err("b3dm body is not a binary glTF".into());
     }
+    // Without the alignment padding after it, the GLB is exactly as long as its header says.
+    let glb_length = super::glb::check_header(glb, true)?;
+    let glb = glb.get(..glb_length).unwrap_or(glb);
     let json = |s: &[u8], what: &str| -> Result<Option<Value>, String> {
         let text = std::str::from_utf8(s).map_err(|e| format!("{what} is not UTF-8: {e}"))?;
         let text = text.trim_end_matches([' ', '\0']);
@@ -108,17 +111,36 @@ mod tests {
         let t = tile(
             r#"{"BATCH_LENGTH":2}  "#,
             r#"{"id":["a","b"]}"#,
-            b"glTF....",
+            &glb_header(12),
         );
         let b = parse(&t).unwrap();
         assert_eq!(b.feature_table["BATCH_LENGTH"], 2);
         assert_eq!(b.batch_table.unwrap()["id"][1], "b");
-        assert_eq!(b.glb, b"glTF....");
+        assert_eq!(b.glb, glb_header(12));
+    }
+
+    /// A GLB header alone declaring `length` bytes.
+    fn glb_header(length: u32) -> Vec<u8> {
+        let mut h = b"glTF".to_vec();
+        h.extend(2u32.to_le_bytes());
+        h.extend(length.to_le_bytes());
+        h
+    }
+
+    #[test]
+    fn glb_length_is_checked_and_padding_dropped() {
+        let mut padded = glb_header(12);
+        padded.extend([0; 4]);
+        assert_eq!(parse(&tile("{}", "", &padded)).unwrap().glb, glb_header(12));
+        // More than the 8-byte alignment after the GLB, or a GLB longer than the body.
+        padded.extend([0; 8]);
+        assert!(parse(&tile("{}", "", &padded)).is_err());
+        assert!(parse(&tile("{}", "", &glb_header(20))).is_err());
     }
 
     #[test]
     fn refuses_bad_headers() {
-        let t = tile("{}", "", b"glTF");
+        let t = tile("{}", "", &glb_header(12));
         assert!(parse(&t[..20]).is_err());
         let mut wrong_len = t.clone();
         wrong_len[8] = 200;
