@@ -7,12 +7,13 @@
 //! from the top level down, each adding the newly exposed triangle pieces to the one above.
 
 use geo::{
-    Area, BooleanOps, BoundingRect, Coord, Intersects, Line, LineString, MultiPolygon, Polygon,
-    PreparedGeometry, Relate, unary_union,
+    Area, BooleanOps, BoundingRect, Coord, Intersects, LineString, MultiPolygon, Polygon,
+    unary_union,
 };
 use glam::DVec3;
 
 use super::OccluderParams;
+use super::cover::RegionCover;
 use super::zlevels::{LevelCandidate, cluster_heights};
 use citywalk_scenes::TriangleMesh;
 
@@ -300,28 +301,19 @@ fn clean(mp: MultiPolygon<f64>) -> MultiPolygon<f64> {
     )
 }
 
-/// The candidate levels with their regions prepared once for many edge tests
-/// ([`edge_height`]): geo's `covers` on a plain polygon builds the region's intersection graph
-/// and R-tree again for every call (Amsterdam `glb/2.glb` without its sidecar: over 100 s in
-/// this test alone).
-pub struct PreparedLevels<'a> {
-    levels: Vec<(f64, PreparedGeometry<'a, &'a MultiPolygon<f64>>)>,
+/// The candidate levels with their regions' boundaries indexed ([`RegionCover`]) once, for the
+/// many edge tests of [`edge_height`].
+#[derive(Debug)]
+pub struct PreparedLevels {
+    levels: Vec<(f64, RegionCover)>,
 }
 
-impl std::fmt::Debug for PreparedLevels<'_> {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_list()
-            .entries(self.levels.iter().map(|(z, _)| z))
-            .finish()
-    }
-}
-
-impl<'a> PreparedLevels<'a> {
-    pub fn new(candidates: &'a [LevelCandidate]) -> PreparedLevels<'a> {
+impl PreparedLevels {
+    pub fn new(candidates: &[LevelCandidate]) -> PreparedLevels {
         PreparedLevels {
             levels: candidates
                 .iter()
-                .map(|c| (c.z_m, PreparedGeometry::from(&c.region)))
+                .map(|c| (c.z_m, RegionCover::new(&c.region)))
                 .collect(),
         }
     }
@@ -333,12 +325,11 @@ impl<'a> PreparedLevels<'a> {
 /// the level's own height. Candidates are ascending and their regions nested, so a binary
 /// search finds it.
 pub fn edge_height(
-    candidates: &PreparedLevels<'_>,
+    candidates: &PreparedLevels,
     level_z_m: f64,
     a: Coord<f64>,
     b: Coord<f64>,
 ) -> f64 {
-    let line = Line::new(a, b);
     let higher: Vec<_> = candidates
         .levels
         .iter()
@@ -348,7 +339,7 @@ pub fn edge_height(
     let (mut lo, mut hi) = (0usize, higher.len());
     while lo < hi {
         let mid = (lo + hi).div_ceil(2);
-        if higher[mid - 1].1.relate(&line).is_covers() {
+        if higher[mid - 1].1.covers(a, b) {
             lo = mid;
         } else {
             hi = mid - 1;
