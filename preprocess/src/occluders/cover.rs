@@ -89,7 +89,7 @@ impl RegionCover {
     /// the ray from `p` to +x (an edge counts when its end points lie on either side of the
     /// ray's line, one of them possibly on it and below: each vertex is counted once).
     fn contains(&self, p: Coord<f64>) -> bool {
-        if !(p.x <= self.max_x) {
+        if p.x.is_nan() || p.x > self.max_x {
             return false;
         }
         let ray = AABB::from_corners([p.x, p.y], [self.max_x, p.y]);
