@@ -15,7 +15,7 @@ use citywalk_scenes::cluster_tree::{ClusterParams, ClusterTree};
 use citywalk_scenes::package::{
     GpuScene, InputFile, PackageError, Provenance, ScenePackage, StageTiming, sha256_file,
 };
-use citywalk_scenes::{BuildingId, City};
+use citywalk_scenes::{BuildingId, City, LoadOptions};
 use serde::{Deserialize, Serialize};
 
 use crate::blocks::{BlockParams, BlockReport, build_blocks_with};
@@ -75,6 +75,9 @@ impl ProgressSink for NoProgress {
 /// Parameters of the whole preprocessing; stored (as JSON) in the package's provenance.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PreprocessParams {
+    /// How the city's inputs were read (CRS, up axis and building markers of OBJ, heights):
+    /// recorded so a package says how it was made; the stages do not read it.
+    pub load: LoadOptions,
     pub blocks: BlockParams,
     pub occluders: OccluderParams,
     pub cluster: ClusterParams,
@@ -89,6 +92,7 @@ pub struct PreprocessParams {
 impl Default for PreprocessParams {
     fn default() -> Self {
         PreprocessParams {
+            load: LoadOptions::default(),
             blocks: BlockParams::default(),
             occluders: OccluderParams::default(),
             cluster: ClusterParams::default(),

@@ -17,12 +17,12 @@ use citywalk_runtime::gpu::GpuContext;
 use citywalk_runtime::lod::LodCriterion;
 use citywalk_runtime::lod::scene::LodScene;
 use citywalk_runtime::scene_gpu::{SceneGeometry, SceneGpu};
-use citywalk_scenes::City;
 use citywalk_scenes::camera_path::{self, CameraPath};
 use citywalk_scenes::package::ScenePackage;
+use citywalk_scenes::{City, LoadOptions};
 
 use crate::path_arg::GENERATED;
-use crate::scene_input::{load_scene, load_scene_to_draw};
+use crate::scene_input::{SceneInputs, load_scene, load_scene_to_draw};
 
 /// Arguments of `citywalk bench`.
 #[derive(Debug, clap::Args)]
@@ -30,6 +30,8 @@ pub struct Args {
     /// Scenes: packages (.cwk) or any loadable input (preprocessed on the fly).
     #[arg(required_unless_present = "list_modes")]
     pub scenes: Vec<PathBuf>,
+    #[command(flatten)]
+    pub input: crate::input_args::InputArgs,
     /// Output folder for frames.csv, bench.json, summary.md, path files and PNG frames.
     #[arg(long, required_unless_present = "list_modes")]
     pub out: Option<PathBuf>,
@@ -113,8 +115,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     {
         anyhow::bail!("--baseline decimate:{mode} needs mode '{mode}' in --modes");
     }
+    let load = args.input.load_options(&args.scenes)?;
     let report = run_benchmark_with(
-        &args.scenes,
+        SceneInputs {
+            paths: &args.scenes,
+            load: &load,
+        },
         &out,
         &path_kinds,
         &replayed,
@@ -154,7 +160,8 @@ pub fn parse_path_kinds(list: &str) -> anyhow::Result<Vec<String>> {
     Ok(kinds)
 }
 
-/// Runs the benchmark over `scenes` and writes every output into `out`; returns the report.
+/// Runs the benchmark over `scenes` (raw inputs read with the default options) and writes every
+/// output into `out`; returns the report.
 pub fn run_benchmark(
     scenes: &[PathBuf],
     out: &Path,
@@ -163,12 +170,17 @@ pub fn run_benchmark(
     frames: usize,
     config: &BenchConfig,
 ) -> anyhow::Result<BenchReport> {
+    let load = LoadOptions::default();
+    let scenes = SceneInputs {
+        paths: scenes,
+        load: &load,
+    };
     run_benchmark_with(scenes, out, path_kinds, replayed, frames, config, None)
 }
 
 /// [`run_benchmark`], plus the decimated-city baseline of each scene when `baseline` is given.
 pub fn run_benchmark_with(
-    scenes: &[PathBuf],
+    scenes: SceneInputs<'_>,
     out: &Path,
     path_kinds: &[String],
     replayed: &[CameraPath],
@@ -182,14 +194,14 @@ pub fn run_benchmark_with(
     let mut renderers = BenchRenderers::new(&gpu);
     let mut records: Vec<FrameRecord> = Vec::new();
     let mut loads = Vec::new();
-    for scene_path in scenes {
+    for scene_path in scenes.paths {
         let started = Instant::now();
         // The decimated baseline meshes the buildings from their parts, which a package read
         // only to draw leaves out.
         let package = if baseline.is_some() {
-            load_scene(scene_path)?
+            load_scene(scene_path, scenes.load)?
         } else {
-            load_scene_to_draw(scene_path)?
+            load_scene_to_draw(scene_path, scenes.load)?
         };
         // Moved apart, not cloned: at a million buildings each copy is gigabytes.
         let ScenePackage {

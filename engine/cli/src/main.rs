@@ -7,6 +7,7 @@ mod bench;
 mod cli_args;
 mod demo;
 mod generate;
+mod input_args;
 mod inspect;
 mod path_arg;
 mod preprocess;

@@ -7,19 +7,22 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use citywalk_preprocess::pipeline::{PreprocessParams, ProgressSink, Stage, preprocess};
+use citywalk_scenes::load_cities;
 use citywalk_scenes::package::{ScenePackage, WriteOptions, check_output_path};
-use citywalk_scenes::{LoadOptions, load_cities};
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use serde::Serialize;
 
+use crate::input_args::InputArgs;
 use crate::report_items::{self, ReportItem};
 
 /// Arguments of `citywalk preprocess`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Input files (OSM PBF, GeoJSON, CityJSON, glTF/GLB), merged into one city.
+    /// Input files (OSM PBF, GeoJSON, CityJSON, glTF/GLB, OBJ), merged into one city.
     #[arg(required = true)]
     inputs: Vec<PathBuf>,
+    #[command(flatten)]
+    input: InputArgs,
     /// The scene package to write.
     #[arg(short, long)]
     output: PathBuf,
@@ -113,18 +116,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let start = Instant::now();
     // Refuse a device, a folder or a read-only file before minutes of work, not after.
     check_output_path(&args.output).context("cannot write the package")?;
+    let load_options = args.input.load_options(&args.inputs)?;
     let load = ProgressBar::new_spinner();
     if let Ok(style) = ProgressStyle::with_template("{spinner} {msg} {elapsed}") {
         load.set_style(style);
     }
     load.set_message(format!("loading {} input(s)", args.inputs.len()));
     load.enable_steady_tick(Duration::from_millis(120));
-    let city =
-        load_cities(&args.inputs, &LoadOptions::default()).context("cannot load the inputs")?;
+    let city = load_cities(&args.inputs, &load_options).context("cannot load the inputs")?;
     let load_seconds = start.elapsed().as_secs_f64();
     load.finish_with_message(format!("load: {} ({load_seconds:.2} s)", city.report));
 
     let params = PreprocessParams {
+        load: load_options,
         build_occluders: !args.no_occluders,
         build_cluster_tree: !args.no_cluster_tree,
         ..PreprocessParams::default()

@@ -19,8 +19,10 @@ const DEFAULT_PATH_FRAMES: usize = 60;
 /// Arguments of `citywalk render`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// The scene: a package (.cwk) or any input (OSM PBF, GeoJSON, CityJSON, glTF/GLB).
+    /// The scene: a package (.cwk) or any input (OSM PBF, GeoJSON, CityJSON, glTF/GLB, OBJ).
     pub scene: PathBuf,
+    #[command(flatten)]
+    pub input: crate::input_args::InputArgs,
     /// Camera as X,Y,Z,YAW,PITCH (metres in the scene's local frame; degrees, yaw 0 = east,
     /// pitch positive up). Default: the overview from the south-west.
     #[arg(long, allow_hyphen_values = true, conflicts_with = "path")]
@@ -47,7 +49,8 @@ pub struct Args {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let started = Instant::now();
-    let city = crate::scene_input::load_city(&args.scene)?;
+    let load = args.input.load_options(std::slice::from_ref(&args.scene))?;
+    let city = crate::scene_input::load_city(&args.scene, &load)?;
     let loaded_s = started.elapsed().as_secs_f64();
     let gpu = GpuContext::headless()?;
     println!("adapter: {}", gpu.adapter_summary());

@@ -21,8 +21,10 @@ const GENERATED_PLAY_POSES: usize = 600;
 /// Arguments of `citywalk view`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// The scene: a package (.cwk) or any input (OSM PBF, GeoJSON, CityJSON, glTF/GLB).
+    /// The scene: a package (.cwk) or any input (OSM PBF, GeoJSON, CityJSON, glTF/GLB, OBJ).
     pub scene: PathBuf,
+    #[command(flatten)]
+    pub input: crate::input_args::InputArgs,
     /// Start in fly mode at the overview camera (default: walk mode on a street near the centre).
     #[arg(long)]
     pub fly: bool,
@@ -130,7 +132,8 @@ fn start_settings(args: &Args) -> RenderSettings {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let scene = load_scene(&args.scene)?;
+    let load = args.input.load_options(std::slice::from_ref(&args.scene))?;
+    let scene = load_scene(&args.scene, &load)?;
     let city = &scene.city;
     let settings = start_settings(&args);
     let play = match &args.play {
@@ -167,7 +170,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 /// The one place the viewer loads its scene: a package's city, virtual occluders, cluster tree,
 /// urban blocks and B-Quadtree, or any other input's city as it is (no occluders, tree or
 /// quadtree: they come from preprocessing).
-fn load_scene(path: &Path) -> anyhow::Result<ViewerScene> {
+fn load_scene(path: &Path, load: &citywalk_scenes::LoadOptions) -> anyhow::Result<ViewerScene> {
     let named_package = path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("cwk"));
@@ -199,7 +202,7 @@ fn load_scene(path: &Path) -> anyhow::Result<ViewerScene> {
         }
     } else {
         ViewerScene {
-            city: crate::scene_input::load_city(path)?,
+            city: crate::scene_input::load_city(path, load)?,
             cluster_tree: None,
             blocks: None,
             gpu_scene: None,

@@ -7,12 +7,13 @@
 //! from the top level down, each adding the newly exposed triangle pieces to the one above.
 
 use geo::{
-    Area, BooleanOps, BoundingRect, Coord, Intersects, Line, LineString, MultiPolygon, Polygon,
-    PreparedGeometry, Relate, unary_union,
+    Area, BooleanOps, BoundingRect, Coord, Intersects, LineString, MultiPolygon, Polygon,
+    unary_union,
 };
 use glam::DVec3;
 
 use super::OccluderParams;
+use super::cover::RegionCover;
 use super::zlevels::{LevelCandidate, cluster_heights};
 use citywalk_scenes::TriangleMesh;
 
@@ -39,6 +40,36 @@ pub struct MeshRegions {
 /// Bound on candidate heights per building (sloped-roof samples included), so a huge mesh
 /// cannot make level identification quadratic.
 const MAX_KEYS: usize = 100_000;
+
+/// Bound on candidate levels per building (a citywalk choice). Each level costs a union of the
+/// region with the triangle pieces reaching it and a facade; a mesh whose faces are all sloped
+/// (a tile read without its placement, tilted by its Earth-centred axes: issue 14 case 5)
+/// otherwise gets a level every `level_tolerance_m` of its height. Every kept level's region
+/// is still exact and conservative, so thinning only coarsens the occluders.
+pub const MAX_CANDIDATE_LEVELS: usize = 32;
+
+/// At most `max` (≥ 2) of the ascending `heights`: the highest, then downward each one at least
+/// (highest − lowest) / (max − 1) below the last kept; ascending.
+fn thin_heights(heights: Vec<f64>, max: usize) -> Vec<f64> {
+    let (Some(&lowest), Some(&highest)) = (heights.first(), heights.last()) else {
+        return heights;
+    };
+    if heights.len() <= max {
+        return heights;
+    }
+    let spacing = (highest - lowest) / (max.max(2) - 1) as f64;
+    let mut kept: Vec<f64> = Vec::with_capacity(max);
+    for &z in heights.iter().rev() {
+        if kept.len() == max {
+            break;
+        }
+        if kept.last().is_none_or(|&last| last - z >= spacing) {
+            kept.push(z);
+        }
+    }
+    kept.reverse();
+    kept
+}
 
 impl MeshRegions {
     /// Classifies the mesh's triangles. Fails (with a reason) on a mesh with an index out of
@@ -156,6 +187,14 @@ impl MeshRegions {
             .into_iter()
             .filter(|z| *z > self.base_m + self.min_level_height_m)
             .collect();
+        if heights.len() > MAX_CANDIDATE_LEVELS {
+            tracing::debug!(
+                levels = heights.len(),
+                kept = MAX_CANDIDATE_LEVELS,
+                "candidate levels thinned"
+            );
+        }
+        let heights = thin_heights(heights, MAX_CANDIDATE_LEVELS);
         let mut out = Vec::with_capacity(heights.len());
         let mut region = MultiPolygon::<f64>::new(Vec::new());
         let mut upper = f64::INFINITY;
@@ -300,28 +339,19 @@ fn clean(mp: MultiPolygon<f64>) -> MultiPolygon<f64> {
     )
 }
 
-/// The candidate levels with their regions prepared once for many edge tests
-/// ([`edge_height`]): geo's `covers` on a plain polygon builds the region's intersection graph
-/// and R-tree again for every call (Amsterdam `glb/2.glb` without its sidecar: over 100 s in
-/// this test alone).
-pub struct PreparedLevels<'a> {
-    levels: Vec<(f64, PreparedGeometry<'a, &'a MultiPolygon<f64>>)>,
+/// The candidate levels with their regions' boundaries indexed ([`RegionCover`]) once, for the
+/// many edge tests of [`edge_height`].
+#[derive(Debug)]
+pub struct PreparedLevels {
+    levels: Vec<(f64, RegionCover)>,
 }
 
-impl std::fmt::Debug for PreparedLevels<'_> {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_list()
-            .entries(self.levels.iter().map(|(z, _)| z))
-            .finish()
-    }
-}
-
-impl<'a> PreparedLevels<'a> {
-    pub fn new(candidates: &'a [LevelCandidate]) -> PreparedLevels<'a> {
+impl PreparedLevels {
+    pub fn new(candidates: &[LevelCandidate]) -> PreparedLevels {
         PreparedLevels {
             levels: candidates
                 .iter()
-                .map(|c| (c.z_m, PreparedGeometry::from(&c.region)))
+                .map(|c| (c.z_m, RegionCover::new(&c.region)))
                 .collect(),
         }
     }
@@ -333,12 +363,11 @@ impl<'a> PreparedLevels<'a> {
 /// the level's own height. Candidates are ascending and their regions nested, so a binary
 /// search finds it.
 pub fn edge_height(
-    candidates: &PreparedLevels<'_>,
+    candidates: &PreparedLevels,
     level_z_m: f64,
     a: Coord<f64>,
     b: Coord<f64>,
 ) -> f64 {
-    let line = Line::new(a, b);
     let higher: Vec<_> = candidates
         .levels
         .iter()
@@ -348,7 +377,7 @@ pub fn edge_height(
     let (mut lo, mut hi) = (0usize, higher.len());
     while lo < hi {
         let mid = (lo + hi).div_ceil(2);
-        if higher[mid - 1].1.relate(&line).is_covers() {
+        if higher[mid - 1].1.covers(a, b) {
             lo = mid;
         } else {
             hi = mid - 1;
@@ -361,6 +390,19 @@ pub fn edge_height(
 mod tests {
     use super::*;
     use glam::Vec3;
+
+    #[test]
+    fn thinned_heights_keep_the_top_and_at_most_the_bound() {
+        let heights: Vec<f64> = (0..200).map(|i| 3.0 + 0.5 * f64::from(i)).collect();
+        let kept = thin_heights(heights.clone(), 32);
+        assert!((24..=32).contains(&kept.len()), "{}", kept.len());
+        assert_eq!(kept.last(), heights.last());
+        assert!(kept.windows(2).all(|w| w[0] < w[1]));
+        assert!(kept.iter().all(|z| heights.contains(z)));
+        let few = vec![1.0, 2.0, 5.0];
+        assert_eq!(thin_heights(few.clone(), 32), few);
+        assert!(thin_heights(Vec::new(), 32).is_empty());
+    }
 
     /// A closed box mesh (12 triangles, outward CCW) from `lo` to `hi`.
     pub(crate) fn box_mesh(lo: Vec3, hi: Vec3) -> TriangleMesh {

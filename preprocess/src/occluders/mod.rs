@@ -52,6 +52,7 @@
 //! prism is the volume, and its occluder is the simplified part footprint between the part's
 //! base and top.
 
+mod cover;
 pub mod facade;
 pub mod footprint;
 pub mod gltf_out;

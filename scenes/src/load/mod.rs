@@ -58,6 +58,17 @@ pub enum UpAxis {
     Y,
 }
 
+impl UpAxis {
+    /// Reads a `--up` value: `z` or `y` (any case).
+    pub fn parse(s: &str) -> Result<UpAxis, String> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "z" => Ok(UpAxis::Z),
+            "y" => Ok(UpAxis::Y),
+            _ => Err(format!("expected z or y, got {s:?}")),
+        }
+    }
+}
+
 /// Checks a `--crs` value: `EPSG:NNNN` (any case) of a projected CRS in metres, returned as
 /// `EPSG:NNNN`. Geographic CRSs (degrees) are refused: an OBJ model is in metres.
 pub fn parse_crs(s: &str) -> Result<String, String> {
@@ -285,4 +296,27 @@ fn merge_into(city: &mut City, other: City, path: &Path) -> Result<(), LoadError
     }
     city.report.merge(other.report);
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{UpAxis, parse_crs};
+
+    #[test]
+    fn crs_values_parse_and_geographic_ones_are_refused() {
+        assert_eq!(parse_crs("EPSG:28992"), Ok("EPSG:28992".into()));
+        assert_eq!(parse_crs(" epsg:32631 "), Ok("EPSG:32631".into()));
+        let geographic = parse_crs("EPSG:4326").unwrap_err();
+        assert!(geographic.contains("geographic"), "{geographic}");
+        assert!(parse_crs("28992").is_err());
+        assert!(parse_crs("ESRI:102100").is_err());
+        assert!(parse_crs("EPSG:x").is_err());
+    }
+
+    #[test]
+    fn up_axes_parse() {
+        assert_eq!(UpAxis::parse("z"), Ok(UpAxis::Z));
+        assert_eq!(UpAxis::parse("Y"), Ok(UpAxis::Y));
+        assert!(UpAxis::parse("x").unwrap_err().contains("z or y"));
+    }
 }

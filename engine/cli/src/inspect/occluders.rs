@@ -25,8 +25,11 @@ use serde::Serialize;
 /// Arguments of this inspection.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// A scene package (.cwk) or any input citywalk loads (OSM PBF, GeoJSON, CityJSON, glTF/GLB).
+    /// A scene package (.cwk) or any input citywalk loads (OSM PBF, GeoJSON, CityJSON, glTF/GLB,
+    /// OBJ).
     scene: PathBuf,
+    #[command(flatten)]
+    input: crate::input_args::InputArgs,
     /// Print the report as JSON on stdout.
     #[arg(long)]
     json: bool,
@@ -85,7 +88,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             args.facade
         )
     })?;
-    let city = crate::scene_input::load_city(&args.scene)?;
+    let load = args.input.load_options(std::slice::from_ref(&args.scene))?;
+    let city = crate::scene_input::load_city(&args.scene, &load)?;
     let defaults = OccluderParams::default();
     let non_negative = |name: &str, v: Option<f64>, default: f64| match v {
         None => Ok(default),

@@ -23,6 +23,8 @@ pub struct Args {
     /// Run every structure's invariant checker; exit non-zero on a violation.
     #[arg(long)]
     check: bool,
+    #[command(flatten)]
+    input: crate::input_args::InputArgs,
 }
 
 #[derive(Debug, Serialize)]
@@ -89,6 +91,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let path = args
         .scene
         .context("give a scene: `citywalk inspect SCENE [--json] [--check]`")?;
+    let load = args.input.load_options(std::slice::from_ref(&path))?;
     let package_file = is_package(&path)?;
     let sections = if package_file {
         let file = PackageFile::open(&path)
@@ -105,7 +108,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     } else {
         Vec::new()
     };
-    let pkg = load_scene(&path)?;
+    let pkg = load_scene(&path, &load)?;
     let check = args.check.then(|| match pkg.check_invariants() {
         Ok(()) => Vec::new(),
         Err(errors) => errors,

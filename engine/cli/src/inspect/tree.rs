@@ -28,8 +28,11 @@ use image::{Rgb, RgbImage};
 /// Arguments of this inspection.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// A scene package (.cwk) or any input citywalk loads (OSM PBF, GeoJSON, CityJSON, glTF/GLB).
+    /// A scene package (.cwk) or any input citywalk loads (OSM PBF, GeoJSON, CityJSON, glTF/GLB,
+    /// OBJ).
     scene: PathBuf,
+    #[command(flatten)]
+    input: crate::input_args::InputArgs,
     /// Tree level to draw (0 = root); leaves shallower than it are drawn as they are.
     #[arg(long, default_value_t = 2)]
     level: u32,
@@ -69,6 +72,7 @@ fn requested_params(args: &Args, base: &ClusterParams) -> ClusterParams {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    let load = args.input.load_options(std::slice::from_ref(&args.scene))?;
     let (city, block_of_building, block_count, stored) =
         match crate::scene_input::open_package(&args.scene)? {
             Some(package) => {
@@ -81,7 +85,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 )
             }
             None => {
-                let city = crate::scene_input::load_city(&args.scene)?;
+                let city = crate::scene_input::load_city(&args.scene, &load)?;
                 let blocks = build_blocks(&city);
                 (city, blocks.block_of_building, blocks.blocks.len(), None)
             }
