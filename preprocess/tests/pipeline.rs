@@ -180,8 +180,12 @@ fn generated_400_seed_5_without_streets_tree_is_valid() {
 #[test]
 fn a_package_opened_to_draw_has_the_occluder_sets_arrays_and_no_set() {
     use citywalk_scenes::occluder_draws::OccluderArrays;
-    let pkg = preprocess(generated(300, 11), &PreprocessParams::default(), &NoProgress)
-        .expect("preprocess");
+    let pkg = preprocess(
+        generated(300, 11),
+        &PreprocessParams::default(),
+        &NoProgress,
+    )
+    .expect("preprocess");
     let dir = tempfile::tempdir().expect("temp dir");
     let path = dir.path().join("city.cwk");
     pkg.write(&path, WriteOptions::default()).expect("write");
@@ -204,12 +208,17 @@ fn a_package_opened_to_draw_has_the_occluder_sets_arrays_and_no_set() {
         assert!(!b.parts.is_empty() && !b.tags.is_empty());
         (b.parts, b.tags) = Default::default();
     }
-    assert!(to_draw.buildings == buildings, "the buildings to draw differ");
+    assert!(
+        to_draw.buildings == buildings,
+        "the buildings to draw differ"
+    );
     // The cluster meshes are stored once, in the GPU scene: a full read restores them, a read
     // to draw leaves them there.
     assert_eq!(full.cluster_tree, pkg.cluster_tree);
     let mut tree = full.cluster_tree.expect("a tree");
     assert!(tree.nodes.iter().any(|n| !n.mesh.indices.is_empty()));
-    tree.nodes.iter_mut().for_each(|n| n.mesh = Default::default());
+    tree.nodes
+        .iter_mut()
+        .for_each(|n| n.mesh = Default::default());
     assert_eq!(to_draw.cluster_tree, Some(tree));
 }

@@ -120,8 +120,9 @@ impl OccluderArraysView<'_> {
             let (Some(indices), Some(vertices)) = (
                 self.indices
                     .get(r.first_index as usize..(r.first_index as usize + r.index_count as usize)),
-                self.vertices
-                    .get(r.base_vertex as usize..(r.base_vertex as usize + r.vertex_count as usize)),
+                self.vertices.get(
+                    r.base_vertex as usize..(r.base_vertex as usize + r.vertex_count as usize),
+                ),
             ) else {
                 return fail("ranges past the arrays");
             };

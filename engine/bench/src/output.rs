@@ -355,7 +355,8 @@ pub fn summary_markdown(report: &BenchReport) -> String {
                 l.buildings,
                 l.triangles,
                 l.ready_s,
-                l.resident_mib.map_or("n/a".to_string(), |m| format!("{m:.0}"))
+                l.resident_mib
+                    .map_or("n/a".to_string(), |m| format!("{m:.0}"))
             );
         }
         let peak = report.peak_resident_mib;

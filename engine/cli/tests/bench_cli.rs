@@ -129,7 +129,9 @@ fn bench_writes_its_files_and_plots() {
     assert!(scenes[0]["buildings"].as_u64().expect("buildings") > 0);
     assert!(scenes[0]["ready_s"].as_f64().expect("ready_s") > 0.0);
     let resident = scenes[0]["resident_mib"].as_f64().expect("resident_mib");
-    let peak = json["peak_resident_mib"].as_f64().expect("peak_resident_mib");
+    let peak = json["peak_resident_mib"]
+        .as_f64()
+        .expect("peak_resident_mib");
     assert!(resident > 1.0 && peak >= resident, "{resident} {peak}");
     assert_eq!(printed, json);
     let summary = std::fs::read_to_string(out.join("summary.md")).expect("summary.md");

@@ -436,7 +436,10 @@ pub fn decode_one<T: DeserializeOwned>(
 }
 
 /// One building's entry of [`SectionKind::BuildingDetails`].
-type BuildingDetails = (Vec<crate::BuildingPart>, std::collections::BTreeMap<String, String>);
+type BuildingDetails = (
+    Vec<crate::BuildingPart>,
+    std::collections::BTreeMap<String, String>,
+);
 
 fn required<T>(value: Option<T>, kind: SectionKind) -> Result<T, PackageError> {
     value.ok_or_else(|| PackageError::Malformed(format!("missing section {}", kind.name())))

@@ -241,8 +241,14 @@ impl GpuScene {
             layout.occluder_vertices,
             bytemuck::cast_slice(&occluders.vertices),
         );
-        put(layout.occluder_indices, bytemuck::cast_slice(&occluders.indices));
-        put(layout.occluder_records, bytemuck::cast_slice(&occluders.records));
+        put(
+            layout.occluder_indices,
+            bytemuck::cast_slice(&occluders.indices),
+        );
+        put(
+            layout.occluder_records,
+            bytemuck::cast_slice(&occluders.records),
+        );
         GpuScene {
             storage: Storage::Owned(words),
             layout,

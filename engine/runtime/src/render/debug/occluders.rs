@@ -64,12 +64,8 @@ impl OccluderOverlayMeshes {
             });
             indices.extend(relative.iter().map(|&v| r.base_vertex + v));
         }
-        let (vertex_buffer, index_buffer) = crate::render::mesh_buffers(
-            &gpu.device,
-            "debug occluder",
-            arrays.vertices,
-            &indices,
-        );
+        let (vertex_buffer, index_buffer) =
+            crate::render::mesh_buffers(&gpu.device, "debug occluder", arrays.vertices, &indices);
         OccluderOverlayMeshes {
             vertex_buffer,
             index_buffer,
