@@ -341,6 +341,7 @@ struct Feature {
 
 /// Parses the glTF and gathers its triangles by feature.
 fn read_features(path: &Path, bytes: &[u8], batch: &BatchInfo) -> Result<Vec<Feature>, LoadError> {
+    check_glb_length(bytes).map_err(|r| malformed(path, r))?;
     let gltf = ::gltf::Gltf::from_slice_without_validation(bytes)
         .map_err(|e| malformed(path, e.to_string()))?;
     validate(&gltf.document).map_err(|r| malformed(path, r))?;
@@ -380,6 +381,31 @@ fn read_features(path: &Path, bytes: &[u8], batch: &BatchInfo) -> Result<Vec<Fea
         }
     }
     Ok(features)
+}
+
+/// A GLB must hold its 12-byte header, and its declared `length` must cover it (glTF 2.0
+/// §4.4.2 "Header"). Checked here because `gltf` subtracts the header size from it unchecked:
+/// a length under 12 overflows, a panic where overflow checks are on (found by fuzzing).
+fn check_glb_length(bytes: &[u8]) -> Result<(), String> {
+    const GLB_HEADER_BYTES: usize = 12;
+    if !bytes.starts_with(b"glTF") {
+        return Ok(());
+    }
+    let declared = bytes
+        .get(8..GLB_HEADER_BYTES)
+        .and_then(|w| <[u8; 4]>::try_from(w).ok())
+        .map(|w| u32::from_le_bytes(w) as usize);
+    match declared {
+        None => Err(format!(
+            "GLB header needs {GLB_HEADER_BYTES} bytes, the data has {}",
+            bytes.len()
+        )),
+        Some(n) if n < GLB_HEADER_BYTES => Err(format!(
+            "GLB header declares a length of {n} bytes, less than the header's {GLB_HEADER_BYTES}"
+        )),
+        // A length past the data is `gltf`'s own error ("read").
+        Some(_) => Ok(()),
+    }
 }
 
 /// The data of every buffer, `byteLength` bytes each: the GLB's binary chunk, a base64 `data:`
