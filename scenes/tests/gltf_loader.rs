@@ -469,6 +469,23 @@ fn issue14_small_gltf_asset_version_other_than_2_is_refused() {
     expect_error("three.gltf", json.as_bytes(), "3.0");
 }
 
+/// Found by the `glb` and `b3dm` fuzz targets (tests/fuzz/regressions/{glb,b3dm}/): a GLB
+/// header whose `length` is under the header's own 12 bytes made `gltf` subtract past zero.
+#[test]
+fn fuzz_glb_length_under_its_header_is_an_error() {
+    let mut glb = b"glTF".to_vec();
+    glb.extend(2u32.to_le_bytes());
+    glb.extend(4u32.to_le_bytes());
+    expect_error("short-header.glb", &glb, "less than the header");
+    expect_error(
+        "short-header.b3dm",
+        &make_b3dm("", &glb),
+        "less than the header",
+    );
+    // A header cut short.
+    expect_error("cut-header.glb", &glb[..10], "needs 12 bytes");
+}
+
 #[test]
 fn degenerate_building_is_rejected_and_others_load() {
     // A flat box (zero height) and a good one, as two batches.

@@ -28,8 +28,15 @@ pub(crate) fn check_header(bytes: &[u8], in_b3dm: bool) -> Result<usize, String>
         return Err(format!("GLB container version {version} (only 2 is read)"));
     }
     let length = length as usize;
+    // `gltf` subtracts the header's size from `length` unchecked (found by fuzzing).
+    if length < HEADER_BYTES {
+        return Err(format!(
+            "GLB header declares a length of {length} bytes, less than the header's \
+             {HEADER_BYTES}"
+        ));
+    }
     let padding = if in_b3dm { 7 } else { 0 };
-    if length < HEADER_BYTES || length > bytes.len() || bytes.len() - length > padding {
+    if length > bytes.len() || bytes.len() - length > padding {
         let what = if in_b3dm { "the b3dm body" } else { "the file" };
         return Err(format!(
             "GLB header length {length} but {what} has {} bytes",
