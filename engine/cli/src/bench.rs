@@ -17,9 +17,9 @@ use citywalk_runtime::gpu::GpuContext;
 use citywalk_runtime::lod::LodCriterion;
 use citywalk_runtime::lod::scene::LodScene;
 use citywalk_runtime::scene_gpu::{SceneGeometry, SceneGpu};
+use citywalk_scenes::LoadOptions;
 use citywalk_scenes::camera_path::{self, CameraPath};
-use citywalk_scenes::package::ScenePackage;
-use citywalk_scenes::{City, LoadOptions};
+use citywalk_scenes::package::PackageParts;
 
 use crate::path_arg::GENERATED;
 use crate::scene_input::{SceneInputs, load_scene, load_scene_to_draw};
@@ -203,25 +203,14 @@ pub fn run_benchmark_with(
         } else {
             load_scene_to_draw(scene_path, scenes.load)?
         };
-        // Moved apart, not cloned: at a million buildings each copy is gigabytes.
-        let ScenePackage {
-            frame,
-            buildings,
-            streets,
+        let PackageParts {
+            city,
             blocks,
             quadtree,
             occluders,
             cluster_tree,
-            provenance,
             gpu_scene,
-            ..
-        } = package;
-        let city = City {
-            frame,
-            buildings,
-            streets,
-            report: provenance.load_report,
-        };
+        } = package.into_parts();
         let name = scene_name(scene_path);
         let view = gpu_scene.view();
         let gpu_buildings = SceneGpu::upload_package(&gpu, &view);

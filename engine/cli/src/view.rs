@@ -6,7 +6,6 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use citywalk_runtime::camera_path_io::PlayEnd;
 use citywalk_runtime::controller::Mode;
-use citywalk_scenes::City;
 use citywalk_scenes::package::ScenePackage;
 use citywalk_viewer::{
     CriterionKind, DebugView, FramePlan, PlayRequest, RenderSettings, ScreenshotRequest,
@@ -178,27 +177,12 @@ fn load_scene(path: &Path, load: &citywalk_scenes::LoadOptions) -> anyhow::Resul
         // What drawing needs: the occluders come from the GPU scene, not the occluder set.
         let package = ScenePackage::read_runtime(path)
             .with_context(|| format!("cannot read the scene package {}", path.display()))?;
-        let ScenePackage {
-            frame,
-            buildings,
-            streets,
-            blocks,
-            quadtree,
-            cluster_tree,
-            provenance,
-            gpu_scene,
-            ..
-        } = package;
+        let parts = package.into_parts();
         ViewerScene {
-            city: City {
-                frame,
-                buildings,
-                streets,
-                report: provenance.load_report,
-            },
-            cluster_tree,
-            blocks: Some((blocks, quadtree)),
-            gpu_scene: Some(gpu_scene),
+            city: parts.city,
+            cluster_tree: parts.cluster_tree,
+            blocks: Some((parts.blocks, parts.quadtree)),
+            gpu_scene: Some(parts.gpu_scene),
         }
     } else {
         ViewerScene {

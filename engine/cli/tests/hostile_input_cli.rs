@@ -2,32 +2,14 @@
 //! reason, exits non-zero, prints no backtrace, and destroys nothing. CPU only.
 
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Command;
 
+#[path = "support/run_cli.rs"]
+mod run_cli;
 #[path = "support/scratch.rs"]
 mod scratch;
+use run_cli::{citywalk, path_str, text};
 use scratch::temp_dir;
-
-/// Runs the binary with `RUST_BACKTRACE=1` (so a backtrace would show if one were printed).
-fn citywalk(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_citywalk"))
-        .args(args)
-        .env("RUST_BACKTRACE", "1")
-        .output()
-        .expect("run citywalk")
-}
-
-fn text(out: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    )
-}
-
-fn path_str(p: &Path) -> &str {
-    p.to_str().expect("utf-8 temp path")
-}
 
 /// A small generated city as GeoJSON in `dir`.
 fn small_city(dir: &Path) -> String {

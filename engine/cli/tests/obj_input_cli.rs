@@ -2,32 +2,16 @@
 //! the loader, the package records them, and options that cannot apply are refused. CPU only.
 
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 
 use citywalk_scenes::package::ScenePackage;
 
+#[path = "support/run_cli.rs"]
+mod run_cli;
 #[path = "support/scratch.rs"]
 mod scratch;
+use run_cli::{citywalk, path_str, text};
 use scratch::temp_dir;
-
-fn citywalk(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_citywalk"))
-        .args(args)
-        .output()
-        .expect("run citywalk")
-}
-
-fn text(out: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    )
-}
-
-fn path_str(p: &Path) -> &str {
-    p.to_str().expect("utf-8 temp path")
-}
 
 fn json(out: &Output) -> serde_json::Value {
     assert!(out.status.success(), "{}", text(out));

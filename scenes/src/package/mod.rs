@@ -88,6 +88,17 @@ pub struct ScenePackage {
     pub gpu_scene: GpuScene,
 }
 
+/// A package's city and the structures drawing it uses ([`ScenePackage::into_parts`]).
+#[derive(Debug)]
+pub struct PackageParts {
+    pub city: City,
+    pub blocks: UrbanBlocks,
+    pub quadtree: BQuadtree,
+    pub occluders: Option<OccluderSet>,
+    pub cluster_tree: Option<ClusterTree>,
+    pub gpu_scene: GpuScene,
+}
+
 /// Options of [`ScenePackage::to_bytes`] / [`ScenePackage::write`].
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct WriteOptions {
@@ -108,11 +119,24 @@ impl ScenePackage {
 
     /// The city the package was made from, moved out of it (no copy of the buildings).
     pub fn into_city(self) -> City {
-        City {
-            frame: self.frame,
-            buildings: self.buildings,
-            streets: self.streets,
-            report: self.provenance.load_report,
+        self.into_parts().city
+    }
+
+    /// The package moved apart into its city and the structures drawing it uses (no copy:
+    /// at a million buildings each copy is gigabytes).
+    pub fn into_parts(self) -> PackageParts {
+        PackageParts {
+            city: City {
+                frame: self.frame,
+                buildings: self.buildings,
+                streets: self.streets,
+                report: self.provenance.load_report,
+            },
+            blocks: self.blocks,
+            quadtree: self.quadtree,
+            occluders: self.occluders,
+            cluster_tree: self.cluster_tree,
+            gpu_scene: self.gpu_scene,
         }
     }
 
