@@ -8,7 +8,7 @@ use citywalk_preprocess::pipeline::{NoProgress, PreprocessParams, preprocess};
 use citywalk_preprocess::quadtree::build_quadtree;
 use citywalk_scenes::frustum::Frustum;
 use citywalk_scenes::generate::{GenerateParams, generate_city};
-use citywalk_scenes::package::{ScenePackage, WriteOptions};
+use citywalk_scenes::package::{Decode, ScenePackage, WriteOptions};
 use citywalk_scenes::{City, LoadOptions, load_cities};
 use glam::Vec3;
 
@@ -190,7 +190,14 @@ fn a_package_opened_to_draw_has_the_occluder_sets_arrays_and_no_set() {
     let path = dir.path().join("city.cwk");
     pkg.write(&path, WriteOptions::default()).expect("write");
     let full = ScenePackage::read(&path).expect("read");
-    let to_draw = ScenePackage::read_runtime(&path).expect("read to draw");
+    let to_draw = ScenePackage::read_as(&path, Decode::Runtime).expect("read to draw");
+    let to_walk = ScenePackage::read_as(&path, Decode::RuntimeWithDetails).expect("read to walk");
+    assert!(
+        to_walk.buildings == full.buildings,
+        "the viewer's buildings are whole"
+    );
+    assert_eq!(to_walk.occluders, None);
+    assert_eq!(to_walk.cluster_tree, to_draw.cluster_tree);
     let set = full.occluders.as_ref().expect("an occluder set");
     let arrays = OccluderArrays::of(set);
     assert!(!arrays.records.is_empty(), "the city has occluders");

@@ -49,11 +49,8 @@ fn open_package_as(path: &Path, what: Decode) -> anyhow::Result<Option<ScenePack
     if !(is_package(path)? || named_package) {
         return Ok(None);
     }
-    let read = match what {
-        Decode::All => ScenePackage::read(path),
-        Decode::Runtime => ScenePackage::read_runtime(path),
-    };
-    read.map(Some)
+    ScenePackage::read_as(path, what)
+        .map(Some)
         .with_context(|| format!("cannot read the scene package {}", path.display()))
 }
 

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use citywalk_runtime::camera_path_io::PlayEnd;
 use citywalk_runtime::controller::Mode;
-use citywalk_scenes::package::ScenePackage;
+use citywalk_scenes::package::{Decode, ScenePackage};
 use citywalk_viewer::{
     CriterionKind, DebugView, FramePlan, PlayRequest, RenderSettings, ScreenshotRequest,
     ViewerOptions, ViewerScene,
@@ -174,8 +174,9 @@ fn load_scene(path: &Path, load: &citywalk_scenes::LoadOptions) -> anyhow::Resul
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("cwk"));
     let scene = if crate::scene_input::is_package(path)? || named_package {
-        // What drawing needs: the occluders come from the GPU scene, not the occluder set.
-        let package = ScenePackage::read_runtime(path)
+        // What drawing and walking need: the occluders and cluster meshes come from the GPU
+        // scene; the buildings' parts are walked against.
+        let package = ScenePackage::read_as(path, Decode::RuntimeWithDetails)
             .with_context(|| format!("cannot read the scene package {}", path.display()))?;
         let parts = package.into_parts();
         ViewerScene {

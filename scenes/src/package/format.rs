@@ -402,8 +402,11 @@ pub enum Decode {
     /// occluders from the GPU scene's arrays), which is left `None`, the cluster tree's meshes
     /// (drawn from the GPU scene too) and the buildings' parts and tags, left empty. At a
     /// million buildings these are gigabytes of heap and seconds of decoding no frame reads;
-    /// what is left (footprints, heights, source meshes) is what camera paths and walking need.
+    /// what is left (footprints, heights, source meshes) is what camera paths need.
     Runtime,
+    /// [`Decode::Runtime`] with the buildings whole (parts and tags): what the viewer needs,
+    /// whose walking collides with the parts and whose panel shows the tags.
+    RuntimeWithDetails,
 }
 
 /// Decodes a package from bytes (verifying it first).
@@ -500,7 +503,7 @@ fn decode_with(
     }
     let occluder_set = |bytes, entries| match what {
         Decode::All => decode_one(bytes, entries, K::Occluders),
-        Decode::Runtime => Ok(None),
+        Decode::Runtime | Decode::RuntimeWithDetails => Ok(None),
     };
     // The three large sections decode on threads of their own in a large package (a million
     // buildings take seconds each); the result does not depend on the order.
@@ -522,7 +525,7 @@ fn decode_with(
         })
     };
     let mut buildings = required(buildings?, K::Buildings)?;
-    if what == Decode::All {
+    if what != Decode::Runtime {
         let details: Vec<BuildingDetails> = required(
             decode_one(bytes, entries, K::BuildingDetails)?,
             K::BuildingDetails,

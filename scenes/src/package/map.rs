@@ -78,10 +78,10 @@ impl PackageFile {
         format::decode_mapped(&self.map, &self.sections, format::Decode::All)
     }
 
-    /// Decodes what drawing the scene needs ([`format::Decode::Runtime`]: no occluder set;
-    /// the occluders are drawn from the GPU scene's arrays).
-    pub fn decode_runtime(&self) -> Result<ScenePackage, PackageError> {
-        format::decode_mapped(&self.map, &self.sections, format::Decode::Runtime)
+    /// Decodes the sections `what` names (see [`format::Decode`]); the GPU scene stays in the
+    /// mapping.
+    pub fn decode_as(&self, what: format::Decode) -> Result<ScenePackage, PackageError> {
+        format::decode_mapped(&self.map, &self.sections, what)
     }
 }
 

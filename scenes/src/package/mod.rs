@@ -187,10 +187,11 @@ impl ScenePackage {
         PackageFile::open(path)?.decode()
     }
 
-    /// [`ScenePackage::read`] of what drawing the scene needs: `occluders` is left `None`, the
-    /// runtime draws them from the GPU scene ([`GpuSceneView::occluders`]).
-    pub fn read_runtime(path: &Path) -> Result<ScenePackage, PackageError> {
-        PackageFile::open(path)?.decode_runtime()
+    /// [`ScenePackage::read`] of the sections `what` names: to draw ([`Decode::Runtime`]),
+    /// `occluders` is left `None` and the runtime draws them from the GPU scene
+    /// ([`GpuSceneView::occluders`]).
+    pub fn read_as(path: &Path, what: Decode) -> Result<ScenePackage, PackageError> {
+        PackageFile::open(path)?.decode_as(what)
     }
 
     /// The cheap checks that the sections belong together, run whenever a package is opened:
