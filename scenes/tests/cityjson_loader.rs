@@ -7,10 +7,13 @@ use citywalk_scenes::load::cityjson;
 use citywalk_scenes::{City, Crs, HeightSource, LoadError, LoadOptions, RejectReason, load_city};
 use fuzz::fixed_runner;
 use geo::{Area, Contains, Point, Validation};
+use mutate::mutated;
 use proptest::prelude::*;
 
 #[path = "support/fuzz.rs"]
 mod fuzz;
+#[path = "support/mutate.rs"]
+mod mutate;
 
 const DEN_HAAG: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
@@ -439,26 +442,7 @@ fn mutated_files_never_panic() {
     );
     runner
         .run(&strategy, |(cut, flips, numbers)| {
-            let mut bytes = base.clone();
-            for (at, value) in numbers {
-                // Replace the digit run at `at` (if any) by another number.
-                let mut end = at;
-                while end < bytes.len() && bytes[end].is_ascii_digit() {
-                    end += 1;
-                }
-                if end > at {
-                    let text = format!("{value}");
-                    bytes.splice(at..end, text.into_bytes());
-                }
-            }
-            for (at, value) in flips {
-                if let Some(b) = bytes.get_mut(at) {
-                    *b = value;
-                }
-            }
-            if cut % 3 == 0 {
-                bytes.truncate(cut);
-            }
+            let bytes = mutated(&base, cut, &flips, &numbers);
             if let Ok(city) = cityjson::load_bytes(Path::new("m.json"), &bytes) {
                 prop_assert!(city.report.is_balanced());
                 prop_assert!(city.check_invariants().is_ok());

@@ -9,6 +9,7 @@ use citywalk_scenes::load::UpAxis;
 use citywalk_scenes::load::obj;
 use citywalk_scenes::{City, Crs, LoadError, LoadOptions, RejectReason, load_city};
 use fuzz::fixed_runner;
+use mutate::mutated;
 use proptest::prelude::*;
 
 #[path = "support/files.rs"]
@@ -16,6 +17,8 @@ use proptest::prelude::*;
 mod files;
 #[path = "support/fuzz.rs"]
 mod fuzz;
+#[path = "support/mutate.rs"]
+mod mutate;
 
 /// RD New coordinates of the Hague's centre, NAP heights: large absolute values as 3dfier
 /// writes them.
@@ -406,24 +409,7 @@ fn mutated_files_never_panic() {
     );
     runner
         .run(&strategy, |(cut, flips, numbers)| {
-            let mut bytes = base.clone();
-            for (at, value) in numbers {
-                let mut end = at;
-                while end < bytes.len() && bytes[end].is_ascii_digit() {
-                    end += 1;
-                }
-                if end > at {
-                    bytes.splice(at..end, format!("{value}").into_bytes());
-                }
-            }
-            for (at, value) in flips {
-                if let Some(b) = bytes.get_mut(at) {
-                    *b = value;
-                }
-            }
-            if cut % 3 == 0 {
-                bytes.truncate(cut);
-            }
+            let bytes = mutated(&base, cut, &flips, &numbers);
             if let Ok(city) = obj::load_reader(
                 Path::new("m.obj"),
                 bytes.as_slice(),
