@@ -218,11 +218,10 @@ pub fn run_benchmark_with(
             criterion: LOD_CRITERION.get().copied().flatten(),
             ..LodScene::upload_package(&gpu, &gpu_buildings, &view, tree)
         });
-        // A package's occluder set is not decoded (`load_scene_to_draw`); a preprocessed input
-        // has one, and drew its arrays into the same GPU scene.
-        let has_occluders = occluders.is_some() || !view.occluders.records.is_empty();
+        // The occluders are drawn from the GPU scene's arrays (a package read to draw has no
+        // occluder set; a preprocessed input's set drew the same arrays).
         drop(occluders);
-        let occluders = has_occluders
+        let occluders = (!view.occluders.records.is_empty())
             .then(|| citywalk_runtime::frame::OccluderMeshes::upload_package(&gpu, &view));
         // Uploaded: unmap the package.
         drop(gpu_scene);
