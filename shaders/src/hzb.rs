@@ -64,7 +64,8 @@ pub struct TreeCullParams {
     pub node_count: u32,
     /// Draw ids below this are buildings, `building_count + n` is node `n`'s cluster mesh.
     pub building_count: u32,
-    pub _pad: u32,
+    /// Levels of the tree (the one-workgroup walk's loop; the CPU sets it with the tree).
+    pub levels: u32,
 }
 
 /// One cluster tree node as the tree cull reads it. WGSL twin: `TreeNode` in
@@ -153,7 +154,7 @@ mod tests {
             ("early_mark", offset_of!(TreeCullParams, early_mark)),
             ("node_count", offset_of!(TreeCullParams, node_count)),
             ("building_count", offset_of!(TreeCullParams, building_count)),
-            ("_pad", offset_of!(TreeCullParams, _pad)),
+            ("levels", offset_of!(TreeCullParams, levels)),
         ];
         assert_eq!(members.len(), rust.len());
         for ((name, offset), (want, at)) in members.iter().zip(rust) {

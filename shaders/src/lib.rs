@@ -26,10 +26,12 @@ pub const SCENE_WGSL: &str = include_str!(concat!(env!("OUT_DIR"), "/scene.wgsl"
 /// `R32Uint` target, [`ID_BACKGROUND`] for the ground.
 pub const IDS_WGSL: &str = include_str!(concat!(env!("OUT_DIR"), "/ids.wgsl"));
 
-/// Hierarchical-Z pyramid build (`wgsl/hzb_build.wgsl`): entry point `copy_depth` (group 0:
-/// binding 0 the depth buffer as unfilterable `texture_2d<f32>`, binding 1 level 0 as a write-only
-/// `r32float` storage texture) and `reduce` (binding 2 level l read-only, binding 3 level l + 1
-/// write-only, binding 4 a `vec4<u32>` uniform: logical sizes of level l (xy) and l + 1 (zw)).
+/// Hierarchical-Z pyramid build (`wgsl/hzb_build.wgsl`): entry points `copy_depth` and
+/// `merge_depths` (group 0: binding 0 the depth buffer and binding 5 the depth merged into it, as
+/// unfilterable `texture_2d<f32>`; bindings 1 and 6 levels 0 and 1 as write-only `r32float`
+/// storage textures; one invocation per level-1 texel) and `reduce` (binding 2 level l
+/// read-only, binding 3 level l + 1 write-only, binding 4 a `vec4<u32>` uniform: logical sizes of
+/// level l (xy) and l + 1 (zw)).
 pub const HZB_BUILD_WGSL: &str = include_str!(concat!(env!("OUT_DIR"), "/hzb_build.wgsl"));
 
 /// Hierarchical-Z occlusion cull (`wgsl/hzb_cull.wgsl`): entry points `cull`, `early` and
@@ -39,11 +41,6 @@ pub const HZB_BUILD_WGSL: &str = include_str!(concat!(env!("OUT_DIR"), "/hzb_bui
 /// the records name, 7 the drawn-early flags (`u32` per box), 8 the boxes' draw ids, 9 the
 /// visibility stamps and 10 the parents (`u32` per draw id).
 pub const HZB_CULL_WGSL: &str = include_str!(concat!(env!("OUT_DIR"), "/hzb_cull.wgsl"));
-
-/// Depth copy (`wgsl/depth_copy.wgsl`): entry points `vs_main` (fullscreen triangle, 3 vertices,
-/// no buffers) and `fs_main` (writes `frag_depth`); group 0 binding 0 the source depth as an
-/// unfilterable `texture_2d<f32>`.
-pub const DEPTH_COPY_WGSL: &str = include_str!(concat!(env!("OUT_DIR"), "/depth_copy.wgsl"));
 
 /// Pyramid debug view (`wgsl/debug_pyramid.wgsl`): entry points `vs_main` (fullscreen
 /// triangle, no buffers) and `fs_main`; group 0: binding 0 the [`PyramidViewParams`] uniform,
@@ -66,7 +63,6 @@ pub const ALL_WGSL: &[(&str, &str)] = &[
     ("ids.wgsl", IDS_WGSL),
     ("hzb_build.wgsl", HZB_BUILD_WGSL),
     ("hzb_cull.wgsl", HZB_CULL_WGSL),
-    ("depth_copy.wgsl", DEPTH_COPY_WGSL),
     ("debug_pyramid.wgsl", DEBUG_PYRAMID_WGSL),
     ("debug_clusters.wgsl", DEBUG_CLUSTERS_WGSL),
     ("debug_occluders.wgsl", DEBUG_OCCLUDERS_WGSL),

@@ -192,6 +192,16 @@ fn gpu_pyramid(
     height: u32,
     values: &[f32],
 ) -> (HzbPyramid, DepthPyramid) {
+    gpu_pyramid_of(gpu, width, height, (values, None))
+}
+
+/// A depth texture holding `values`, checked by reading it back where the adapter can.
+fn checked_depth_texture(
+    gpu: &GpuContext,
+    width: u32,
+    height: u32,
+    values: &[f32],
+) -> wgpu::Texture {
     let depth = depth_texture(gpu, width, height, values);
     if let Some(readback) = read_depth(gpu, &depth, width, height) {
         assert!(
@@ -202,12 +212,31 @@ fn gpu_pyramid(
             "{width}x{height}: the depth buffer does not hold the values written"
         );
     }
+    depth
+}
+
+/// Builds the pyramid of `values`, or of `values` merged with `merged` (nearer kept), on the
+/// GPU and reads every level back.
+fn gpu_pyramid_of(
+    gpu: &GpuContext,
+    width: u32,
+    height: u32,
+    (values, merged): (&[f32], Option<&[f32]>),
+) -> (HzbPyramid, DepthPyramid) {
+    let depth = checked_depth_texture(gpu, width, height, values);
+    let second = merged.map(|m| checked_depth_texture(gpu, width, height, m));
     let pyramid = HzbPyramid::new(gpu, width, height).expect("pyramid");
     let view = depth.create_view(&wgpu::TextureViewDescriptor::default());
+    let second_view = second
+        .as_ref()
+        .map(|t| t.create_view(&wgpu::TextureViewDescriptor::default()));
     let mut encoder = gpu
         .device
         .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
-    pyramid.build(&mut encoder, &view);
+    match &second_view {
+        Some(second_view) => pyramid.build_merged_timed(&mut encoder, &view, second_view, None),
+        None => pyramid.build(&mut encoder, &view),
+    }
     gpu.queue.submit([encoder.finish()]);
     let levels = pyramid.read_back(gpu).expect("pyramid readback");
     (pyramid, levels)
@@ -221,7 +250,8 @@ fn random_depths(rng: &mut Rng, n: usize) -> Vec<f32> {
 }
 
 /// The GPU pyramid equals the CPU reference texel for texel (bit-exact) at common, odd and tiny
-/// sizes, every level.
+/// sizes, every level; so does the pyramid merged from two depth buffers, against the
+/// reference of their per-texel nearer depth (the frame's depth with its occluders').
 #[test]
 fn gpu_pyramid_equals_reference_texel_for_texel() {
     let Some(gpu) = gpu_or_skip("gpu_pyramid_equals_reference_texel_for_texel") else {
@@ -245,24 +275,38 @@ fn gpu_pyramid_equals_reference_texel_for_texel() {
         let (pyramid, gpu_levels) = gpu_pyramid(&gpu, w, h, &values);
         let cpu = DepthPyramid::build(w, h, &values);
         assert_eq!(pyramid.level_count() as usize, cpu.levels.len(), "{w}x{h}");
-        assert_eq!(gpu_levels.levels.len(), cpu.levels.len(), "{w}x{h}");
-        for (l, (g, c)) in gpu_levels.levels.iter().zip(&cpu.levels).enumerate() {
-            assert_eq!(
-                (g.width, g.height),
-                (c.width, c.height),
-                "{w}x{h} level {l} size"
+        assert_levels_equal(&format!("{w}x{h}"), &gpu_levels, &cpu);
+
+        let occluders = random_depths(&mut rng, (w * h) as usize);
+        let (_, merged_levels) = gpu_pyramid_of(&gpu, w, h, (&values, Some(&occluders)));
+        let nearer: Vec<f32> = values
+            .iter()
+            .zip(&occluders)
+            .map(|(a, b)| a.max(*b))
+            .collect();
+        let cpu_merged = DepthPyramid::build(w, h, &nearer);
+        assert_levels_equal(&format!("{w}x{h} merged"), &merged_levels, &cpu_merged);
+    }
+}
+
+/// Every level of `gpu` equals `cpu`'s in size and bit for bit.
+fn assert_levels_equal(what: &str, gpu: &DepthPyramid, cpu: &DepthPyramid) {
+    assert_eq!(gpu.levels.len(), cpu.levels.len(), "{what}");
+    for (l, (g, c)) in gpu.levels.iter().zip(&cpu.levels).enumerate() {
+        assert_eq!(
+            (g.width, g.height),
+            (c.width, c.height),
+            "{what} level {l} size"
+        );
+        if let Some(i) = (0..c.depth.len()).find(|&i| g.depth[i].to_bits() != c.depth[i].to_bits())
+        {
+            panic!(
+                "{what} level {l}: texel ({}, {}) GPU {} CPU {}",
+                i as u32 % c.width,
+                i as u32 / c.width,
+                g.depth[i],
+                c.depth[i]
             );
-            if let Some(i) =
-                (0..c.depth.len()).find(|&i| g.depth[i].to_bits() != c.depth[i].to_bits())
-            {
-                panic!(
-                    "{w}x{h} level {l}: texel ({}, {}) GPU {} CPU {}",
-                    i as u32 % c.width,
-                    i as u32 / c.width,
-                    g.depth[i],
-                    c.depth[i]
-                );
-            }
         }
     }
 }

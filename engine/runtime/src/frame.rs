@@ -104,7 +104,6 @@
 //! ```
 
 mod candidates;
-mod depth_copy;
 mod grow_buffer;
 mod occluders;
 mod report_ring;
@@ -116,8 +115,8 @@ mod visibility;
 use std::time::Instant;
 
 use citywalk_scenes::frustum::Frustum;
+use citywalk_shaders::SCENE_WGSL;
 use citywalk_shaders::constants::NO_PARENT;
-use citywalk_shaders::{DrawIndexedIndirectArgs, SCENE_WGSL};
 use glam::Mat4;
 use wgpu::util::DeviceExt;
 
@@ -132,7 +131,6 @@ use crate::render::view::{SceneStyle, view_uniforms};
 use crate::scene_gpu::SceneGpu;
 
 use candidates::{Candidates, LodSource};
-use depth_copy::depth_copy_pipeline;
 use grow_buffer::GrowBuffer;
 pub use occluders::{OccluderDraw, OccluderMeshes};
 use report_ring::{ReadSlot, ReportRing, SlotLayout};
@@ -290,6 +288,8 @@ struct PendingFrame {
     timed: TimedPhases,
     occluders: Vec<usize>,
     occluder_triangles: u64,
+    /// Draw calls of the occluders ([`OccluderMeshes::merged_draws`]).
+    occluder_draws: u32,
     cpu_ms: f64,
     started: Instant,
     /// A tree frame's lists ([`CullingRenderer::submit_tree`]).
@@ -301,10 +301,6 @@ struct PendingFrame {
 pub struct CullingRenderer {
     scene_pipeline: wgpu::RenderPipeline,
     depth_pipeline: wgpu::RenderPipeline,
-    copy_pipeline: wgpu::RenderPipeline,
-    /// The depth copy that keeps the nearer of source and destination (the gate's merge).
-    merge_pipeline: wgpu::RenderPipeline,
-    copy_layout: wgpu::BindGroupLayout,
     view_buffer: wgpu::Buffer,
     view_group: wgpu::BindGroup,
     /// The early entry points (`early`, `gate`): their status, the early pass's commands.
@@ -318,6 +314,8 @@ pub struct CullingRenderer {
     /// One [`NO_PARENT`] word: the parents of a scene without a cluster tree.
     no_parents: wgpu::Buffer,
     occluder_draws: GrowBuffer,
+    /// Draws in `occluder_draws` this frame.
+    occluder_draw_count: u32,
     /// The GPU's LOD cut with hierarchical occlusion ([`CullingRenderer::submit_tree`]).
     tree_cull: crate::hzb::tree_cull::TreeCull,
     /// Kept and early ids a tree frame's report copies (grown when a frame needs more).
@@ -356,17 +354,11 @@ impl CullingRenderer {
         );
         let depth_pipeline =
             crate::render::scene_pipeline(device, "occluder depth", SCENE_WGSL, &layout, None);
-        let (copy_pipeline, copy_layout) =
-            depth_copy_pipeline(device, wgpu::CompareFunction::Always);
-        let (merge_pipeline, _) = depth_copy_pipeline(device, wgpu::CompareFunction::Greater);
         let indirect = wgpu::BufferUsages::INDIRECT | wgpu::BufferUsages::COPY_DST;
         let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
         CullingRenderer {
             scene_pipeline,
             depth_pipeline,
-            copy_pipeline,
-            merge_pipeline,
-            copy_layout,
             view_buffer,
             view_group,
             early: HzbCull::new(gpu, 1024),
@@ -379,6 +371,7 @@ impl CullingRenderer {
                 usage: wgpu::BufferUsages::STORAGE,
             }),
             occluder_draws: GrowBuffer::new(device, "occluder draws", indirect),
+            occluder_draw_count: 0,
             reports: ReportRing::new(device),
             frames: 0,
             targets: None,
@@ -543,6 +536,7 @@ impl CullingRenderer {
                 timed,
                 occluders: occluders_drawn,
                 occluder_triangles,
+                occluder_draws: self.occluder_draws_of(occluder_meshes),
                 cpu_ms: clock.elapsed_ms(),
                 started,
                 tree: None,
@@ -636,7 +630,7 @@ impl CullingRenderer {
         let stats = &mut output.stats;
         stats.occluders_drawn = pending.occluders.len() as u32;
         stats.occluder_triangles = pending.occluder_triangles;
-        stats.draw_calls += pending.occluders.len() as u32;
+        stats.draw_calls += pending.occluder_draws;
         stats.cpu_ms = pending.cpu_ms;
         stats.frame_ms = frame_ms;
         stats.gpu = self
@@ -667,7 +661,7 @@ impl CullingRenderer {
             pass.set_bind_group(0, &self.view_group, &[]);
             scene.bind(&mut pass);
             scene.draw_ground(&mut pass);
-            self.draw_occluders(&mut pass, meshes, selected.len());
+            self.draw_occluders(&mut pass, meshes);
         }
         let targets = self.targets.as_ref().expect("fit_targets ran");
         targets.pyramid.build_timed(
@@ -758,19 +752,25 @@ impl CullingRenderer {
         }
     }
 
-    /// Writes the draws of the `selected` occluders to the occluder draw buffer.
+    /// Writes the draws of the `selected` occluders to the occluder draw buffer, adjacent
+    /// ranges merged ([`OccluderMeshes::merged_draws`]).
     fn upload_occluder_draws(
         &mut self,
         gpu: &GpuContext,
         meshes: &OccluderMeshes,
         selected: &[usize],
     ) {
-        let draws: Vec<DrawIndexedIndirectArgs> =
-            selected.iter().map(|&i| meshes.occluders[i].draw).collect();
+        let draws = meshes.merged_draws(selected);
+        self.occluder_draw_count = draws.len() as u32;
         let bytes: &[u8] = bytemuck::cast_slice(&draws);
         self.occluder_draws.reserve(&gpu.device, bytes.len() as u64);
         gpu.queue
             .write_buffer(&self.occluder_draws.buffer, 0, bytes);
+    }
+
+    /// The occluder draw calls of this frame (0 when it drew no occluders).
+    fn occluder_draws_of(&self, meshes: Option<&OccluderMeshes>) -> u32 {
+        meshes.map_or(0, |_| self.occluder_draw_count)
     }
 
     /// A depth-only pass into the culling depth, timed as `phase`.
@@ -801,23 +801,19 @@ impl CullingRenderer {
             .forget_lifetime()
     }
 
-    /// Draws the first `count` occluder draws of `draws`, depth only.
-    fn draw_occluders(
-        &self,
-        pass: &mut wgpu::RenderPass<'_>,
-        meshes: &OccluderMeshes,
-        count: usize,
-    ) {
+    /// Draws this frame's occluder draws ([`CullingRenderer::upload_occluder_draws`]), depth
+    /// only.
+    fn draw_occluders(&self, pass: &mut wgpu::RenderPass<'_>, meshes: &OccluderMeshes) {
         pass.set_pipeline(&self.depth_pipeline);
         pass.set_bind_group(0, &self.view_group, &[]);
         pass.set_vertex_buffer(0, meshes.vertex_buffer.slice(..));
         pass.set_index_buffer(meshes.index_buffer.slice(..), wgpu::IndexFormat::Uint32);
-        pass.multi_draw_indexed_indirect(&self.occluder_draws.buffer, 0, count as u32);
+        pass.multi_draw_indexed_indirect(&self.occluder_draws.buffer, 0, self.occluder_draw_count);
     }
 
-    /// The culling depth for the pyramid: without the gate, the early depth copied and the
-    /// `selected` occluders drawn into it; with the gate (the occluders are there already),
-    /// the early depth merged in, the nearer depth kept.
+    /// The occluders' depth for the pyramid: without the gate, the `selected` occluders drawn
+    /// alone into the cleared culling depth; with the gate they (and the ground) are there
+    /// already. [`CullingRenderer::build_pyramid`] merges it with the early depth.
     fn occluder_pass(
         &mut self,
         gpu: &GpuContext,
@@ -826,40 +822,33 @@ impl CullingRenderer {
         selected: &[usize],
         gated: bool,
     ) {
-        if !gated {
-            self.upload_occluder_draws(gpu, meshes, selected);
+        if gated {
+            return;
         }
-        let load = if gated {
-            wgpu::LoadOp::Load
-        } else {
-            wgpu::LoadOp::Clear(Camera::DEPTH_CLEAR)
-        };
-        let mut pass = self.depth_only_pass(encoder, "occluder_pass", load, "occluders");
-        let targets = self.targets.as_ref().expect("fit_targets ran");
-        // The early depth, texel for texel (a shader copy: see `wgsl/depth_copy.wgsl`), or
-        // with the gate the nearer of it and the occluders'.
-        pass.set_pipeline(if gated {
-            &self.merge_pipeline
-        } else {
-            &self.copy_pipeline
-        });
-        pass.set_bind_group(0, &targets.copy_group, &[]);
-        pass.draw(0..3, 0..1);
-        if !gated {
-            self.draw_occluders(&mut pass, meshes, selected.len());
-        }
+        self.upload_occluder_draws(gpu, meshes, selected);
+        let clear = wgpu::LoadOp::Clear(Camera::DEPTH_CLEAR);
+        let mut pass = self.depth_only_pass(encoder, "occluder_pass", clear, "occluders");
+        self.draw_occluders(&mut pass, meshes);
     }
 
-    /// Builds the pyramid from the early depth, or from its copy holding the occluders.
+    /// Builds the pyramid from the early depth, merged with the occluders' depth (the nearer
+    /// of the two kept per pixel, as if the occluders had been drawn into the early depth:
+    /// drawing them into a cleared depth of their own saves a full-screen copy).
     fn build_pyramid(&self, encoder: &mut wgpu::CommandEncoder, with_occluders: bool) {
         let targets = self.targets.as_ref().expect("fit_targets ran");
-        let depth = if with_occluders {
-            &targets.cull_depth_view
-        } else {
-            &targets.depth.view
-        };
         let timestamps = self.timer.compute_pass_writes("pyramid");
-        targets.pyramid.build_timed(encoder, depth, timestamps);
+        if with_occluders {
+            targets.pyramid.build_merged_timed(
+                encoder,
+                &targets.depth.view,
+                &targets.cull_depth_view,
+                timestamps,
+            );
+        } else {
+            targets
+                .pyramid
+                .build_timed(encoder, &targets.depth.view, timestamps);
+        }
     }
 
     /// Culls every candidate against the pyramid (by its record's parts), skipping the draws
@@ -969,7 +958,7 @@ impl CullingRenderer {
         {
             return Ok(());
         }
-        self.targets = Some(Targets::new(gpu, &self.copy_layout, width, height)?);
+        self.targets = Some(Targets::new(gpu, width, height)?);
         Ok(())
     }
 }

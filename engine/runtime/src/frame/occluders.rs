@@ -33,9 +33,8 @@ impl OccluderDraw {
                 index_count: r.index_count,
                 instance_count: 1,
                 first_index: r.first_index,
-                // Below 2^31: the package's check and `OccluderArrays::of` keep the vertex
-                // count in u32 and a scene that large does not fit a GPU buffer.
-                base_vertex: r.base_vertex as i32,
+                // The index buffer holds absolute indices ([`absolute_index_buffer`]).
+                base_vertex: 0,
                 first_instance: 0,
             },
             bounds_min_m: lo,
@@ -91,8 +90,8 @@ impl OccluderMeshes {
     fn upload_arrays(gpu: &GpuContext, arrays: OccluderArraysView<'_>) -> OccluderMeshes {
         let occluders: Vec<OccluderDraw> = arrays.records.iter().map(OccluderDraw::of).collect();
         // Buffers are never empty, so they can always be bound.
-        let (vertex_buffer, index_buffer) =
-            crate::render::mesh_buffers(&gpu.device, "occluder", arrays.vertices, arrays.indices);
+        let vertex_buffer = crate::render::vertex_buffer(&gpu.device, "occluder", arrays.vertices);
+        let index_buffer = absolute_index_buffer(&gpu.device, &arrays);
         OccluderMeshes {
             vertex_buffer,
             index_buffer,
@@ -135,6 +134,88 @@ impl OccluderMeshes {
             min_px,
         )
     }
+}
+
+impl OccluderMeshes {
+    /// The draws of the `selected` occluders, those adjacent in the index buffer merged into one
+    /// draw (the buffer holds absolute indices, so any run of adjacent ranges is one range), in
+    /// index order. Occluders of one block lie together in the arrays, so the hundreds to
+    /// thousands a street frame selects are far fewer draws: on lavapipe each draw of a
+    /// multi-draw costs microseconds of set-up whatever its size.
+    pub fn merged_draws(&self, selected: &[usize]) -> Vec<DrawIndexedIndirectArgs> {
+        let mut ranges: Vec<(u32, u32)> = selected
+            .iter()
+            .filter_map(|&i| self.occluders.get(i))
+            .map(|o| (o.draw.first_index, o.draw.index_count))
+            .collect();
+        merge_ranges(&mut ranges);
+        ranges
+            .into_iter()
+            .map(|(first_index, index_count)| DrawIndexedIndirectArgs {
+                index_count,
+                instance_count: 1,
+                first_index,
+                base_vertex: 0,
+                first_instance: 0,
+            })
+            .collect()
+    }
+}
+
+/// Sorts index ranges `(first, count)` and merges those that touch or overlap.
+fn merge_ranges(ranges: &mut Vec<(u32, u32)>) {
+    ranges.sort_unstable();
+    let mut merged: Vec<(u32, u32)> = Vec::with_capacity(ranges.len());
+    for &(first, count) in ranges.iter() {
+        let end = u64::from(first) + u64::from(count);
+        match merged.last_mut() {
+            Some((f, c)) if u64::from(*f) + u64::from(*c) >= u64::from(first) => {
+                let new_end = end.max(u64::from(*f) + u64::from(*c));
+                *c = (new_end - u64::from(*f)) as u32;
+            }
+            _ => merged.push((first, count)),
+        }
+    }
+    *ranges = merged;
+}
+
+/// The occluders' index buffer with every index made absolute (its record's base vertex added),
+/// written straight into the mapped buffer one record at a time (no second copy of all the
+/// indices on the CPU). Indices outside every record stay as they are (the arrays' records
+/// cover them all).
+fn absolute_index_buffer(device: &wgpu::Device, arrays: &OccluderArraysView<'_>) -> wgpu::Buffer {
+    const U32: usize = size_of::<u32>();
+    let len = arrays.indices.len().max(3);
+    let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("occluder indices"),
+        size: (len * U32) as u64,
+        usage: wgpu::BufferUsages::INDEX,
+        mapped_at_creation: true,
+    });
+    {
+        // As `wgpu::util::DeviceExt::create_buffer_init`: a buffer created mapped is mapped
+        // (write-only, zeroed).
+        let mut mapped = buffer
+            .slice(..)
+            .get_mapped_range_mut()
+            .expect("a buffer created mapped can be written");
+        let mut out = mapped.slice(..);
+        out.slice(..arrays.indices.len() * U32)
+            .copy_from_slice(bytemuck::cast_slice(arrays.indices));
+        let mut absolute: Vec<u32> = Vec::new();
+        for r in arrays.records {
+            let (first, count) = (r.first_index as usize, r.index_count as usize);
+            let Some(source) = arrays.indices.get(first..first.saturating_add(count)) else {
+                continue;
+            };
+            absolute.clear();
+            absolute.extend(source.iter().map(|i| i.wrapping_add(r.base_vertex)));
+            out.slice(first * U32..(first + count) * U32)
+                .copy_from_slice(bytemuck::cast_slice(&absolute));
+        }
+    }
+    buffer.unmap();
+    buffer
 }
 
 /// [`OccluderMeshes::select`] over `occluders` and their `spheres` ([`Sphere::of`], one each,
@@ -193,6 +274,20 @@ fn occluder_wanted(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn adjacent_and_overlapping_index_ranges_merge_and_gaps_do_not() {
+        let mut ranges = vec![(30, 6), (0, 3), (3, 6), (12, 3), (9, 3), (33, 3), (100, 0)];
+        merge_ranges(&mut ranges);
+        assert_eq!(ranges, vec![(0, 15), (30, 6), (100, 0)]);
+        let mut none = Vec::new();
+        merge_ranges(&mut none);
+        assert!(none.is_empty());
+        // Ranges ending at u32::MAX do not overflow.
+        let mut high = vec![(u32::MAX - 3, 3), (u32::MAX - 6, 3)];
+        merge_ranges(&mut high);
+        assert_eq!(high, vec![(u32::MAX - 6, 6)]);
+    }
     use crate::frame::DEFAULT_OCCLUDER_MIN_PX;
 
     #[test]

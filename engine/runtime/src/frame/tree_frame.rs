@@ -61,6 +61,18 @@ impl CullingRenderer {
         self.multi_draw_count && lod.tree_gpu.levels <= TREE_MAX_LEVELS
     }
 
+    /// How tree frames dispatch the walk (chosen for the adapter:
+    /// [`crate::hzb::tree_cull::TreeWalk::for_adapter`]).
+    pub fn tree_walk(&self) -> crate::hzb::tree_cull::TreeWalk {
+        self.tree_cull.walk
+    }
+
+    /// Dispatches tree frames' walks as `walk` from now on (both walks keep the same set; tests
+    /// run each against the reference).
+    pub fn set_tree_walk(&mut self, walk: crate::hzb::tree_cull::TreeWalk) {
+        self.tree_cull.walk = walk;
+    }
+
     /// Kept and early ids the next tree frame's report copies.
     pub fn tree_report_entries(&self) -> u32 {
         self.tree_report_entries
@@ -188,6 +200,7 @@ impl CullingRenderer {
                 timed,
                 occluders: selected,
                 occluder_triangles,
+                occluder_draws: self.occluder_draws_of(meshes),
                 cpu_ms: clock.elapsed_ms(),
                 started,
                 tree: Some(TreePending {
@@ -342,7 +355,7 @@ impl CullingRenderer {
         let stats = &mut output.stats;
         stats.occluders_drawn = pending.occluders.len() as u32;
         stats.occluder_triangles = pending.occluder_triangles;
-        stats.draw_calls += pending.occluders.len() as u32;
+        stats.draw_calls += pending.occluder_draws;
         stats.cpu_ms = pending.cpu_ms;
         stats.frame_ms = frame_ms;
         stats.gpu = self

@@ -3,7 +3,10 @@
 //! minimum (farthest depth) of up to 2×2 texels of the one before, exactly as
 //! [`super::reference::DepthPyramid::build`] (which the tests compare with texel for texel).
 //!
-//! One compute dispatch per level (`shaders/wgsl/hzb_build.wgsl`). Every level has its own
+//! One compute dispatch per level (`shaders/wgsl/hzb_build.wgsl`), the first writing levels 0
+//! and 1 together; [`HzbPyramid::build_merged_timed`] builds from two depth buffers at once (the
+//! nearer depth of each texel kept), so the virtual occluders are drawn into a cleared depth of
+//! their own instead of into a full-screen copy of the frame's. Every level has its own
 //! single-level views, the source level is a read-only storage texture and no level index is a
 //! shader value, which avoids the llvmpipe and GL traps of `/work/shared/GPU-NOTES.md`.
 //!
@@ -29,9 +32,12 @@ pub const HZB_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Float;
 pub struct HzbPyramid {
     device: wgpu::Device,
     copy_pipeline: wgpu::ComputePipeline,
+    merge_pipeline: wgpu::ComputePipeline,
     copy_layout: wgpu::BindGroupLayout,
+    /// Mip 1 of the texture: pyramid level 1, or (a one-level pyramid) an unread spare.
+    level1_view: wgpu::TextureView,
     reduce_pipeline: wgpu::ComputePipeline,
-    /// `reduce_groups[l]` reads level `l` and writes level `l + 1`.
+    /// `reduce_groups[l]` reads level `l + 1` and writes level `l + 2`.
     reduce_groups: Vec<wgpu::BindGroup>,
     /// Single-level views, one per level.
     level_views: Vec<wgpu::TextureView>,
@@ -61,21 +67,24 @@ impl HzbPyramid {
             },
             count: None,
         };
+        // Depth bound as unfilterable float and read through `.r` (GL trap 2).
+        let depth = |binding| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Texture {
+                sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                view_dimension: wgpu::TextureViewDimension::D2,
+                multisampled: false,
+            },
+            count: None,
+        };
         let copy_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("hzb copy depth"),
             entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    // Depth bound as unfilterable float and read through `.r` (GL trap 2).
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                        view_dimension: wgpu::TextureViewDimension::D2,
-                        multisampled: false,
-                    },
-                    count: None,
-                },
+                depth(0),
+                depth(5),
                 storage(1, wgpu::StorageTextureAccess::WriteOnly),
+                storage(6, wgpu::StorageTextureAccess::WriteOnly),
             ],
         });
         let reduce_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -111,12 +120,16 @@ impl HzbPyramid {
             })
         };
         let copy_pipeline = pipeline("hzb copy depth", &copy_layout, "copy_depth");
+        let merge_pipeline = pipeline("hzb merge depths", &copy_layout, "merge_depths");
         let reduce_pipeline = pipeline("hzb reduce", &reduce_layout, "reduce");
 
         let levels = level_count(width, height);
-        // Powers of two, so that mip `l` (floor halving) holds pyramid level `l` (ceil halving).
-        let (texture_width, texture_height) =
-            (width.next_power_of_two(), height.next_power_of_two());
+        // Powers of two, so that mip `l` (floor halving) holds pyramid level `l` (ceil halving),
+        // and at least two mips, which the first dispatch writes.
+        let (texture_width, texture_height) = (
+            width.next_power_of_two().max(2),
+            height.next_power_of_two().max(2),
+        );
         check_size(gpu, texture_width, texture_height)?;
         let texture = device.create_texture(&wgpu::TextureDescriptor {
             label: Some("hzb pyramid"),
@@ -125,7 +138,7 @@ impl HzbPyramid {
                 height: texture_height,
                 depth_or_array_layers: 1,
             },
-            mip_level_count: levels,
+            mip_level_count: levels.max(2),
             sample_count: 1,
             dimension: wgpu::TextureDimension::D2,
             format: HZB_FORMAT,
@@ -144,10 +157,18 @@ impl HzbPyramid {
                 })
             })
             .collect();
+        let level1_view = texture.create_view(&wgpu::TextureViewDescriptor {
+            label: Some("hzb level 1"),
+            base_mip_level: 1,
+            mip_level_count: Some(1),
+            ..Default::default()
+        });
         let logical = |l: u32| (((width - 1) >> l) + 1, ((height - 1) >> l) + 1);
+        // From level 1: the first dispatch writes levels 0 and 1.
         let reduce_groups = level_views
             .windows(2)
             .enumerate()
+            .skip(1)
             .map(|(l, pair)| {
                 let (src, dst) = (logical(l as u32), logical(l as u32 + 1));
                 let sizes = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -177,12 +198,15 @@ impl HzbPyramid {
             .collect();
         let all_levels_view = texture.create_view(&wgpu::TextureViewDescriptor {
             label: Some("hzb all levels"),
+            mip_level_count: Some(levels),
             ..Default::default()
         });
         Ok(HzbPyramid {
             device: device.clone(),
             copy_pipeline,
+            merge_pipeline,
             copy_layout,
+            level1_view,
             reduce_pipeline,
             reduce_groups,
             level_views,
@@ -208,34 +232,62 @@ impl HzbPyramid {
         depth_view: &wgpu::TextureView,
         timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
     ) {
+        self.encode(encoder, (depth_view, None), timestamp_writes);
+    }
+
+    /// As [`HzbPyramid::build_timed`], from the nearer (greater, reversed Z) depth of
+    /// `depth_view` and `merged_view` at each texel (both of this pyramid's size): the pyramid of
+    /// one depth buffer holding both.
+    pub fn build_merged_timed(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        depth_view: &wgpu::TextureView,
+        merged_view: &wgpu::TextureView,
+        timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
+    ) {
+        self.encode(encoder, (depth_view, Some(merged_view)), timestamp_writes);
+    }
+
+    fn encode(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        (depth_view, merged_view): (&wgpu::TextureView, Option<&wgpu::TextureView>),
+        timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
+    ) {
+        let view = |binding, view| wgpu::BindGroupEntry {
+            binding,
+            resource: wgpu::BindingResource::TextureView(view),
+        };
         let copy_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("hzb copy depth"),
             layout: &self.copy_layout,
             entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: wgpu::BindingResource::TextureView(depth_view),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: wgpu::BindingResource::TextureView(&self.level_views[0]),
-                },
+                view(0, depth_view),
+                view(5, merged_view.unwrap_or(depth_view)),
+                view(1, &self.level_views[0]),
+                view(6, &self.level1_view),
             ],
         });
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("hzb build"),
             timestamp_writes,
         });
-        pass.set_pipeline(&self.copy_pipeline);
+        pass.set_pipeline(if merged_view.is_some() {
+            &self.merge_pipeline
+        } else {
+            &self.copy_pipeline
+        });
         pass.set_bind_group(0, &copy_group, &[]);
+        // One invocation per texel of level 1 (the viewport halved, rounded up).
+        let (w1, h1) = (self.width.div_ceil(2), self.height.div_ceil(2));
         pass.dispatch_workgroups(
-            self.width.div_ceil(HZB_BUILD_WORKGROUP),
-            self.height.div_ceil(HZB_BUILD_WORKGROUP),
+            w1.div_ceil(HZB_BUILD_WORKGROUP),
+            h1.div_ceil(HZB_BUILD_WORKGROUP),
             1,
         );
         pass.set_pipeline(&self.reduce_pipeline);
         for (l, group) in self.reduce_groups.iter().enumerate() {
-            let (w, h) = self.level_size(l as u32 + 1);
+            let (w, h) = self.level_size(l as u32 + 2);
             pass.set_bind_group(0, group, &[]);
             pass.dispatch_workgroups(
                 w.div_ceil(HZB_BUILD_WORKGROUP),

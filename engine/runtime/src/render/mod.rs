@@ -205,6 +205,26 @@ pub(crate) fn mesh_buffers(
     indices: &[u32],
 ) -> (wgpu::Buffer, wgpu::Buffer) {
     use wgpu::util::DeviceExt;
+    let indices = if indices.is_empty() {
+        &[0, 0, 0][..]
+    } else {
+        indices
+    };
+    let index_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(&format!("{label} indices")),
+        contents: bytemuck::cast_slice(indices),
+        usage: wgpu::BufferUsages::INDEX,
+    });
+    (vertex_buffer(device, label, vertices), index_buffer)
+}
+
+/// A vertex buffer of `vertices` (one zero vertex when empty, so it can always be bound).
+pub(crate) fn vertex_buffer(
+    device: &wgpu::Device,
+    label: &str,
+    vertices: &[citywalk_shaders::SceneVertex],
+) -> wgpu::Buffer {
+    use wgpu::util::DeviceExt;
     let one_vertex = [citywalk_shaders::SceneVertex {
         position_m: [0.0; 3],
         building_id: 0,
@@ -214,22 +234,11 @@ pub(crate) fn mesh_buffers(
     } else {
         vertices
     };
-    let indices = if indices.is_empty() {
-        &[0, 0, 0][..]
-    } else {
-        indices
-    };
-    let vertex_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
         label: Some(&format!("{label} vertices")),
         contents: bytemuck::cast_slice(vertices),
         usage: wgpu::BufferUsages::VERTEX,
-    });
-    let index_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some(&format!("{label} indices")),
-        contents: bytemuck::cast_slice(indices),
-        usage: wgpu::BufferUsages::INDEX,
-    });
-    (vertex_buffer, index_buffer)
+    })
 }
 
 /// Begins a render pass into `colour` and `depth` that clears colour to `clear` and depth to
