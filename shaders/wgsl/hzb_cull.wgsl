@@ -54,7 +54,10 @@ struct HzbCullParams {
     _pad: u32,
 }
 
-@group(0) @binding(0) var<uniform> params: HzbCullParams;
+// Per-frame parameters in a read-only storage buffer, not a uniform buffer: lavapipe (Mesa
+// 22.3) inlines uniform values that steer control flow and recompiles the shader with LLVM
+// whenever they change, 0.4-2.5 s a frame on a cold shader cache (engine `hzb::cull`).
+@group(0) @binding(0) var<storage, read> params: HzbCullParams;
 @group(0) @binding(1) var<storage, read> records: array<BuildingRecord>;
 @group(0) @binding(2) var hzb: texture_2d<f32>;
 @group(0) @binding(3) var<storage, read_write> status: array<u32>;
@@ -474,7 +477,8 @@ struct TreeLists {
     ids: array<u32>,
 }
 
-@group(0) @binding(11) var<uniform> tree: TreeCullParams;
+// Storage, not uniform, as `params` (no per-frame recompilation on lavapipe).
+@group(0) @binding(11) var<storage, read> tree: TreeCullParams;
 @group(0) @binding(12) var<storage, read> nodes: array<TreeNode>;
 @group(0) @binding(13) var<storage, read> children: array<u32>;
 @group(0) @binding(14) var<storage, read> landmarks: array<TreeLandmark>;

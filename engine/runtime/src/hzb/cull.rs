@@ -22,6 +22,11 @@
 //! `multi_draw_indexed_indirect_count` (count from [`HzbCull::count_buffer`], when
 //! `MULTI_DRAW_INDIRECT_COUNT` is available) or with `multi_draw_indexed_indirect` of
 //! `box_count` commands, where the unused tail is zero draws.
+//!
+//! **Parameters in a storage buffer.** The per-frame [`HzbCullParams`] (and the tree cull's) are
+//! bound as read-only storage, not as a uniform buffer: lavapipe inlines uniform values that
+//! steer control flow and recompiles the shader whenever they change, which made frames of a
+//! software adapter take 0.4–2.5 s each on a cold shader cache.
 
 use citywalk_shaders::constants::HZB_CULL_WORKGROUP;
 use citywalk_shaders::constants::{CULL_FLAG_DRAW_IDS, CULL_FLAG_VISIBILITY};
@@ -157,7 +162,7 @@ impl HzbCull {
             entries: &[
                 buffer_entry(
                     0,
-                    wgpu::BufferBindingType::Uniform,
+                    wgpu::BufferBindingType::Storage { read_only: true },
                     size_of::<HzbCullParams>() as u64,
                 ),
                 buffer_entry(
@@ -197,7 +202,7 @@ impl HzbCull {
         let params = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("hzb cull params"),
             size: size_of::<HzbCullParams>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
         let count = device.create_buffer(&wgpu::BufferDescriptor {

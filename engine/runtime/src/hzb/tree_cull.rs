@@ -168,9 +168,8 @@ impl TreeCull {
         };
         let read = wgpu::BufferBindingType::Storage { read_only: true };
         let rw = wgpu::BufferBindingType::Storage { read_only: false };
-        let uniform = wgpu::BufferBindingType::Uniform;
         let mut entries = vec![
-            buffer(0, uniform),
+            buffer(0, read),
             wgpu::BindGroupLayoutEntry {
                 binding: 2,
                 visibility: wgpu::ShaderStages::COMPUTE,
@@ -181,7 +180,7 @@ impl TreeCull {
                 },
                 count: None,
             },
-            buffer(11, uniform),
+            buffer(11, read),
         ];
         entries.extend(BINDINGS_READ.iter().map(|&b| buffer(b, read)));
         entries.extend((16..=22).map(|b| buffer(b, rw)));
@@ -208,7 +207,7 @@ impl TreeCull {
             device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
                 size,
-                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             })
         };
