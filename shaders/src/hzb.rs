@@ -136,6 +136,31 @@ mod tests {
             .unwrap_or_else(|| panic!("{name} in hzb_cull.wgsl"))
     }
 
+    /// The cull shaders read their per-frame parameters from storage, never from a uniform
+    /// buffer: lavapipe recompiles a shader whenever an inlinable uniform value changes (see
+    /// `wgsl/hzb_cull.wgsl`), a stall of up to seconds in every frame whose parameters are new.
+    #[test]
+    fn cull_parameters_are_not_uniform_buffers() {
+        let module = naga::front::wgsl::parse_str(crate::HZB_CULL_WGSL).expect("parses");
+        let uniforms: Vec<_> = module
+            .global_variables
+            .iter()
+            .filter(|(_, v)| v.space == naga::AddressSpace::Uniform)
+            .map(|(_, v)| v.name.clone().unwrap_or_default())
+            .collect();
+        assert!(
+            uniforms.is_empty(),
+            "uniform buffers in hzb_cull.wgsl: {uniforms:?}"
+        );
+        let storage_params = ["params", "tree"].map(|name| {
+            module.global_variables.iter().any(|(_, v)| {
+                v.name.as_deref() == Some(name)
+                    && matches!(v.space, naga::AddressSpace::Storage { .. })
+            })
+        });
+        assert_eq!(storage_params, [true, true]);
+    }
+
     #[test]
     fn tree_structs_match_wgsl() {
         let (span, members) = wgsl_layout("TreeCullParams");

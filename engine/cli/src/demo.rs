@@ -1,8 +1,9 @@
 //! `citywalk demo`: the main job on the bundled real scene. Preprocesses the Chelsea
 //! OpenStreetMap extract into a package, runs a short street walk and flyover in mode `all`
-//! (B-Quadtree + LOD cut + two-phase HiZ culling with the occluder pre-pass) against brute
-//! force (each frame checked by the visibility oracle), writes PNG frames and the summary table,
-//! and prints where they are.
+//! (B-Quadtree + LOD cut + two-phase HiZ culling with the occluder pre-pass) and in mode `auto`
+//! (the stages chosen by their measured cost, the viewer's default) against brute force (each
+//! frame checked by the visibility oracle), writes PNG frames and the summary table, and prints
+//! where they are.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -35,7 +36,7 @@ fn bundled_scene() -> anyhow::Result<PathBuf> {
     let candidates = [
         PathBuf::from(concat!(
             env!("CARGO_MANIFEST_DIR"),
-            "/../scenes/data/chelsea.osm.pbf"
+            "/../../scenes/data/chelsea.osm.pbf"
         )),
         PathBuf::from("scenes/data/chelsea.osm.pbf"),
     ];
@@ -75,7 +76,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         started.elapsed().as_secs_f64()
     );
 
-    let modes = vec![Mode::Brute, Mode::All];
+    let modes = vec![Mode::Brute, Mode::All, Mode::Auto];
     let config = BenchConfig {
         modes,
         width: args.size.0,
