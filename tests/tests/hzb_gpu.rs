@@ -16,7 +16,7 @@ use citywalk_runtime::hzb::reference::{
 };
 use citywalk_runtime::hzb::{CullResults, HzbCull, HzbPyramid};
 use citywalk_runtime::render::targets::map_read;
-use citywalk_runtime::render::{fragment_float_texture_entry, fullscreen_pipeline};
+use citywalk_runtime::render::{float_texture_entry, fullscreen_pipeline};
 use citywalk_shaders::{BuildingRecord, CullPart, DrawIndexedIndirectArgs};
 use citywalk_tests::gpu::gpu_or_skip;
 use citywalk_tests::rng::Rng;
@@ -75,7 +75,7 @@ fn depth_texture(gpu: &GpuContext, width: u32, height: u32, values: &[f32]) -> w
     });
     let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label: Some("test depth writer"),
-        entries: &[fragment_float_texture_entry(0)],
+        entries: &[float_texture_entry(0, wgpu::ShaderStages::FRAGMENT)],
     });
     let pipeline = fullscreen_pipeline(
         device,

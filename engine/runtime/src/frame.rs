@@ -11,9 +11,10 @@
 //!                 culling depth, their pyramid, last frame's visible candidates culled against it
 //! early_cull    → (no gate) last frame's visible candidates inside the frustum
 //! early_pass    → colour + depth: the ground and what the gate or the early cull kept
-//! occluder_pass → (occluders on) copy of that depth + nearby virtual occluders, depth only
-//!                 (with the gate: that depth merged into the occluders' depth, nearest wins)
-//! build_pyramid → HiZ pyramid from that depth
+//! occluder_pass → (occluders on, no gate) nearby virtual occluders alone into the cleared
+//!                 culling depth, depth only (with the gate they are there already)
+//! build_pyramid → HiZ pyramid from the early depth, with occluders merged with the culling
+//!                 depth in the same dispatch (the nearer depth of the two kept per pixel)
 //! cull          → every candidate's box, then its parts, against the pyramid (status,
 //!                 indirect commands, count, visibility stamps for the next frame)
 //! late_pass     → colour + depth: the candidates the cull kept that the early pass did not draw
@@ -31,8 +32,8 @@
 //! which lies inside its building, so anything they hide the building hides as well. A building
 //! visible in the final image is therefore not behind that depth, the cull keeps it and the late
 //! pass draws it in the same frame, even right after a fast turn (disocclusion). Occluders are
-//! drawn into a *copy* of the depth used only for the pyramid: the final image's depth never
-//! holds them, so a building wall that coincides with its own occluder still passes the depth
+//! drawn into a depth target of their own, merged with the early depth only by the pyramid
+//! build: the final image's depth never holds them, so a building wall that coincides with its own occluder still passes the depth
 //! test and the image equals brute force. With a LOD cut, cluster meshes are never drawn before
 //! the pyramid (they are not contained in their buildings) and each is culled by a box holding
 //! every building under it, so a building visible in the full-detail scene keeps the candidate
@@ -43,8 +44,8 @@
 //! [`CullingOptions::occluder_gate`], the ground and the occluders go first, alone, into the
 //! culling depth; the early candidates are culled against their pyramid (the cull's `gate` entry
 //! point), and the early pass draws only those kept, through the gate's indirect commands. The
-//! early depth is then merged into the culling depth (the nearer wins) and the main pyramid built
-//! from the merge, so it holds the same kinds of depth as without the gate (real geometry and
+//! main pyramid is then built from the early depth merged with the culling depth (the nearer
+//! wins, in the pyramid's first dispatch), so it holds the same kinds of depth as without the gate (real geometry and
 //! occluders contained in their buildings): conservative for the same reason. An early candidate
 //! the gate keeps out is culled with every other candidate and drawn late when visible, in the same
 //! frame; the main cull reads the gate's per-candidate flags and issues no draw for one the gate

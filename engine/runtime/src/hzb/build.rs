@@ -68,16 +68,8 @@ impl HzbPyramid {
             count: None,
         };
         // Depth bound as unfilterable float and read through `.r` (GL trap 2).
-        let depth = |binding| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Texture {
-                sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                view_dimension: wgpu::TextureViewDimension::D2,
-                multisampled: false,
-            },
-            count: None,
-        };
+        let depth =
+            |binding| crate::render::float_texture_entry(binding, wgpu::ShaderStages::COMPUTE);
         let copy_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("hzb copy depth"),
             entries: &[

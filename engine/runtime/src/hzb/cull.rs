@@ -170,16 +170,7 @@ impl HzbCull {
                     wgpu::BufferBindingType::Storage { read_only: true },
                     size_of::<BuildingRecord>() as u64,
                 ),
-                wgpu::BindGroupLayoutEntry {
-                    binding: 2,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                        view_dimension: wgpu::TextureViewDimension::D2,
-                        multisampled: false,
-                    },
-                    count: None,
-                },
+                crate::render::float_texture_entry(2, wgpu::ShaderStages::COMPUTE),
                 buffer_entry(3, rw, STATUS_BYTES),
                 buffer_entry(4, rw, COMMAND_BYTES),
                 buffer_entry(5, rw, 4),

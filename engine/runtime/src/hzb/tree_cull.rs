@@ -170,16 +170,7 @@ impl TreeCull {
         let rw = wgpu::BufferBindingType::Storage { read_only: false };
         let mut entries = vec![
             buffer(0, read),
-            wgpu::BindGroupLayoutEntry {
-                binding: 2,
-                visibility: wgpu::ShaderStages::COMPUTE,
-                ty: wgpu::BindingType::Texture {
-                    sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                    view_dimension: wgpu::TextureViewDimension::D2,
-                    multisampled: false,
-                },
-                count: None,
-            },
+            crate::render::float_texture_entry(2, wgpu::ShaderStages::COMPUTE),
             buffer(11, read),
         ];
         entries.extend(BINDINGS_READ.iter().map(|&b| buffer(b, read)));

@@ -145,12 +145,15 @@ fn module_and_layout(
     (module, pipeline_layout)
 }
 
-/// Layout entry of a fragment-stage, unfilterable float 2D texture at `binding`: how depth
-/// (read through `.r`) and `R32Float` pyramid levels are bound (GL trap 2).
-pub fn fragment_float_texture_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+/// Layout entry of an unfilterable float 2D texture at `binding`, seen by the `visibility`
+/// stages: how depth (read through `.r`) and `R32Float` pyramid levels are bound (GL trap 2).
+pub fn float_texture_entry(
+    binding: u32,
+    visibility: wgpu::ShaderStages,
+) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
         binding,
-        visibility: wgpu::ShaderStages::FRAGMENT,
+        visibility,
         ty: wgpu::BindingType::Texture {
             sample_type: wgpu::TextureSampleType::Float { filterable: false },
             view_dimension: wgpu::TextureViewDimension::D2,

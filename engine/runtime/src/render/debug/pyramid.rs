@@ -86,7 +86,7 @@ impl PyramidView {
                     },
                     count: None,
                 },
-                crate::render::fragment_float_texture_entry(1),
+                crate::render::float_texture_entry(1, wgpu::ShaderStages::FRAGMENT),
             ],
         });
         let pipeline = crate::render::fullscreen_pipeline(
