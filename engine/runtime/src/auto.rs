@@ -3,8 +3,9 @@
 //! gate on a small city, a depth pyramid on a software rasteriser) is skipped and the frame is
 //! never much slower than the cheapest plan.
 //!
-//! A small bandit over a fixed ladder of plans (CPU frustum culling alone, then with the HZB
-//! frame, with occluders, with the gate), each with the LOD cut as the caller asks. Every plan is
+//! A small bandit over a fixed ladder of plans: brute force (no culling and no LOD, the frame the
+//! others must beat), then CPU frustum culling, with the HZB frame, with occluders, with the
+//! gate, these four with the LOD cut as the caller asks. Every plan is
 //! tried for a few frames first (the first frame of each is not counted: its early set is empty),
 //! then the cheapest by a moving average of measured frame cost is run, and every `PROBE_EVERY`
 //! frames one other plan is tried again, so the choice follows the view. Every plan is
@@ -44,7 +45,8 @@ pub struct AutoPlanner {
 }
 
 impl AutoPlanner {
-    /// A planner over the culling stages the scene offers, with the LOD cut on when `lod`.
+    /// A planner over the culling stages the scene offers, with the LOD cut on when `lod`
+    /// (but for brute force, which draws everything at full detail).
     pub fn new(features: SceneFeatures, lod: bool) -> AutoPlanner {
         let base = FramePlan {
             frustum: true,
@@ -62,7 +64,7 @@ impl AutoPlanner {
             ..occluders
         };
         let mut candidates: Vec<FramePlan> = Vec::new();
-        for plan in [base, hzb, occluders, gated] {
+        for plan in [FramePlan::NONE, base, hzb, occluders, gated] {
             let plan = plan.resolve(features);
             if !candidates.contains(&plan) {
                 candidates.push(plan);
@@ -200,11 +202,12 @@ mod tests {
             AutoPlanner::new(SceneFeatures::ALL, true)
                 .candidates()
                 .len(),
-            4
+            5
         );
-        // No occluders: CPU culling alone and the HZB frame.
+        // No occluders: brute force, CPU culling alone and the HZB frame.
         let plain = AutoPlanner::new(SceneFeatures::default(), true);
-        assert_eq!(plain.candidates().len(), 2);
+        assert_eq!(plain.candidates().len(), 3);
+        assert_eq!(plain.candidates()[0], FramePlan::NONE);
         assert!(plain.candidates().iter().all(|p| !p.lod && !p.occluders));
     }
 
@@ -232,11 +235,23 @@ mod tests {
     }
 
     #[test]
+    fn falls_back_to_brute_force_when_no_culling_pays() {
+        let mut planner = AutoPlanner::new(SceneFeatures::ALL, true);
+        // A small city seen from above: every culling stage costs more than it saves.
+        let ran = simulate(&mut planner, 300, |p| {
+            if p == FramePlan::NONE { 30.0 } else { 40.0 }
+        });
+        let brute = ran[20..].iter().filter(|&&p| p == FramePlan::NONE).count();
+        assert!(brute > 260, "{brute} of {}", ran.len() - 20);
+    }
+
+    #[test]
     fn skips_occlusion_that_does_not_pay_and_follows_a_change() {
         let mut planner = AutoPlanner::new(SceneFeatures::ALL, false);
         // A software rasteriser: the pyramid costs more than it saves.
         let ran = simulate(&mut planner, 200, |p| if p.hzb { 60.0 } else { 20.0 });
         assert!(ran[20..].iter().filter(|p| !p.hzb).count() > 170);
+        assert!(planner.costs_ms().iter().all(Option::is_some));
         // The view changes (street level, heavy occlusion): the probes find the HZB plans.
         let ran = simulate(&mut planner, 400, |p| if p.hzb { 5.0 } else { 50.0 });
         assert!(ran[200..].iter().filter(|p| p.hzb).count() > 180);
