@@ -4,9 +4,9 @@
 // `copy_depth` writes levels 0 and 1 from the Depth32Float depth buffer, `merge_depths` from two
 // of them with the nearer (greater, reversed Z) depth kept per texel: the frame's depth and its
 // virtual occluders' depth, so that the occluders need no copy of the frame's depth to be drawn
-// into. `reduce` then writes level l + 1 from level l, once per level from level 1. Level l + 1 has ceil(w / 2) x ceil(h / 2) texels and texel
-// (x, y) is the minimum of the texels 2x, 2x + 1 (in each direction) of level l that exist, so
-// an odd last row or column is never dropped.
+// into. `reduce` then writes level l + 1 from level l, once per level from level 1. Level l + 1
+// has ceil(w / 2) x ceil(h / 2) texels and texel (x, y) is the minimum of the texels 2x, 2x + 1
+// (in each direction) of level l that exist, so an odd last row or column is never dropped.
 //
 // Texture mips halve with floor, the pyramid with ceil, so the texture is allocated at the next
 // powers of two of the viewport and each level uses only its top-left logical region; the sizes

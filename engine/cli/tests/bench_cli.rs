@@ -10,12 +10,14 @@ use std::process::{Command, Output};
 
 use citywalk_bench::Mode;
 use citywalk_bench::plots::PLOT_SIZE;
-use citywalk_runtime::gpu::GpuContext;
 
+#[path = "support/gpu.rs"]
+mod gpu;
 #[path = "support/grid_scene.rs"]
 mod grid_scene;
 #[path = "support/scratch.rs"]
 mod scratch;
+use gpu::gpu_available;
 use grid_scene::write_scene;
 use scratch::temp_dir;
 
@@ -29,19 +31,6 @@ fn bench(scene: &Path, out: &Path, extra: &[&str]) -> Output {
         .args(extra)
         .output()
         .expect("run citywalk bench")
-}
-
-fn gpu_available(test: &str) -> bool {
-    match GpuContext::headless() {
-        Ok(_) => true,
-        Err(e) if std::env::var_os("CI").is_some() => {
-            panic!("{test}: CI is set and no GPU context could be made: {e}")
-        }
-        Err(e) => {
-            eprintln!("{test}: SKIPPED (no GPU, CI unset): {e}");
-            false
-        }
-    }
 }
 
 #[test]

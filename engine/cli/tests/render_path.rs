@@ -7,12 +7,14 @@
 use std::path::Path;
 use std::process::Command;
 
-use citywalk_runtime::gpu::GpuContext;
 use citywalk_scenes::camera_path::{CameraPath, CameraPose};
 use glam::Vec3;
 
+#[path = "support/gpu.rs"]
+mod gpu;
 #[path = "support/scratch.rs"]
 mod scratch;
+use gpu::gpu_available;
 use scratch::temp_dir;
 
 const WIDTH: u32 = 96;
@@ -82,22 +84,9 @@ fn frames(dir: &Path, count: usize) -> Vec<image::RgbaImage> {
         .collect()
 }
 
-fn gpu_available() -> bool {
-    match GpuContext::headless() {
-        Ok(_) => true,
-        Err(e) if std::env::var_os("CI").is_some() => {
-            panic!("CI is set and no GPU context could be made: {e}")
-        }
-        Err(e) => {
-            eprintln!("render_path: SKIPPED (no GPU, CI unset): {e}");
-            false
-        }
-    }
-}
-
 #[test]
 fn render_writes_one_png_per_pose_of_a_path() {
-    if !gpu_available() {
+    if !gpu_available("render_path") {
         return;
     }
     let dir = temp_dir("render-path");

@@ -33,8 +33,8 @@
 //! visible in the final image is therefore not behind that depth, the cull keeps it and the late
 //! pass draws it in the same frame, even right after a fast turn (disocclusion). Occluders are
 //! drawn into a depth target of their own, merged with the early depth only by the pyramid
-//! build: the final image's depth never holds them, so a building wall that coincides with its own occluder still passes the depth
-//! test and the image equals brute force. With a LOD cut, cluster meshes are never drawn before
+//! build: the final image's depth never holds them, so a building wall that coincides with its
+//! own occluder still passes the depth test and the image equals brute force. With a LOD cut, cluster meshes are never drawn before
 //! the pyramid (they are not contained in their buildings) and each is culled by a box holding
 //! every building under it, so a building visible in the full-detail scene keeps the candidate
 //! that covers it (`frame/candidates.rs`).
@@ -45,8 +45,8 @@
 //! culling depth; the early candidates are culled against their pyramid (the cull's `gate` entry
 //! point), and the early pass draws only those kept, through the gate's indirect commands. The
 //! main pyramid is then built from the early depth merged with the culling depth (the nearer
-//! wins, in the pyramid's first dispatch), so it holds the same kinds of depth as without the gate (real geometry and
-//! occluders contained in their buildings): conservative for the same reason. An early candidate
+//! wins, in the pyramid's first dispatch), so it holds the same kinds of depth as without the
+//! gate (real geometry and occluders contained in their buildings): conservative for the same reason. An early candidate
 //! the gate keeps out is culled with every other candidate and drawn late when visible, in the same
 //! frame; the main cull reads the gate's per-candidate flags and issues no draw for one the gate
 //! drew. The frame then draws a subset of what a frame with no early set at all would draw: the
@@ -315,8 +315,6 @@ pub struct CullingRenderer {
     /// One [`NO_PARENT`] word: the parents of a scene without a cluster tree.
     no_parents: wgpu::Buffer,
     occluder_draws: GrowBuffer,
-    /// Draws in `occluder_draws` this frame.
-    occluder_draw_count: u32,
     /// The GPU's LOD cut with hierarchical occlusion ([`CullingRenderer::submit_tree`]).
     tree_cull: crate::hzb::tree_cull::TreeCull,
     /// Kept and early ids a tree frame's report copies (grown when a frame needs more).
@@ -372,7 +370,6 @@ impl CullingRenderer {
                 usage: wgpu::BufferUsages::STORAGE,
             }),
             occluder_draws: GrowBuffer::new(device, "occluder draws", indirect),
-            occluder_draw_count: 0,
             reports: ReportRing::new(device),
             frames: 0,
             targets: None,
@@ -496,9 +493,16 @@ impl CullingRenderer {
         };
         let cull_input = (frame.records, &frame.geometry.parts_buffer, links);
 
-        match occluder_meshes {
-            Some(meshes) if gated => {
-                self.occluder_gate(gpu, &mut encoder, meshes, &occluders_drawn, frame.geometry)?;
+        // The selected occluders' draws, uploaded once for the gate or the occluder pass.
+        let occluders = occluder_meshes.map(|meshes| {
+            (
+                meshes,
+                self.upload_occluder_draws(gpu, meshes, &occluders_drawn),
+            )
+        });
+        match occluders {
+            Some(occluders) if gated => {
+                self.occluder_gate(&mut encoder, occluders, frame.geometry)?;
                 self.early_cull(gpu, &mut encoder, CullEntry::Gate, cull_input, n, view_proj)?;
             }
             _ => self.early_cull(
@@ -517,8 +521,8 @@ impl CullingRenderer {
             (early_draws, n as u32),
             colour,
         );
-        if let Some(meshes) = occluder_meshes {
-            self.occluder_pass(gpu, &mut encoder, meshes, &occluders_drawn, gated);
+        if let Some(occluders) = occluders.filter(|_| !gated) {
+            self.occluder_pass(&mut encoder, occluders);
         }
         self.build_pyramid(&mut encoder, occluder_meshes.is_some());
         self.cull(gpu, &mut encoder, cull_input, n, view_proj)?;
@@ -537,7 +541,7 @@ impl CullingRenderer {
                 timed,
                 occluders: occluders_drawn,
                 occluder_triangles,
-                occluder_draws: self.occluder_draws_of(occluder_meshes),
+                occluder_draws: occluders.map_or(0, |(_, draws)| draws),
                 cpu_ms: clock.elapsed_ms(),
                 started,
                 tree: None,
@@ -646,13 +650,10 @@ impl CullingRenderer {
     /// depth, and their pyramid (the gate entry point culls against it).
     fn occluder_gate(
         &mut self,
-        gpu: &GpuContext,
         encoder: &mut wgpu::CommandEncoder,
-        meshes: &OccluderMeshes,
-        selected: &[usize],
+        occluders: (&OccluderMeshes, u32),
         scene: &SceneGpu,
     ) -> Result<(), FrameError> {
-        self.upload_occluder_draws(gpu, meshes, selected);
         {
             let clear = wgpu::LoadOp::Clear(Camera::DEPTH_CLEAR);
             let mut pass = self.depth_only_pass(encoder, "occluder_gate", clear, "gate_occluders");
@@ -662,7 +663,7 @@ impl CullingRenderer {
             pass.set_bind_group(0, &self.view_group, &[]);
             scene.bind(&mut pass);
             scene.draw_ground(&mut pass);
-            self.draw_occluders(&mut pass, meshes);
+            self.draw_occluders(&mut pass, occluders);
         }
         let targets = self.targets.as_ref().expect("fit_targets ran");
         targets.pyramid.build_timed(
@@ -754,24 +755,19 @@ impl CullingRenderer {
     }
 
     /// Writes the draws of the `selected` occluders to the occluder draw buffer, adjacent
-    /// ranges merged ([`OccluderMeshes::merged_draws`]).
+    /// ranges merged ([`OccluderMeshes::merged_draws`]); returns how many there are.
     fn upload_occluder_draws(
         &mut self,
         gpu: &GpuContext,
         meshes: &OccluderMeshes,
         selected: &[usize],
-    ) {
+    ) -> u32 {
         let draws = meshes.merged_draws(selected);
-        self.occluder_draw_count = draws.len() as u32;
         let bytes: &[u8] = bytemuck::cast_slice(&draws);
         self.occluder_draws.reserve(&gpu.device, bytes.len() as u64);
         gpu.queue
             .write_buffer(&self.occluder_draws.buffer, 0, bytes);
-    }
-
-    /// The occluder draw calls of this frame (0 when it drew no occluders).
-    fn occluder_draws_of(&self, meshes: Option<&OccluderMeshes>) -> u32 {
-        meshes.map_or(0, |_| self.occluder_draw_count)
+        draws.len() as u32
     }
 
     /// A depth-only pass into the culling depth, timed as `phase`.
@@ -802,34 +798,31 @@ impl CullingRenderer {
             .forget_lifetime()
     }
 
-    /// Draws this frame's occluder draws ([`CullingRenderer::upload_occluder_draws`]), depth
-    /// only.
-    fn draw_occluders(&self, pass: &mut wgpu::RenderPass<'_>, meshes: &OccluderMeshes) {
+    /// Draws the `count` occluder draws of this frame ([`CullingRenderer::upload_occluder_draws`]),
+    /// depth only.
+    fn draw_occluders(
+        &self,
+        pass: &mut wgpu::RenderPass<'_>,
+        (meshes, count): (&OccluderMeshes, u32),
+    ) {
         pass.set_pipeline(&self.depth_pipeline);
         pass.set_bind_group(0, &self.view_group, &[]);
         pass.set_vertex_buffer(0, meshes.vertex_buffer.slice(..));
         pass.set_index_buffer(meshes.index_buffer.slice(..), wgpu::IndexFormat::Uint32);
-        pass.multi_draw_indexed_indirect(&self.occluder_draws.buffer, 0, self.occluder_draw_count);
+        pass.multi_draw_indexed_indirect(&self.occluder_draws.buffer, 0, count);
     }
 
-    /// The occluders' depth for the pyramid: without the gate, the `selected` occluders drawn
-    /// alone into the cleared culling depth; with the gate they (and the ground) are there
-    /// already. [`CullingRenderer::build_pyramid`] merges it with the early depth.
+    /// The occluders' depth for the pyramid (without the gate; with it they and the ground are
+    /// there already): the uploaded occluder draws alone into the cleared culling depth.
+    /// [`CullingRenderer::build_pyramid`] merges it with the early depth.
     fn occluder_pass(
         &mut self,
-        gpu: &GpuContext,
         encoder: &mut wgpu::CommandEncoder,
-        meshes: &OccluderMeshes,
-        selected: &[usize],
-        gated: bool,
+        occluders: (&OccluderMeshes, u32),
     ) {
-        if gated {
-            return;
-        }
-        self.upload_occluder_draws(gpu, meshes, selected);
         let clear = wgpu::LoadOp::Clear(Camera::DEPTH_CLEAR);
         let mut pass = self.depth_only_pass(encoder, "occluder_pass", clear, "occluders");
-        self.draw_occluders(&mut pass, meshes);
+        self.draw_occluders(&mut pass, occluders);
     }
 
     /// Builds the pyramid from the early depth, merged with the occluders' depth (the nearer

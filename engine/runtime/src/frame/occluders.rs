@@ -181,8 +181,7 @@ fn merge_ranges(ranges: &mut Vec<(u32, u32)>) {
 
 /// The occluders' index buffer with every index made absolute (its record's base vertex added),
 /// written straight into the mapped buffer one record at a time (no second copy of all the
-/// indices on the CPU). Indices outside every record stay as they are (the arrays' records
-/// cover them all).
+/// indices on the CPU). Indices outside every record are never drawn and stay zero.
 fn absolute_index_buffer(device: &wgpu::Device, arrays: &OccluderArraysView<'_>) -> wgpu::Buffer {
     const U32: usize = size_of::<u32>();
     let len = arrays.indices.len().max(3);
@@ -200,8 +199,6 @@ fn absolute_index_buffer(device: &wgpu::Device, arrays: &OccluderArraysView<'_>)
             .get_mapped_range_mut()
             .expect("a buffer created mapped can be written");
         let mut out = mapped.slice(..);
-        out.slice(..arrays.indices.len() * U32)
-            .copy_from_slice(bytemuck::cast_slice(arrays.indices));
         let mut absolute: Vec<u32> = Vec::new();
         for r in arrays.records {
             let (first, count) = (r.first_index as usize, r.index_count as usize);

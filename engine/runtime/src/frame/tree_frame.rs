@@ -61,14 +61,8 @@ impl CullingRenderer {
         self.multi_draw_count && lod.tree_gpu.levels <= TREE_MAX_LEVELS
     }
 
-    /// How tree frames dispatch the walk (chosen for the adapter:
-    /// [`crate::hzb::tree_cull::TreeWalk::for_adapter`]).
-    pub fn tree_walk(&self) -> crate::hzb::tree_cull::TreeWalk {
-        self.tree_cull.walk
-    }
-
-    /// Dispatches tree frames' walks as `walk` from now on (both walks keep the same set; tests
-    /// run each against the reference).
+    /// Dispatches tree frames' walks as `walk` from now on instead of the adapter's default
+    /// ([`crate::hzb::tree_cull::TreeWalk::for_adapter`]); both walks keep the same set.
     pub fn set_tree_walk(&mut self, walk: crate::hzb::tree_cull::TreeWalk) {
         self.tree_cull.walk = walk;
     }
@@ -166,8 +160,10 @@ impl CullingRenderer {
             (early_draws, max_draws),
             colour,
         );
-        if let Some(meshes) = meshes {
-            self.occluder_pass(gpu, &mut encoder, meshes, &selected, false);
+        let occluders =
+            meshes.map(|meshes| (meshes, self.upload_occluder_draws(gpu, meshes, &selected)));
+        if let Some(occluders) = occluders {
+            self.occluder_pass(&mut encoder, occluders);
         }
         self.build_pyramid(&mut encoder, meshes.is_some());
         {
@@ -200,7 +196,7 @@ impl CullingRenderer {
                 timed,
                 occluders: selected,
                 occluder_triangles,
-                occluder_draws: self.occluder_draws_of(meshes),
+                occluder_draws: occluders.map_or(0, |(_, draws)| draws),
                 cpu_ms: clock.elapsed_ms(),
                 started,
                 tree: Some(TreePending {
