@@ -9,6 +9,7 @@ use citywalk_bench::{
     AdapterSummary, BenchConfig, BenchRenderers, BenchReport, BenchScene, FrameRecord, Mode,
     run_path, summarise,
 };
+use citywalk_runtime::drawable::DrawableScene;
 use citywalk_runtime::gpu::GpuContext;
 use citywalk_runtime::oracle::Oracle;
 use citywalk_runtime::scene_gpu::{SceneGeometry, SceneGpu};
@@ -54,11 +55,12 @@ fn walk() -> CameraPath {
 fn bench_scene(gpu: &GpuContext, city: &City) -> BenchScene {
     BenchScene {
         name: "grid".into(),
-        gpu_scene: SceneGpu::upload_city(gpu, city),
-        blocks: UrbanBlocks::default(),
-        quadtree: BQuadtree::default(),
-        lod: None,
-        occluders: None,
+        drawable: DrawableScene::upload_city(
+            gpu,
+            city,
+            None,
+            Some((UrbanBlocks::default(), BQuadtree::default())),
+        ),
     }
 }
 
@@ -109,7 +111,13 @@ fn oracle_counts_match_the_id_image_and_a_dropped_building_is_caught() {
     let oracle = Oracle::new(&gpu);
     for r in &records {
         let image = oracle
-            .id_image(&gpu, &scene.gpu_scene, &pose_camera(&path, r.frame), W, H)
+            .id_image(
+                &gpu,
+                &scene.drawable.buildings,
+                &pose_camera(&path, r.frame),
+                W,
+                H,
+            )
             .expect("id image");
         let mut ids: Vec<u32> = (0..H)
             .flat_map(|y| (0..W).map(move |x| (x, y)))

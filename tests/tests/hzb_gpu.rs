@@ -12,7 +12,8 @@ use citywalk_runtime::hzb::cull::{
     CullVisibility, NO_PARENT,
 };
 use citywalk_runtime::hzb::reference::{
-    BoxProjection, DepthPyramid, HullTest, RecordCull, box_corners, project_box, select_level,
+    BoxProjection, DepthPyramid, HullTest, RecordCull, box_corners, erode, project_box,
+    select_level,
 };
 use citywalk_runtime::hzb::{CullResults, HzbCull, HzbPyramid};
 use citywalk_runtime::render::targets::map_read;
@@ -251,7 +252,8 @@ fn random_depths(rng: &mut Rng, n: usize) -> Vec<f32> {
 
 /// The GPU pyramid equals the CPU reference texel for texel (bit-exact) at common, odd and tiny
 /// sizes, every level; so does the pyramid merged from two depth buffers, against the
-/// reference of their per-texel nearer depth (the frame's depth with its occluders').
+/// reference of their per-texel nearer depth (the frame's depth with its occluders', these
+/// eroded), and the occluder gate's pyramid of an occluder depth alone, eroded.
 #[test]
 fn gpu_pyramid_equals_reference_texel_for_texel() {
     let Some(gpu) = gpu_or_skip("gpu_pyramid_equals_reference_texel_for_texel") else {
@@ -279,13 +281,23 @@ fn gpu_pyramid_equals_reference_texel_for_texel() {
 
         let occluders = random_depths(&mut rng, (w * h) as usize);
         let (_, merged_levels) = gpu_pyramid_of(&gpu, w, h, (&values, Some(&occluders)));
-        let nearer: Vec<f32> = values
-            .iter()
-            .zip(&occluders)
-            .map(|(a, b)| a.max(*b))
-            .collect();
+        let eroded = erode(w, h, &occluders);
+        let nearer: Vec<f32> = values.iter().zip(&eroded).map(|(a, b)| a.max(*b)).collect();
         let cpu_merged = DepthPyramid::build(w, h, &nearer);
         assert_levels_equal(&format!("{w}x{h} merged"), &merged_levels, &cpu_merged);
+
+        // The occluder gate's pyramid: the occluders' depth alone, eroded.
+        let depth = checked_depth_texture(&gpu, w, h, &occluders);
+        let pyramid = HzbPyramid::new(&gpu, w, h).expect("pyramid");
+        let view = depth.create_view(&wgpu::TextureViewDescriptor::default());
+        let mut encoder = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+        pyramid.build_occluders_timed(&mut encoder, &view, None);
+        gpu.queue.submit([encoder.finish()]);
+        let gate_levels = pyramid.read_back(&gpu).expect("pyramid readback");
+        let cpu_gate = DepthPyramid::build(w, h, &eroded);
+        assert_levels_equal(&format!("{w}x{h} eroded"), &gate_levels, &cpu_gate);
     }
 }
 

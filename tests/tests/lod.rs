@@ -8,6 +8,7 @@ use citywalk_bench::Mode;
 use citywalk_bench::run::{BenchConfig, BenchRenderers, BenchScene, pose_camera, run_path};
 use citywalk_preprocess::pipeline::{NoProgress, PreprocessParams, preprocess};
 use citywalk_runtime::camera::Camera;
+use citywalk_runtime::drawable::DrawableScene;
 use citywalk_runtime::lod::scene::{LodFrame, LodScene};
 use citywalk_runtime::lod::{LodCriterion, LodCut, LodTree, LodView, distance_to_box};
 use citywalk_runtime::oracle::Oracle;
@@ -385,16 +386,14 @@ fn bench_lod_mode_has_no_false_culls() {
     };
     let mut renderers = BenchRenderers::new(&gpu);
     for criterion in [None, Some(LodCriterion::YANG_PAPER)] {
+        let blocks = (package.blocks.clone(), package.quadtree.clone());
+        let mut drawable = DrawableScene::upload_city(&gpu, city, Some(tree.clone()), Some(blocks));
+        if let Some(lod) = &mut drawable.lod {
+            lod.criterion = criterion;
+        }
         let scene = BenchScene {
             name: "generated".into(),
-            gpu_scene: SceneGpu::upload_city(&gpu, city),
-            blocks: package.blocks.clone(),
-            quadtree: package.quadtree.clone(),
-            lod: Some(LodScene {
-                criterion,
-                ..LodScene::upload(&gpu, city, tree.clone())
-            }),
-            occluders: None,
+            drawable,
         };
         for path in [
             camera_path::street_walk(city, 3),

@@ -14,6 +14,7 @@ use citywalk_bench::pixel_error::pixel_error;
 use citywalk_bench::{BenchConfig, BenchError, BenchRenderers, BenchScene, Mode, run_path};
 use citywalk_preprocess::pipeline::{NoProgress, PreprocessParams, preprocess};
 use citywalk_runtime::camera::Camera;
+use citywalk_runtime::drawable::DrawableScene;
 use citywalk_runtime::frame::{
     CullingOptions, CullingRenderer, FrameOutput, OccluderMeshes, Visibility,
 };
@@ -756,20 +757,16 @@ fn bench_scene(
     package: &ScenePackage,
     lod: bool,
 ) -> BenchScene {
+    let tree = package.cluster_tree.clone().filter(|_| lod);
+    let blocks = (package.blocks.clone(), package.quadtree.clone());
+    let mut drawable = DrawableScene::upload_city(gpu, city, tree, Some(blocks));
+    drawable.occluders = package
+        .occluders
+        .as_ref()
+        .map(|set| OccluderMeshes::upload(gpu, set));
     BenchScene {
         name: name.into(),
-        gpu_scene: SceneGpu::upload_city(gpu, city),
-        blocks: package.blocks.clone(),
-        quadtree: package.quadtree.clone(),
-        lod: package
-            .cluster_tree
-            .clone()
-            .filter(|_| lod)
-            .map(|tree| LodScene::upload(gpu, city, tree)),
-        occluders: package
-            .occluders
-            .as_ref()
-            .map(|set| OccluderMeshes::upload(gpu, set)),
+        drawable,
     }
 }
 
@@ -798,7 +795,7 @@ fn bench_all_mode_on_a_tiny_scene_has_no_false_cull() {
     let mut scene = bench_scene(&gpu, "tiny", &city, &package, true);
     // Yang's paper tolerances (coarser than the 1–2 px defaults), so the small city's flyover
     // draws cluster meshes.
-    if let Some(lod) = scene.lod.as_mut() {
+    if let Some(lod) = scene.drawable.lod.as_mut() {
         lod.criterion = Some(LodCriterion::YANG_PAPER);
     }
     let config = bench_config(vec![Mode::Brute, Mode::Lod, Mode::All]);
@@ -835,7 +832,8 @@ fn bench_all_mode_on_a_tiny_scene_has_no_false_cull() {
     assert!(clusters["lod"] > 0, "{clusters:?}");
     assert!(clusters["all"] > 0, "{clusters:?}");
     // Without a cluster tree the mode is refused, not silently degraded.
-    let bare = BenchScene { lod: None, ..scene };
+    let mut bare = scene;
+    bare.drawable.lod = None;
     assert!(matches!(
         run_path(&gpu, &mut renderers, &bare, &street_walk(&city, 2), &config),
         Err(BenchError::NoClusterTree(_))
@@ -967,10 +965,8 @@ fn bench_modes_run_a_street_walk_with_no_false_cull() {
         auto.len()
     );
     // Without occluders a scene refuses the occluders mode rather than silently skipping it.
-    let bare = BenchScene {
-        occluders: None,
-        ..scene
-    };
+    let mut bare = scene;
+    bare.drawable.occluders = None;
     let config = BenchConfig {
         modes: vec![Mode::Occluders],
         ..config

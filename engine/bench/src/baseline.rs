@@ -123,7 +123,7 @@ impl DecimatedBaseline {
         let (w, h) = (config.width, config.height);
         let target = OffscreenTarget::new(gpu, w, h, BruteRenderer::PNG_FORMAT)?;
         let reference = OffscreenTarget::new(gpu, w, h, BruteRenderer::PNG_FORMAT)?;
-        let total = scene.gpu_scene.building_count();
+        let total = scene.drawable.buildings.building_count();
         let kept: Vec<bool> = (0..total)
             .map(|b| decimated.records.get(b).is_some_and(|r| r.index_count > 0))
             .collect();
@@ -143,11 +143,11 @@ impl DecimatedBaseline {
             let camera = pose_camera(path, i);
             let visible = self
                 .oracle
-                .visible_set(gpu, &scene.gpu_scene, &camera, w, h)?;
+                .visible_set(gpu, &scene.drawable.buildings, &camera, w, h)?;
             let false_culls = (0..total)
                 .filter(|&b| visible.contains(citywalk_scenes::BuildingId(b as u32)) && !kept[b])
                 .count();
-            self.render(gpu, &scene.gpu_scene, &camera, &reference);
+            self.render(gpu, &scene.drawable.buildings, &camera, &reference);
             let reference_rgba = reference.read_colour(gpu)?;
             let (frame_ms, cpu_ms) = self.render(gpu, decimated, &camera, &target);
             let rgba = target.read_colour(gpu)?;

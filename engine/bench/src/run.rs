@@ -4,40 +4,31 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use citywalk_scenes::blocks::UrbanBlocks;
 use citywalk_scenes::camera_path::CameraPath;
-use citywalk_scenes::quadtree::BQuadtree;
 
 use crate::mode::Mode;
 use crate::pixel_error::pixel_error;
 use citywalk_runtime::auto::AutoPlanner;
 use citywalk_runtime::camera::Camera;
 use citywalk_runtime::cpu_clock::CpuClock;
-use citywalk_runtime::frame::{OccluderMeshes, Visibility};
+use citywalk_runtime::drawable::DrawableScene;
+use citywalk_runtime::frame::Visibility;
 use citywalk_runtime::gpu::GpuContext;
 use citywalk_runtime::gpu_timer::{GpuTimer, GpuTimes};
-use citywalk_runtime::lod::scene::LodScene;
 use citywalk_runtime::oracle::Oracle;
 use citywalk_runtime::render::BruteRenderer;
 use citywalk_runtime::render::selected::SelectedRenderer;
 use citywalk_runtime::render::targets::{OffscreenTarget, ReadbackError};
 pub use citywalk_runtime::runner::DRAW_PHASES;
-use citywalk_runtime::runner::{Completion, FrameRunner, FrameTarget, SceneRefs};
-use citywalk_runtime::scene_gpu::SceneGpu;
+use citywalk_runtime::runner::{Completion, FrameRunner, FrameTarget};
 
 /// One scene ready for benchmarking: its geometry on the GPU and its culling structures.
 #[derive(Debug)]
 pub struct BenchScene {
     pub name: String,
-    pub gpu_scene: SceneGpu,
-    pub blocks: UrbanBlocks,
-    pub quadtree: BQuadtree,
-    /// Buildings and cluster meshes with the cluster tree, for the `lod` mode (`None` when the
-    /// package has no cluster tree).
-    pub lod: Option<LodScene>,
-    /// The package's virtual occluders on the GPU, for the `occluders` mode (`None` when the
-    /// package has none).
-    pub occluders: Option<OccluderMeshes>,
+    /// The buildings, and the cluster tree's LOD scene (`lod` mode), blocks and quadtree
+    /// (`quadtree` mode) and virtual occluders (`occluders` mode) where the scene has them.
+    pub drawable: DrawableScene,
 }
 
 /// What to measure.
@@ -188,24 +179,19 @@ fn render_mode(
     visible: &[u32],
     target: &OffscreenTarget,
 ) -> Result<ModeFrame, BenchError> {
-    let refs = SceneRefs {
-        scene: &scene.gpu_scene,
-        lod: scene.lod.as_ref(),
-        blocks: Some((&scene.blocks, &scene.quadtree)),
-        occluders: scene.occluders.as_ref(),
-    };
+    let refs = scene.drawable.refs();
     let plan = match (mode, mode.plan()) {
         (Mode::Auto, _) => renderers
             .auto
-            .get_or_insert_with(|| AutoPlanner::new(refs.features(), scene.lod.is_some()))
+            .get_or_insert_with(|| AutoPlanner::new(refs.features(), refs.lod.is_some()))
             .plan(),
         (_, Some(plan)) => plan,
         (_, None) => return render_selection(gpu, renderers, scene, mode, camera, visible, target),
     };
-    if plan.lod && scene.lod.is_none() {
+    if plan.lod && refs.lod.is_none() {
         return Err(BenchError::NoClusterTree(scene.name.clone()));
     }
-    if plan.occluders && scene.occluders.is_none() {
+    if plan.occluders && refs.occluders.is_none() {
         return Err(BenchError::NoOccluders(scene.name.clone()));
     }
     let visibility = renderers.visibility.entry(mode).or_default();
@@ -257,7 +243,7 @@ fn render_selection(
     let cpu = CpuClock::start();
     let drawn: Vec<u32> = match mode {
         Mode::Oracle => visible.to_vec(),
-        Mode::DropOneVisibleForTest => (0..scene.gpu_scene.building_count() as u32)
+        Mode::DropOneVisibleForTest => (0..scene.drawable.buildings.building_count() as u32)
             .filter(|&b| Some(b) != visible.first().copied())
             .collect(),
         _ => return Err(BenchError::ModeNotAvailable(mode)),
@@ -271,7 +257,7 @@ fn render_selection(
     let draw_calls = renderers.selected.encode_timed(
         gpu,
         &mut encoder,
-        &scene.gpu_scene,
+        &scene.drawable.buildings,
         camera,
         &drawn,
         (&target.colour_view, &target.depth),
@@ -285,7 +271,7 @@ fn render_selection(
     renderers.last_gpu = renderers.timer.read(gpu)?;
     let triangles = drawn
         .iter()
-        .filter_map(|&b| scene.gpu_scene.records.get(b as usize))
+        .filter_map(|&b| scene.drawable.buildings.records.get(b as usize))
         .map(|r| u64::from(r.index_count / 3))
         .sum();
     Ok(ModeFrame {
@@ -311,7 +297,7 @@ pub fn run_path(
     let (w, h) = (config.width, config.height);
     let target = OffscreenTarget::new(gpu, w, h, BruteRenderer::PNG_FORMAT)?;
     let reference = OffscreenTarget::new(gpu, w, h, BruteRenderer::PNG_FORMAT)?;
-    let total = scene.gpu_scene.building_count();
+    let total = scene.drawable.buildings.building_count();
     let mut records = Vec::new();
     if path.poses.is_empty() {
         return Ok(records);
@@ -351,7 +337,7 @@ pub fn run_path(
         renderers.brute.encode(
             gpu,
             &mut encoder,
-            &scene.gpu_scene,
+            &scene.drawable.buildings,
             &camera,
             &reference.colour_view,
             &reference.depth,
@@ -362,10 +348,23 @@ pub fn run_path(
             let out = render_mode(gpu, renderers, scene, mode, &camera, &visible_ids, &target)?;
             let rgba = target.read_colour(gpu)?;
             let error = pixel_error(&reference_rgba, &rgba);
-            let false_culls = visible_ids
+            let culled_visible: Vec<u32> = visible_ids
                 .iter()
+                .copied()
                 .filter(|b| out.drawn.binary_search(b).is_err())
-                .count();
+                .collect();
+            let false_culls = culled_visible.len();
+            if false_culls > 0 {
+                // Named, so that the bug can be reproduced from the pose alone.
+                tracing::error!(
+                    scene = %scene.name,
+                    path = %path.name,
+                    mode = mode.name(),
+                    frame = i,
+                    buildings = ?&culled_visible[..false_culls.min(16)],
+                    "visible buildings culled (draw ids)"
+                );
+            }
             if let Some(dir) = &config.frames_dir
                 && config.png_every > 0
                 && i % config.png_every == 0
@@ -415,8 +414,8 @@ fn oracle_visible(
 ) -> Result<Vec<u32>, BenchError> {
     let visible = renderers
         .oracle
-        .visible_set(gpu, &scene.gpu_scene, camera, w, h)?;
-    let total = scene.gpu_scene.building_count() as u32;
+        .visible_set(gpu, &scene.drawable.buildings, camera, w, h)?;
+    let total = scene.drawable.buildings.building_count() as u32;
     Ok((0..total)
         .filter(|&b| visible.contains(citywalk_scenes::BuildingId(b)))
         .collect())

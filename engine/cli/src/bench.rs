@@ -13,9 +13,9 @@ use citywalk_bench::{
     AdapterSummary, BenchConfig, BenchRenderers, BenchReport, BenchScene, FrameRecord, Mode,
     SceneLoad, resident_mib, run_path, summarise, write_outputs,
 };
+use citywalk_runtime::drawable::DrawableScene;
 use citywalk_runtime::gpu::GpuContext;
 use citywalk_runtime::lod::LodCriterion;
-use citywalk_runtime::lod::scene::LodScene;
 use citywalk_runtime::scene_gpu::{SceneGeometry, SceneGpu};
 use citywalk_scenes::LoadOptions;
 use citywalk_scenes::camera_path::{self, CameraPath};
@@ -212,31 +212,24 @@ pub fn run_benchmark_with(
             gpu_scene,
         } = package.into_parts();
         let name = scene_name(scene_path);
-        let view = gpu_scene.view();
-        let gpu_buildings = SceneGpu::upload_package(&gpu, &view);
-        let lod = cluster_tree.map(|tree| LodScene {
-            criterion: LOD_CRITERION.get().copied().flatten(),
-            ..LodScene::upload_package(&gpu, &gpu_buildings, &view, tree)
-        });
         // The occluders are drawn from the GPU scene's arrays (a package read to draw has no
         // occluder set; a preprocessed input's set drew the same arrays).
         drop(occluders);
-        let occluders = (!view.occluders.records.is_empty())
-            .then(|| citywalk_runtime::frame::OccluderMeshes::upload_package(&gpu, &view));
+        let mut drawable =
+            DrawableScene::upload_package(&gpu, &gpu_scene, cluster_tree, Some((blocks, quadtree)));
+        if let Some(lod) = &mut drawable.lod {
+            lod.criterion = LOD_CRITERION.get().copied().flatten();
+        }
         // Uploaded: unmap the package.
         drop(gpu_scene);
         let scene = BenchScene {
             name: name.clone(),
-            gpu_scene: gpu_buildings,
-            blocks,
-            quadtree,
-            lod,
-            occluders,
+            drawable,
         };
         let load = SceneLoad {
             scene: name.clone(),
-            buildings: scene.gpu_scene.building_count(),
-            triangles: scene.gpu_scene.triangle_count,
+            buildings: scene.drawable.buildings.building_count(),
+            triangles: scene.drawable.buildings.triangle_count,
             ready_s: started.elapsed().as_secs_f64(),
             resident_mib: resident_mib().0,
         };

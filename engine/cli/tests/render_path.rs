@@ -153,6 +153,71 @@ fn render_writes_one_png_per_pose_of_a_path() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// `--mode` runs the frame through the culling stages of the benchmark's modes (the raw input is
+/// preprocessed first): the occlusion-culled frames of a path are the brute-force images, texel
+/// for texel but for at most 0.5 % of pixels (depth ties on coplanar faces drawn in another
+/// order), and the tool says which stages ran. `oracle` is refused.
+#[test]
+fn culled_modes_render_the_brute_force_frames() {
+    if !gpu_available("render_path modes") {
+        return;
+    }
+    let dir = temp_dir("render-modes");
+    let scene = dir.join("row.geojson");
+    write_scene(&scene);
+    let size = format!("{WIDTH}x{HEIGHT}");
+    let render = |mode: &str| {
+        let out = dir.join(mode);
+        let run = citywalk(&[
+            "render".as_ref(),
+            scene.as_os_str(),
+            "--path".as_ref(),
+            "street".as_ref(),
+            "--frames".as_ref(),
+            "4".as_ref(),
+            "--mode".as_ref(),
+            mode.as_ref(),
+            "--size".as_ref(),
+            size.as_ref(),
+            "-o".as_ref(),
+            out.as_os_str(),
+        ]);
+        assert!(
+            run.status.success(),
+            "{mode}: {}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        let stdout = String::from_utf8_lossy(&run.stdout).into_owned();
+        assert!(stdout.contains(&format!("mode {mode}")), "{stdout}");
+        frames(&out, 4)
+    };
+    let brute = render("brute");
+    for mode in ["hzb", "occluders"] {
+        for (i, (culled, full)) in render(mode).iter().zip(&brute).enumerate() {
+            let differing = culled
+                .pixels()
+                .zip(full.pixels())
+                .filter(|(a, b)| a != b)
+                .count();
+            assert!(
+                differing * 200 <= (WIDTH * HEIGHT) as usize,
+                "{mode} frame {i}: {differing} pixels differ from brute force"
+            );
+        }
+    }
+    let run = citywalk(&[
+        "render".as_ref(),
+        scene.as_os_str(),
+        "--mode".as_ref(),
+        "oracle".as_ref(),
+    ]);
+    assert!(!run.status.success());
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(stderr.contains("benchmark pseudo-mode"), "{stderr}");
+    // Best effort: a leftover temporary directory is harmless.
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn path_and_camera_are_mutually_exclusive() {
     let run = citywalk(&[

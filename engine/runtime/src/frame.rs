@@ -29,7 +29,10 @@
 //!
 //! **Why it is conservative.** The pyramid is built from depth that holds only real geometry
 //! (the ground and buildings drawn in full) and, with occluders on, virtual occluders, each of
-//! which lies inside its building, so anything they hide the building hides as well. A building
+//! which lies inside its building, so anything they hide the building hides as well (their
+//! depth is eroded by one texel as the pyramid reads it, so that rounding where an occluder's
+//! edge meets its building's silhouette cannot cover a pixel the building leaves open:
+//! [`crate::hzb::reference::erode`]). A building
 //! visible in the final image is therefore not behind that depth, the cull keeps it and the late
 //! pass draws it in the same frame, even right after a fast turn (disocclusion). Occluders are
 //! drawn into a depth target of their own, merged with the early depth only by the pyramid
@@ -666,7 +669,7 @@ impl CullingRenderer {
             self.draw_occluders(&mut pass, occluders);
         }
         let targets = self.targets.as_ref().expect("fit_targets ran");
-        targets.pyramid.build_timed(
+        targets.pyramid.build_occluders_timed(
             encoder,
             &targets.cull_depth_view,
             self.timer.compute_pass_writes("gate_pyramid"),

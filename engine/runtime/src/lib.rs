@@ -9,6 +9,7 @@ pub mod camera;
 pub mod camera_path_io;
 pub mod controller;
 pub mod cpu_clock;
+pub mod drawable;
 pub mod frame;
 pub mod gpu;
 pub mod gpu_timer;

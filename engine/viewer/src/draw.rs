@@ -10,17 +10,16 @@ use super::overlay::StageCounts;
 use super::settings::{DebugView, RenderSettings};
 use citywalk_runtime::auto::AutoPlanner;
 use citywalk_runtime::camera::Camera;
-use citywalk_runtime::frame::{FrameError, OccluderMeshes, Visibility};
+use citywalk_runtime::drawable::DrawableScene;
+use citywalk_runtime::frame::{FrameError, Visibility};
 use citywalk_runtime::gpu::GpuContext;
-use citywalk_runtime::lod::scene::LodScene;
 use citywalk_runtime::plan::SceneFeatures;
 use citywalk_runtime::render::DepthTarget;
 use citywalk_runtime::render::debug::pyramid::GreyRange;
 use citywalk_runtime::render::debug::{
     ClusterView, DepthPyramid, OccluderOverlay, OccluderOverlayMeshes, PyramidView,
 };
-use citywalk_runtime::runner::{Completion, FrameReport, FrameRunner, FrameTarget, SceneRefs};
-use citywalk_runtime::scene_gpu::SceneGpu;
+use citywalk_runtime::runner::{Completion, FrameReport, FrameRunner, FrameTarget};
 
 /// What the viewer draws from, on the CPU.
 #[derive(Debug)]
@@ -68,10 +67,7 @@ pub struct Drawn {
 #[derive(Debug)]
 pub struct FrameDrawer {
     runner: FrameRunner,
-    scene: SceneGpu,
-    lod: Option<LodScene>,
-    blocks: Option<(UrbanBlocks, BQuadtree)>,
-    occluders: Option<OccluderMeshes>,
+    drawable: DrawableScene,
     occluder_overlay_meshes: Option<OccluderOverlayMeshes>,
     /// Last frame's visible buildings, carried along the camera stream.
     visibility: Visibility,
@@ -92,37 +88,25 @@ pub struct FrameDrawer {
 impl FrameDrawer {
     /// Uploads `scene` and makes every pipeline for colour targets of `format`.
     pub fn new(gpu: &GpuContext, format: wgpu::TextureFormat, scene: ViewerScene) -> FrameDrawer {
-        let mut occluders = None;
-        let (plain, lod) = match &scene.gpu_scene {
+        let (drawable, occluder_overlay_meshes) = match &scene.gpu_scene {
             Some(package) => {
-                let view = package.view();
-                let plain = SceneGpu::upload_package(gpu, &view);
-                let lod = scene
-                    .cluster_tree
-                    .map(|tree| LodScene::upload_package(gpu, &plain, &view, tree));
-                if !view.occluders.records.is_empty() {
-                    occluders = Some((
-                        OccluderMeshes::upload_package(gpu, &view),
-                        OccluderOverlayMeshes::upload_package(gpu, &view),
-                    ));
-                }
-                (plain, lod)
+                let drawable =
+                    DrawableScene::upload_package(gpu, package, scene.cluster_tree, scene.blocks);
+                let overlay = drawable
+                    .occluders
+                    .is_some()
+                    .then(|| OccluderOverlayMeshes::upload_package(gpu, &package.view()));
+                (drawable, overlay)
             }
             None => (
-                SceneGpu::upload_city(gpu, &scene.city),
-                scene
-                    .cluster_tree
-                    .map(|tree| LodScene::upload(gpu, &scene.city, tree)),
+                DrawableScene::upload_city(gpu, &scene.city, scene.cluster_tree, scene.blocks),
+                None,
             ),
         };
-        let (occluders, occluder_overlay_meshes) = occluders.unzip();
         FrameDrawer {
             runner: FrameRunner::new(gpu, format),
-            scene: plain,
-            lod,
-            blocks: scene.blocks,
+            drawable,
             occluder_overlay_meshes,
-            occluders,
             visibility: Visibility::default(),
             last_report: None,
             auto: None,
@@ -136,7 +120,10 @@ impl FrameDrawer {
 
     /// Buildings and their triangles in the scene.
     pub fn scene_counts(&self) -> (usize, usize) {
-        (self.scene.building_count(), self.scene.triangle_count)
+        (
+            self.drawable.buildings.building_count(),
+            self.drawable.buildings.triangle_count,
+        )
     }
 
     /// Draws one frame from `camera` into `colour` (`width × height`; `depth` of that size for
@@ -163,12 +150,7 @@ impl FrameDrawer {
             settings.plan(features)
         };
         let start = std::time::Instant::now();
-        let refs = SceneRefs {
-            scene: &self.scene,
-            lod: self.lod.as_ref(),
-            blocks: self.blocks.as_ref().map(|(b, q)| (b, q)),
-            occluders: self.occluders.as_ref(),
-        };
+        let refs = self.drawable.refs();
         // The cluster view colours what this very frame drew: it waits for the frame's report.
         let wait = self.wait_for_reports || settings.debug_view == DebugView::Clusters;
         let completion = if wait {
@@ -241,9 +223,9 @@ impl FrameDrawer {
         settings: &RenderSettings,
         drawn: &mut Drawn,
     ) -> Result<(), FrameError> {
-        let scene = match (drawn.lod_scene, self.lod.as_ref()) {
+        let scene = match (drawn.lod_scene, self.drawable.lod.as_ref()) {
             (true, Some(lod)) => &lod.gpu_scene,
-            _ => &self.scene,
+            _ => &self.drawable.buildings,
         };
         let mut encoder = gpu
             .device

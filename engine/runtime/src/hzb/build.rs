@@ -6,7 +6,8 @@
 //! One compute dispatch per level (`shaders/wgsl/hzb_build.wgsl`), the first writing levels 0
 //! and 1 together; [`HzbPyramid::build_merged_timed`] builds from two depth buffers at once (the
 //! nearer depth of each texel kept), so the virtual occluders are drawn into a cleared depth of
-//! their own instead of into a full-screen copy of the frame's. Every level has its own
+//! their own instead of into a full-screen copy of the frame's. The occluders' depth is eroded
+//! by one texel as it is read ([`super::reference::erode`]). Every level has its own
 //! single-level views, the source level is a read-only storage texture and no level index is a
 //! shader value, which avoids the llvmpipe and GL traps of `/work/shared/GPU-NOTES.md`.
 //!
@@ -32,6 +33,7 @@ pub const HZB_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Float;
 pub struct HzbPyramid {
     device: wgpu::Device,
     copy_pipeline: wgpu::ComputePipeline,
+    eroded_pipeline: wgpu::ComputePipeline,
     merge_pipeline: wgpu::ComputePipeline,
     copy_layout: wgpu::BindGroupLayout,
     /// Mip 1 of the texture: pyramid level 1, or (a one-level pyramid) an unread spare.
@@ -46,6 +48,17 @@ pub struct HzbPyramid {
     all_levels_view: wgpu::TextureView,
     width: u32,
     height: u32,
+}
+
+/// The depth a pyramid is built from.
+#[derive(Debug, Clone, Copy)]
+enum PyramidSource<'a> {
+    /// Real geometry, taken as it is.
+    Depth(&'a wgpu::TextureView),
+    /// Virtual occluders (and the ground), eroded by one texel.
+    Occluders(&'a wgpu::TextureView),
+    /// Real geometry and virtual occluders, these eroded, the nearer depth kept.
+    Merged(&'a wgpu::TextureView, &'a wgpu::TextureView),
 }
 
 impl HzbPyramid {
@@ -112,6 +125,7 @@ impl HzbPyramid {
             })
         };
         let copy_pipeline = pipeline("hzb copy depth", &copy_layout, "copy_depth");
+        let eroded_pipeline = pipeline("hzb copy eroded", &copy_layout, "copy_eroded");
         let merge_pipeline = pipeline("hzb merge depths", &copy_layout, "merge_depths");
         let reduce_pipeline = pipeline("hzb reduce", &reduce_layout, "reduce");
 
@@ -196,6 +210,7 @@ impl HzbPyramid {
         Ok(HzbPyramid {
             device: device.clone(),
             copy_pipeline,
+            eroded_pipeline,
             merge_pipeline,
             copy_layout,
             level1_view,
@@ -224,38 +239,63 @@ impl HzbPyramid {
         depth_view: &wgpu::TextureView,
         timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
     ) {
-        self.encode(encoder, (depth_view, None), timestamp_writes);
+        self.encode(encoder, PyramidSource::Depth(depth_view), timestamp_writes);
+    }
+
+    /// As [`HzbPyramid::build_timed`], from a depth holding virtual occluders (the occluder
+    /// gate's: the ground and the occluders), eroded by one texel first
+    /// ([`super::reference::erode`] says why).
+    pub fn build_occluders_timed(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        occluder_view: &wgpu::TextureView,
+        timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
+    ) {
+        self.encode(
+            encoder,
+            PyramidSource::Occluders(occluder_view),
+            timestamp_writes,
+        );
     }
 
     /// As [`HzbPyramid::build_timed`], from the nearer (greater, reversed Z) depth of
-    /// `depth_view` and `merged_view` at each texel (both of this pyramid's size): the pyramid of
-    /// one depth buffer holding both.
+    /// `depth_view` and `occluder_view`, eroded ([`HzbPyramid::build_occluders_timed`]), at each
+    /// texel (both of this pyramid's size): the pyramid of one depth buffer holding both.
     pub fn build_merged_timed(
         &self,
         encoder: &mut wgpu::CommandEncoder,
         depth_view: &wgpu::TextureView,
-        merged_view: &wgpu::TextureView,
+        occluder_view: &wgpu::TextureView,
         timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
     ) {
-        self.encode(encoder, (depth_view, Some(merged_view)), timestamp_writes);
+        self.encode(
+            encoder,
+            PyramidSource::Merged(depth_view, occluder_view),
+            timestamp_writes,
+        );
     }
 
     fn encode(
         &self,
         encoder: &mut wgpu::CommandEncoder,
-        (depth_view, merged_view): (&wgpu::TextureView, Option<&wgpu::TextureView>),
+        source: PyramidSource<'_>,
         timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
     ) {
         let view = |binding, view| wgpu::BindGroupEntry {
             binding,
             resource: wgpu::BindingResource::TextureView(view),
         };
+        let (pipeline, depth_view, second_view) = match source {
+            PyramidSource::Depth(depth) => (&self.copy_pipeline, depth, depth),
+            PyramidSource::Occluders(occluders) => (&self.eroded_pipeline, occluders, occluders),
+            PyramidSource::Merged(depth, occluders) => (&self.merge_pipeline, depth, occluders),
+        };
         let copy_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("hzb copy depth"),
             layout: &self.copy_layout,
             entries: &[
                 view(0, depth_view),
-                view(5, merged_view.unwrap_or(depth_view)),
+                view(5, second_view),
                 view(1, &self.level_views[0]),
                 view(6, &self.level1_view),
             ],
@@ -264,11 +304,7 @@ impl HzbPyramid {
             label: Some("hzb build"),
             timestamp_writes,
         });
-        pass.set_pipeline(if merged_view.is_some() {
-            &self.merge_pipeline
-        } else {
-            &self.copy_pipeline
-        });
+        pass.set_pipeline(pipeline);
         pass.set_bind_group(0, &copy_group, &[]);
         // One invocation per texel of level 1 (the viewport halved, rounded up).
         let (w1, h1) = (self.width.div_ceil(2), self.height.div_ceil(2));

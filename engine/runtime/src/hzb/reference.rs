@@ -200,6 +200,43 @@ impl DepthPyramid {
     }
 }
 
+/// The virtual occluders' depth as the pyramid takes it: each texel the farthest (smallest,
+/// reversed Z) of itself and its four edge neighbours in `depth` (`width × height`, row-major),
+/// texels outside the viewport counting as cleared (0).
+///
+/// Why: an occluder lies inside its building (Germs & Jansen 2001), but where its edge meets the
+/// building's silhouette the two are rasterised by different draws, and the occluder can cover
+/// a pixel centre that the building leaves to what lies behind it: on a street path of the
+/// generated 1M city (640×360) an occluder whose corner projects 0.011 px left of a pixel
+/// centre covered it, hiding the one building seen there, with vertices identical to its
+/// building's. Such a pixel is within a fraction of a pixel of the occluder's edge, so its
+/// neighbour across the edge along the normal's larger axis (at least 0.7 px across) is
+/// uncovered or farther, and the eroded texel no nearer than what the image shows. The price is
+/// a pixel of each occluder's outline: on that city's street path `all` drew about 2.7× the
+/// buildings it drew before.
+pub fn erode(width: u32, height: u32, depth: &[f32]) -> Vec<f32> {
+    assert_eq!(depth.len(), (width * height) as usize, "depth buffer size");
+    let at = |x: i64, y: i64| {
+        if x < 0 || y < 0 || x >= i64::from(width) || y >= i64::from(height) {
+            0.0
+        } else {
+            depth[(y * i64::from(width) + x) as usize]
+        }
+    };
+    let mut out = Vec::with_capacity(depth.len());
+    for y in 0..i64::from(height) {
+        for x in 0..i64::from(width) {
+            let m = at(x, y)
+                .min(at(x - 1, y))
+                .min(at(x + 1, y))
+                .min(at(x, y - 1))
+                .min(at(x, y + 1));
+            out.push(m);
+        }
+    }
+    out
+}
+
 /// Minimum of the up to 2×2 texels of `prev` under texel `(x, y)` of the next level.
 pub fn reduce_texel(prev: &PyramidLevel, x: u32, y: u32) -> f32 {
     let mut m = f32::INFINITY;
@@ -448,6 +485,35 @@ mod tests {
             }
         }
         m
+    }
+
+    #[test]
+    fn erosion_keeps_only_texels_whose_edge_neighbours_are_covered() {
+        // A 4×3 occluder block at depth 0.5 with one nearer texel, in a 6×5 viewport whose
+        // right column the block touches.
+        let (w, h) = (6u32, 5u32);
+        let mut d = vec![0.0f32; (w * h) as usize];
+        for y in 1..4 {
+            for x in 2..6 {
+                d[(y * w + x) as usize] = 0.5;
+            }
+        }
+        d[(2 * w + 3) as usize] = 0.9;
+        let e = erode(w, h, &d);
+        // Only (3, 2) and (4, 2) have their four edge neighbours covered; (5, 2) lies at the
+        // viewport's edge, whose outside counts as cleared.
+        for y in 0..h {
+            for x in 0..w {
+                let want = if y == 2 && (x == 3 || x == 4) {
+                    0.5
+                } else {
+                    0.0
+                };
+                assert_eq!(e[(y * w + x) as usize], want, "({x}, {y})");
+            }
+        }
+        // Erosion never brings a texel nearer.
+        assert!(e.iter().zip(&d).all(|(a, b)| a <= b));
     }
 
     #[test]

@@ -1,0 +1,84 @@
+//! A scene ready to draw with any [`crate::plan::FramePlan`]: its buildings on the GPU and, where
+//! the scene has them, the structures the plan's stages use (the cluster tree's LOD scene, the
+//! urban blocks with their B-Quadtree, the virtual occluders). One upload for `render`, `view`
+//! and `bench`, so each draws the same buffers the same way.
+
+use citywalk_scenes::City;
+use citywalk_scenes::blocks::UrbanBlocks;
+use citywalk_scenes::cluster_tree::ClusterTree;
+use citywalk_scenes::package::GpuScene;
+use citywalk_scenes::quadtree::BQuadtree;
+
+use crate::frame::OccluderMeshes;
+use crate::gpu::GpuContext;
+use crate::lod::scene::LodScene;
+use crate::plan::SceneFeatures;
+use crate::runner::SceneRefs;
+use crate::scene_gpu::SceneGpu;
+
+/// The scene's buildings on the GPU, with the optional structures of the frame's stages.
+#[derive(Debug)]
+pub struct DrawableScene {
+    pub buildings: SceneGpu,
+    /// Buildings and cluster meshes over the same buffers, for the LOD cut (`None` without a
+    /// cluster tree).
+    pub lod: Option<LodScene>,
+    /// Urban blocks and their B-Quadtree, for frustum culling of whole blocks.
+    pub blocks: Option<(UrbanBlocks, BQuadtree)>,
+    /// The virtual occluders (`None` when the scene has none).
+    pub occluders: Option<OccluderMeshes>,
+}
+
+impl DrawableScene {
+    /// Uploads a package's GPU scene straight from its mapping (no meshing): buildings, the LOD
+    /// scene of `cluster_tree` over the same buffers, and the occluders the package holds.
+    pub fn upload_package(
+        gpu: &GpuContext,
+        gpu_scene: &GpuScene,
+        cluster_tree: Option<ClusterTree>,
+        blocks: Option<(UrbanBlocks, BQuadtree)>,
+    ) -> DrawableScene {
+        let view = gpu_scene.view();
+        let buildings = SceneGpu::upload_package(gpu, &view);
+        let lod = cluster_tree.map(|tree| LodScene::upload_package(gpu, &buildings, &view, tree));
+        let occluders = (!view.occluders.records.is_empty())
+            .then(|| OccluderMeshes::upload_package(gpu, &view));
+        DrawableScene {
+            buildings,
+            lod,
+            blocks,
+            occluders,
+        }
+    }
+
+    /// Meshes and uploads a city loaded from a raw input: no occluders (preprocessing makes
+    /// them) and no blocks unless given.
+    pub fn upload_city(
+        gpu: &GpuContext,
+        city: &City,
+        cluster_tree: Option<ClusterTree>,
+        blocks: Option<(UrbanBlocks, BQuadtree)>,
+    ) -> DrawableScene {
+        DrawableScene {
+            buildings: SceneGpu::upload_city(gpu, city),
+            lod: cluster_tree.map(|tree| LodScene::upload(gpu, city, tree)),
+            blocks,
+            occluders: None,
+        }
+    }
+
+    /// What a frame draws from.
+    pub fn refs(&self) -> SceneRefs<'_> {
+        SceneRefs {
+            scene: &self.buildings,
+            lod: self.lod.as_ref(),
+            blocks: self.blocks.as_ref().map(|(b, q)| (b, q)),
+            occluders: self.occluders.as_ref(),
+        }
+    }
+
+    /// What the scene offers the stages.
+    pub fn features(&self) -> SceneFeatures {
+        self.refs().features()
+    }
+}
