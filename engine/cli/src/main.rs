@@ -6,6 +6,7 @@ use clap::{Parser, Subcommand};
 mod bench;
 mod cli_args;
 mod demo;
+mod error_message;
 mod generate;
 mod input_args;
 mod inspect;
@@ -66,7 +67,7 @@ fn main() -> std::process::ExitCode {
         Err(e) => {
             // The message and its causes only: an error the user caused needs no backtrace,
             // even with RUST_BACKTRACE set (bugs panic, and panics keep theirs).
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", error_message::error_line(&e));
             std::process::ExitCode::FAILURE
         }
     }

@@ -55,6 +55,25 @@ fn preprocess_to_a_device_or_pipe_fails_and_leaves_it() {
     assert!(kind.is_fifo(), "the pipe was replaced");
 }
 
+/// A missing input names the file and says why once: the loader's message already holds the
+/// operating system's reason, which the printed error does not repeat.
+#[test]
+fn a_missing_input_says_why_once() {
+    let dir = temp_dir("hostile-missing");
+    let missing = dir.join("no-such-city.geojson");
+    let out = citywalk(&[
+        "preprocess",
+        path_str(&missing),
+        "-o",
+        path_str(&dir.join("x.cwk")),
+    ]);
+    let all = text(&out);
+    assert_eq!(out.status.code(), Some(1), "{all}");
+    assert!(all.contains(path_str(&missing)), "{all}");
+    // ENOENT, as std::io::Error prints it.
+    assert_eq!(all.matches("(os error 2)").count(), 1, "{all}");
+}
+
 /// A GeoJSON square `id` (lon/lat near 0) with the given properties.
 fn square(id: &str, x: f64, properties: serde_json::Value) -> serde_json::Value {
     let s = 0.0002;
