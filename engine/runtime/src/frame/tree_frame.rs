@@ -101,11 +101,13 @@ impl CullingRenderer {
         let frustum = Frustum::from_view_proj(view_proj);
         let (meshes, selected) = select_occluders(occluders, options, camera, &frustum, height);
         // No occluder gate in a tree frame (`options.occluder_gate` is not read): its early set
-        // is only last frame's kept buildings still in the cut, and the gate would cost a second
-        // occluder pass and pyramid. Measured on lavapipe: with the gate's occlusion test in
-        // `tree_early`, street frames (cameras far apart) took 2.5–4 s each, at 10k, 100k and 1M
-        // buildings alike (cause not found; LLVM was compiling during those frames); frustum-only
-        // early frames took 0.1–0.2 s.
+        // is only last frame's kept buildings still in the cut, and the gate costs a second
+        // occluder pass and pyramid. It was first left out because gated street frames took
+        // 2.5–4 s on lavapipe: the driver recompiling the cull shader for each new value of its
+        // uniform parameters, since read from storage buffers. Restored without that stall
+        // (generated 1M city, 640×360, 8 frames, lavapipe), it still cost more than it saved:
+        // `all` fell from 22.3× to 17.4× brute force on the walk and from 18.5× to 14.9× on the
+        // street path.
 
         let uniforms = view_uniforms(camera, width, height, &self.style);
         gpu.queue
