@@ -64,7 +64,7 @@ pub struct TreeCullParams {
     pub node_count: u32,
     /// Draw ids below this are buildings, `building_count + n` is node `n`'s cluster mesh.
     pub building_count: u32,
-    /// Levels of the tree (the one-workgroup walk's loop; the CPU sets it with the tree).
+    /// Levels of the tree: the walk's dispatches (set with the tree; no shader reads it).
     pub levels: u32,
 }
 

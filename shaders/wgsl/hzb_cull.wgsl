@@ -444,7 +444,7 @@ struct TreeCullParams {
     early_mark: u32,
     node_count: u32,
     building_count: u32,
-    // Levels of the tree (`tree_walk_one`'s loop).
+    // Levels of the tree: the CPU dispatches `tree_level` once per level (not read here).
     levels: u32,
 }
 
@@ -668,34 +668,6 @@ fn tree_level(
                 atomicStore(&counters[TREE_C_QUEUE_START + next], start + len);
             }
         }
-    }
-}
-
-// The whole walk in one workgroup, level after level with barriers between them: one dispatch
-// instead of one per level. For software adapters, where every dispatch costs a round of the
-// driver's thread pool and one workgroup walks the few hundred to few thousand nodes of a
-// street-level cut on one thread in well under a millisecond (engine `hzb::tree_cull`).
-@compute @workgroup_size(HZB_CULL_WORKGROUP, 1, 1)
-fn tree_walk_one(@builtin(local_invocation_index) local: u32) {
-    let levels = min(tree.levels, TREE_MAX_LEVELS);
-    for (var l = 0u; l < levels; l++) {
-        let start = atomicLoad(&counters[TREE_C_QUEUE_START + l]);
-        let len = atomicLoad(&counters[TREE_C_QUEUE_LEN + l]);
-        for (var i = local; i < len; i += HZB_CULL_WORKGROUP) {
-            if start + i < arrayLength(&queue) {
-                tree_node(l, queue[start + i], start + len);
-            }
-        }
-        storageBarrier();
-        workgroupBarrier();
-        if local == 0u {
-            atomicStore(&counters[TREE_C_LEVEL], l + 1u);
-            if l + 1u < TREE_MAX_LEVELS {
-                atomicStore(&counters[TREE_C_QUEUE_START + l + 1u], start + len);
-            }
-        }
-        storageBarrier();
-        workgroupBarrier();
     }
 }
 

@@ -1194,7 +1194,6 @@ fn den_haag_gpu_cut_frame_is_conservative() {
 #[test]
 fn gpu_cut_matches_its_cpu_reference() {
     use citywalk_runtime::hzb::reference::tree_cull;
-    use citywalk_runtime::hzb::tree_cull::TreeWalk;
     use citywalk_runtime::lod::LodView;
     use citywalk_runtime::lod::gpu_tree::{TreeArrays, tree_params};
 
@@ -1210,12 +1209,6 @@ fn gpu_cut_matches_its_cpu_reference() {
         // The plain and LOD scenes share their parts.
         let parts = &scene.scene.parts;
         for i in 0..8 {
-            let walk = if i % 3 == 0 {
-                TreeWalk::PerLevel
-            } else {
-                TreeWalk::OneWorkgroup
-            };
-            h.renderer.set_tree_walk(walk);
             let size = if i % 2 == 0 { (1001, 777) } else { (320, 200) };
             let camera = if i % 4 < 2 {
                 street_camera(&mut rng, &scene.city)
@@ -1281,7 +1274,7 @@ fn gpu_cut_matches_its_cpu_reference() {
                 .collect();
             assert!(
                 missing.is_empty(),
-                "{} camera {} {size:?} {walk:?}: the reference keeps {missing:?}, the GPU does not",
+                "{} camera {} {size:?}: the reference keeps {missing:?}, the GPU does not",
                 scene.name,
                 camera.to_arg_string()
             );

@@ -61,12 +61,6 @@ impl CullingRenderer {
         self.multi_draw_count && lod.tree_gpu.levels <= TREE_MAX_LEVELS
     }
 
-    /// Dispatches tree frames' walks as `walk` from now on instead of the adapter's default
-    /// ([`crate::hzb::tree_cull::TreeWalk::for_adapter`]); both walks keep the same set.
-    pub fn set_tree_walk(&mut self, walk: crate::hzb::tree_cull::TreeWalk) {
-        self.tree_cull.walk = walk;
-    }
-
     /// Kept and early ids the next tree frame's report copies.
     pub fn tree_report_entries(&self) -> u32 {
         self.tree_report_entries
