@@ -64,8 +64,10 @@ pub struct TreeCullParams {
     pub node_count: u32,
     /// Draw ids below this are buildings, `building_count + n` is node `n`'s cluster mesh.
     pub building_count: u32,
-    /// Levels of the tree: the walk's dispatches (set with the tree; no shader reads it).
-    pub levels: u32,
+    /// Workgroups of each early and level dispatch, which stride over their entries
+    /// ([`TREE_WALK_WORKGROUPS`](crate::constants::TREE_WALK_WORKGROUPS) or, on a software
+    /// adapter, [`TREE_WALK_WORKGROUPS_SOFTWARE`](crate::constants::TREE_WALK_WORKGROUPS_SOFTWARE)).
+    pub walk_workgroups: u32,
 }
 
 /// One cluster tree node as the tree cull reads it. WGSL twin: `TreeNode` in
@@ -179,7 +181,10 @@ mod tests {
             ("early_mark", offset_of!(TreeCullParams, early_mark)),
             ("node_count", offset_of!(TreeCullParams, node_count)),
             ("building_count", offset_of!(TreeCullParams, building_count)),
-            ("levels", offset_of!(TreeCullParams, levels)),
+            (
+                "walk_workgroups",
+                offset_of!(TreeCullParams, walk_workgroups),
+            ),
         ];
         assert_eq!(members.len(), rust.len());
         for ((name, offset), (want, at)) in members.iter().zip(rust) {

@@ -444,8 +444,9 @@ struct TreeCullParams {
     early_mark: u32,
     node_count: u32,
     building_count: u32,
-    // Levels of the tree: the CPU dispatches `tree_level` once per level (not read here).
-    levels: u32,
+    // Workgroups of each `tree_early` and `tree_level` dispatch (per adapter: engine
+    // `hzb::tree_cull`).
+    walk_workgroups: u32,
 }
 
 struct TreeNode {
@@ -585,9 +586,9 @@ fn tree_begin() {
 @compute @workgroup_size(HZB_CULL_WORKGROUP, 1, 1)
 fn tree_early(@builtin(global_invocation_id) gid: vec3<u32>) {
     let count = atomicLoad(&counters[TREE_C_LAST_KEPT]);
-    // Dispatched with TREE_WALK_WORKGROUPS workgroups (not read from `num_workgroups`, which
+    // Dispatched with `tree.walk_workgroups` workgroups (not read from `num_workgroups`, which
     // D3D12 reports as 0 without wgpu's indirect-call validation).
-    let stride = TREE_WALK_WORKGROUPS * HZB_CULL_WORKGROUP;
+    let stride = tree.walk_workgroups * HZB_CULL_WORKGROUP;
     let rounds = (count + stride - 1u) / stride;
     for (var r = 0u; r < rounds; r++) {
         let i = gid.x + r * stride;
@@ -651,7 +652,7 @@ fn tree_level(
     let l = min(atomicLoad(&counters[TREE_C_LEVEL]), TREE_MAX_LEVELS - 1u);
     let start = atomicLoad(&counters[TREE_C_QUEUE_START + l]);
     let len = atomicLoad(&counters[TREE_C_QUEUE_LEN + l]);
-    for (var i = gid.x; i < len; i += TREE_WALK_WORKGROUPS * HZB_CULL_WORKGROUP) {
+    for (var i = gid.x; i < len; i += tree.walk_workgroups * HZB_CULL_WORKGROUP) {
         if start + i < arrayLength(&queue) {
             tree_node(l, queue[start + i], start + len);
         }
@@ -660,7 +661,7 @@ fn tree_level(
     workgroupBarrier();
     if local == 0u {
         let done = atomicAdd(&counters[TREE_C_DONE], 1u) + 1u;
-        if done == TREE_WALK_WORKGROUPS {
+        if done == tree.walk_workgroups {
             atomicStore(&counters[TREE_C_DONE], 0u);
             let next = l + 1u;
             atomicStore(&counters[TREE_C_LEVEL], next);

@@ -99,9 +99,10 @@ impl CullingRenderer {
         // occluder pass and pyramid. It was first left out because gated street frames took
         // 2.5–4 s on lavapipe: the driver recompiling the cull shader for each new value of its
         // uniform parameters, since read from storage buffers. Restored without that stall
-        // (generated 1M city, 640×360, 8 frames, lavapipe), it still cost more than it saved:
-        // `all` fell from 22.3× to 17.4× brute force on the walk and from 18.5× to 14.9× on the
-        // street path.
+        // (generated 1M city, 640×360, 8 frames, lavapipe), it cost more than it saved: `all`
+        // fell from 22.3× to 17.4× brute force on the walk and from 18.5× to 14.9× on the street
+        // path. That was measured with the one-workgroup walk, since found to drop nodes, and is
+        // to be measured again.
 
         let uniforms = view_uniforms(camera, width, height, &self.style);
         gpu.queue

@@ -26,7 +26,9 @@
 //! still in its cut and inside the frustum, marks them in a per-draw-id buffer with the frame's number (no clear)
 //! and lists them for the report; the walk appends no second draw for a marked id.
 
-use citywalk_shaders::constants::{TREE_C_WORDS, TREE_LIST_HEADER, TREE_WALK_WORKGROUPS};
+use citywalk_shaders::constants::{
+    TREE_C_WORDS, TREE_LIST_HEADER, TREE_WALK_WORKGROUPS, TREE_WALK_WORKGROUPS_SOFTWARE,
+};
 use citywalk_shaders::{
     DrawIndexedIndirectArgs, HZB_CULL_WGSL, HzbCullParams, TreeCullParams, TreeLandmark, TreeNode,
 };
@@ -104,6 +106,9 @@ pub struct TreeCull {
     begin: wgpu::ComputePipeline,
     early: wgpu::ComputePipeline,
     level: wgpu::ComputePipeline,
+    /// Workgroups of each early and level dispatch: fewer on a software adapter, whose threads
+    /// run them one after another.
+    walk_workgroups: u32,
     params: wgpu::Buffer,
     tree_params: wgpu::Buffer,
     counters: wgpu::Buffer,
@@ -182,6 +187,11 @@ impl TreeCull {
             begin: pipeline("tree_begin", &walk_layout),
             early: pipeline("tree_early", &walk_layout),
             level: pipeline("tree_level", &walk_layout),
+            walk_workgroups: if gpu.is_software() {
+                TREE_WALK_WORKGROUPS_SOFTWARE
+            } else {
+                TREE_WALK_WORKGROUPS
+            },
             params: uniform_buffer("tree cull params", size_of::<HzbCullParams>() as u64),
             tree_params: uniform_buffer(
                 "tree cull tree params",
@@ -224,7 +234,7 @@ impl TreeCull {
         params.root = inputs.tree.root;
         params.node_count = inputs.tree.node_count;
         params.queue_capacity = inputs.tree.node_count;
-        params.levels = inputs.tree.levels;
+        params.walk_workgroups = self.walk_workgroups;
         let (width, height) = pyramid.size();
         let view = HzbCullParams {
             view_proj: view_proj.to_cols_array_2d(),
@@ -289,7 +299,7 @@ impl TreeCull {
         pass.set_pipeline(&self.begin);
         pass.dispatch_workgroups(1, 1, 1);
         pass.set_pipeline(&self.early);
-        pass.dispatch_workgroups(TREE_WALK_WORKGROUPS, 1, 1);
+        pass.dispatch_workgroups(self.walk_workgroups, 1, 1);
     }
 
     /// The walk over the tree's levels against `pyramid` (the main one).
@@ -308,7 +318,7 @@ impl TreeCull {
         pass.set_bind_group(0, &group, &[]);
         pass.set_pipeline(&self.level);
         for _ in 0..inputs.tree.levels {
-            pass.dispatch_workgroups(TREE_WALK_WORKGROUPS, 1, 1);
+            pass.dispatch_workgroups(self.walk_workgroups, 1, 1);
         }
     }
 
