@@ -88,6 +88,16 @@ fn generated(gpu: &GpuContext) -> TestScene {
     prepare(gpu, "generated-1500", package)
 }
 
+/// A generated city of 20,000 buildings: deeper trees and wider cuts than the small cities (a
+/// tree walk that dropped nodes on wide cuts lost a visible building at 1M buildings).
+fn generated_wide(gpu: &GpuContext) -> TestScene {
+    static CELL: OnceLock<ScenePackage> = OnceLock::new();
+    let package = preprocessed(&CELL, || {
+        generate_city(&GenerateParams::new(20_000, 13)).expect("generate")
+    });
+    prepare(gpu, "generated-20000", package)
+}
+
 fn chelsea(gpu: &GpuContext) -> TestScene {
     static CELL: OnceLock<ScenePackage> = OnceLock::new();
     let package = preprocessed(&CELL, || {
@@ -1189,8 +1199,9 @@ fn den_haag_gpu_cut_frame_is_conservative() {
 /// The tree cull's kept draw ids against its CPU reference
 /// (`citywalk_runtime::hzb::reference::tree_cull`) over the pyramid the frame culled against:
 /// the GPU keeps everything the reference keeps (its tests are widened for rounding) and at most
-/// a few more; on street and aerial cameras of the generated city and Den Haag, at two sizes,
-/// with the walk dispatched per level and in one workgroup.
+/// a few more; on street and aerial cameras of two generated cities (1,500 and 20,000 buildings)
+/// and Den Haag, at two sizes,
+/// with the walk dispatched with the adapter's workgroup count.
 #[test]
 fn gpu_cut_matches_its_cpu_reference() {
     use citywalk_runtime::hzb::reference::tree_cull;
@@ -1201,9 +1212,10 @@ fn gpu_cut_matches_its_cpu_reference() {
         return;
     };
     let den_haag = den_haag(&h.gpu);
+    let wide = generated_wide(&h.gpu);
     let mut rng = Rng(0x5eed_0301);
     let (mut compared, mut extra, mut clusters) = (0usize, 0usize, 0usize);
-    for scene in [&generated_city, &den_haag] {
+    for scene in [&generated_city, &den_haag, &wide] {
         let lod = &scene.lod;
         let arrays = TreeArrays::build(&lod.tree, lod.building_count);
         // The plain and LOD scenes share their parts.
