@@ -99,10 +99,10 @@ impl CullingRenderer {
         // occluder pass and pyramid. It was first left out because gated street frames took
         // 2.5–4 s on lavapipe: the driver recompiling the cull shader for each new value of its
         // uniform parameters, since read from storage buffers. Restored without that stall
-        // (generated 1M city, 640×360, 8 frames, lavapipe), it cost more than it saved: `all`
-        // fell from 22.3× to 17.4× brute force on the walk and from 18.5× to 14.9× on the street
-        // path. That was measured with the one-workgroup walk, since found to drop nodes, and is
-        // to be measured again.
+        // (generated 1M city, 640×360, 8 frames, lavapipe, two runs each), it drew fewer
+        // buildings (458 instead of 867 a walk frame, 5,371 instead of 6,161 a street frame)
+        // but did not pay: `all` 18.1–19.5× brute force on the walk against 17.7–20.4× without,
+        // 16.2–16.9× on the street path against 20.9–21.9×.
 
         let uniforms = view_uniforms(camera, width, height, &self.style);
         gpu.queue
