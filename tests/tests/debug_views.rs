@@ -5,6 +5,7 @@
 //! project, highlighted when selected, and leaves the rest of the frame alone.
 
 use citywalk_runtime::camera::Camera;
+use citywalk_runtime::frame::OccluderMeshes;
 use citywalk_runtime::gpu::GpuContext;
 use citywalk_runtime::render::debug::clusters::cluster_colour;
 use citywalk_runtime::render::debug::pyramid::{GreyRange, pyramid_grey};
@@ -206,7 +207,8 @@ fn occluder_view_blends_occluders_where_they_project_and_highlights_the_selected
         }],
         per_building: Vec::new(),
     };
-    let meshes = OccluderOverlayMeshes::upload(&gpu, &set);
+    let frame_meshes = OccluderMeshes::upload(&gpu, &set);
+    let meshes = OccluderOverlayMeshes::of(&frame_meshes);
     assert_eq!(meshes.ranges.len(), 1);
     let camera = Camera::new(Vec3::new(0.0, 0.0, 10.0), 0.0, 0.0);
     let size = (80, 60);

@@ -92,10 +92,7 @@ impl FrameDrawer {
             Some(package) => {
                 let drawable =
                     DrawableScene::upload_package(gpu, package, scene.cluster_tree, scene.blocks);
-                let overlay = drawable
-                    .occluders
-                    .is_some()
-                    .then(|| OccluderOverlayMeshes::upload_package(gpu, &package.view()));
+                let overlay = drawable.occluders.as_ref().map(OccluderOverlayMeshes::of);
                 (drawable, overlay)
             }
             None => (

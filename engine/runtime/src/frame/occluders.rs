@@ -137,6 +137,12 @@ impl OccluderMeshes {
 }
 
 impl OccluderMeshes {
+    /// The vertex buffer and the index buffer (absolute indices: every occluder's range
+    /// `first_index .. first_index + index_count` draws with base vertex 0).
+    pub fn buffers(&self) -> (&wgpu::Buffer, &wgpu::Buffer) {
+        (&self.vertex_buffer, &self.index_buffer)
+    }
+
     /// The draws of the `selected` occluders, those adjacent in the index buffer merged into one
     /// draw (the buffer holds absolute indices, so any run of adjacent ranges is one range), in
     /// index order. Occluders of one block lie together in the arrays, so the hundreds to

@@ -199,28 +199,6 @@ pub fn fullscreen_pipeline(
     })
 }
 
-/// Vertex and index buffers (`"{label} vertices"`, `"{label} indices"`) of a triangle mesh;
-/// an empty side gets one degenerate element, so both can always be bound.
-pub(crate) fn mesh_buffers(
-    device: &wgpu::Device,
-    label: &str,
-    vertices: &[citywalk_shaders::SceneVertex],
-    indices: &[u32],
-) -> (wgpu::Buffer, wgpu::Buffer) {
-    use wgpu::util::DeviceExt;
-    let indices = if indices.is_empty() {
-        &[0, 0, 0][..]
-    } else {
-        indices
-    };
-    let index_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some(&format!("{label} indices")),
-        contents: bytemuck::cast_slice(indices),
-        usage: wgpu::BufferUsages::INDEX,
-    });
-    (vertex_buffer(device, label, vertices), index_buffer)
-}
-
 /// A vertex buffer of `vertices` (one zero vertex when empty, so it can always be bound).
 pub(crate) fn vertex_buffer(
     device: &wgpu::Device,

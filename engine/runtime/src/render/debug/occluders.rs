@@ -5,15 +5,13 @@
 //! by a depth-only draw first, so each pixel blends its nearest occluder surface once) but not
 //! the scene, which they lie inside.
 
-use citywalk_scenes::occluder::OccluderSet;
-use citywalk_scenes::occluder_draws::{OccluderArrays, OccluderArraysView};
-use citywalk_scenes::package::GpuSceneView;
 use citywalk_shaders::DEBUG_OCCLUDERS_WGSL;
 #[cfg(doc)]
 use citywalk_shaders::constants::{DEBUG_OCCLUDER_RGB, DEBUG_OCCLUDER_SELECTED_RGB};
 
 use super::{DebugCamera, DebugPipelineMode};
 use crate::camera::Camera;
+use crate::frame::OccluderMeshes;
 use crate::gpu::GpuContext;
 
 /// One occluder's triangles in [`OccluderOverlayMeshes`].
@@ -26,8 +24,8 @@ pub struct OccluderRange {
     pub index_count: u32,
 }
 
-/// Every occluder mesh of a scene in one vertex and one index buffer with absolute indices,
-/// so the whole set is one draw.
+/// Every occluder mesh of a scene in one vertex and one index buffer with absolute indices
+/// (the frame's own, [`OccluderMeshes`]), so the whole set is one draw.
 #[derive(Debug)]
 pub struct OccluderOverlayMeshes {
     vertex_buffer: wgpu::Buffer,
@@ -39,45 +37,34 @@ pub struct OccluderOverlayMeshes {
 }
 
 impl OccluderOverlayMeshes {
-    /// Uploads the occluders of `set`, as [`crate::frame::OccluderMeshes::upload`] draws them.
-    pub fn upload(gpu: &GpuContext, set: &OccluderSet) -> OccluderOverlayMeshes {
-        Self::upload_arrays(gpu, OccluderArrays::of(set).view())
-    }
-
-    /// Uploads the occluders of a package's GPU scene.
-    pub fn upload_package(gpu: &GpuContext, scene: &GpuSceneView<'_>) -> OccluderOverlayMeshes {
-        Self::upload_arrays(gpu, scene.occluders)
-    }
-
-    /// The arrays with absolute indices (each occluder's base vertex added), so the whole set is
-    /// one draw.
-    fn upload_arrays(gpu: &GpuContext, arrays: OccluderArraysView<'_>) -> OccluderOverlayMeshes {
-        let mut indices: Vec<u32> = Vec::with_capacity(arrays.indices.len());
-        let mut ranges = Vec::with_capacity(arrays.records.len());
-        for r in arrays.records {
-            let first = r.first_index as usize;
-            let relative = &arrays.indices[first..first + r.index_count as usize];
-            ranges.push(OccluderRange {
-                building: r.building,
-                first_index: indices.len() as u32,
-                index_count: r.index_count,
-            });
-            indices.extend(relative.iter().map(|&v| r.base_vertex + v));
-        }
-        let (vertex_buffer, index_buffer) =
-            crate::render::mesh_buffers(&gpu.device, "debug occluder", arrays.vertices, &indices);
+    /// The overlay of the frame's occluders over their own vertex and index buffers (absolute
+    /// indices, [`OccluderMeshes::buffers`]): no second upload of every occluder mesh (at a
+    /// million buildings, hundreds of megabytes that a software adapter holds in process memory).
+    pub fn of(meshes: &OccluderMeshes) -> OccluderOverlayMeshes {
+        let (vertex_buffer, index_buffer) = meshes.buffers();
         OccluderOverlayMeshes {
-            vertex_buffer,
-            index_buffer,
-            ranges,
+            vertex_buffer: vertex_buffer.clone(),
+            index_buffer: index_buffer.clone(),
+            ranges: meshes
+                .occluders
+                .iter()
+                .map(|o| OccluderRange {
+                    building: o.building,
+                    first_index: o.draw.first_index,
+                    index_count: o.draw.index_count,
+                })
+                .collect(),
         }
     }
 
-    /// Indices of all occluders together.
+    /// Indices from the first up to the end of the last occluder: all of them in one draw
+    /// (indices between ranges, if any, are zero: degenerate triangles).
     fn index_count(&self) -> u32 {
         self.ranges
-            .last()
-            .map_or(0, |r| r.first_index + r.index_count)
+            .iter()
+            .map(|r| r.first_index.saturating_add(r.index_count))
+            .max()
+            .unwrap_or(0)
     }
 }
 
