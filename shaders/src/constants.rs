@@ -92,18 +92,6 @@ pub const TREE_EARLY_FRUSTUM: u32 = 1;
 /// Tree cull: the deepest tree it walks (levels below the root, plus one).
 pub const TREE_MAX_LEVELS: u32 = 64;
 
-/// Tree cull: workgroups of each early and level dispatch on a hardware adapter, which stride
-/// over their entries (`TreeCullParams::walk_workgroups`). A fixed count rather than an indirect
-/// dispatch sized by the previous level: on lavapipe the dispatch that writes the arguments and
-/// the barrier before the indirect read cost about 8 ms per tree level, the fixed dispatches
-/// 0.05 ms.
-pub const TREE_WALK_WORKGROUPS: u32 = 64;
-
-/// Tree cull: workgroups of each dispatch on a software adapter, whose few threads run the
-/// workgroups one after another: on the generated 1M city (lavapipe, 640×360) the walk took
-/// 23.7 ms a walk frame and 32.8 ms a street frame with 64 workgroups, 2.9 ms and 8.9 ms with 4.
-pub const TREE_WALK_WORKGROUPS_SOFTWARE: u32 = 4;
-
 /// Tree cull: word indices of its counters buffer. The level being walked; draws appended
 /// by the early entry and by the levels (the indirect draw counts); entries of the early list;
 /// buildings culled by the frustum and by occlusion (whole subtrees); overflow (a queue or list
@@ -151,8 +139,6 @@ pub const WGSL_U32: &[(&str, u32)] = &[
     ("TREE_EARLY_NONE", TREE_EARLY_NONE),
     ("TREE_EARLY_FRUSTUM", TREE_EARLY_FRUSTUM),
     ("TREE_MAX_LEVELS", TREE_MAX_LEVELS),
-    ("TREE_WALK_WORKGROUPS", TREE_WALK_WORKGROUPS),
-    ("TREE_WALK_WORKGROUPS_SOFTWARE", TREE_WALK_WORKGROUPS_SOFTWARE),
     ("TREE_C_DONE", TREE_C_DONE),
     ("TREE_C_LEVEL", TREE_C_LEVEL),
     ("TREE_C_EARLY_DRAWS", TREE_C_EARLY_DRAWS),

@@ -64,9 +64,8 @@ pub struct TreeCullParams {
     pub node_count: u32,
     /// Draw ids below this are buildings, `building_count + n` is node `n`'s cluster mesh.
     pub building_count: u32,
-    /// Workgroups of each early and level dispatch, which stride over their entries
-    /// ([`TREE_WALK_WORKGROUPS`](crate::constants::TREE_WALK_WORKGROUPS) or, on a software
-    /// adapter, [`TREE_WALK_WORKGROUPS_SOFTWARE`](crate::constants::TREE_WALK_WORKGROUPS_SOFTWARE)).
+    /// Workgroups of each early and level dispatch, which stride over their entries (fewer on
+    /// a software adapter: engine `hzb::tree_cull`).
     pub walk_workgroups: u32,
 }
 

@@ -204,11 +204,7 @@ fn render_mode(
             None,
             visibility,
             camera,
-            FrameTarget {
-                colour: &target.colour_view,
-                depth: &target.depth,
-                size: (target.width, target.height),
-            },
+            FrameTarget::offscreen(target),
             (Completion::Wait, true),
         )?
         .expect("a waited frame has its report");

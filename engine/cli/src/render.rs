@@ -219,11 +219,7 @@ impl<'a> Frames<'a> {
                 None,
                 &mut self.visibility,
                 camera,
-                FrameTarget {
-                    colour: &target.colour_view,
-                    depth: &target.depth,
-                    size: (target.width, target.height),
-                },
+                FrameTarget::offscreen(target),
                 (Completion::Wait, false),
             )?
             .context("a waited frame has its report")?;

@@ -51,20 +51,17 @@ impl DrawableScene {
         }
     }
 
-    /// Meshes and uploads a city loaded from a raw input: no occluders (preprocessing makes
-    /// them) and no blocks unless given.
+    /// Meshes and uploads a city loaded from a raw input, as preprocessing does for a package
+    /// (once, the buildings and the cluster meshes of `cluster_tree` in shared buffers): no
+    /// occluders (preprocessing makes them) and no blocks unless given.
     pub fn upload_city(
         gpu: &GpuContext,
         city: &City,
         cluster_tree: Option<ClusterTree>,
         blocks: Option<(UrbanBlocks, BQuadtree)>,
     ) -> DrawableScene {
-        DrawableScene {
-            buildings: SceneGpu::upload_city(gpu, city),
-            lod: cluster_tree.map(|tree| LodScene::upload(gpu, city, tree)),
-            blocks,
-            occluders: None,
-        }
+        let gpu_scene = GpuScene::build(city, cluster_tree.as_ref(), None);
+        Self::upload_package(gpu, &gpu_scene, cluster_tree, blocks)
     }
 
     /// What a frame draws from.

@@ -37,6 +37,7 @@ use crate::lod::scene::{LodFrame, LodScene};
 use crate::lod::{LodCriterion, LodView};
 use crate::plan::{FramePlan, SceneFeatures};
 use crate::render::selected::SelectedRenderer;
+use crate::render::targets::OffscreenTarget;
 use crate::render::{BruteRenderer, DepthTarget};
 use crate::scene_gpu::SceneGpu;
 
@@ -79,6 +80,17 @@ pub struct FrameTarget<'a> {
     /// Depth for the plain passes (the HZB frame owns its own).
     pub depth: &'a DepthTarget,
     pub size: (u32, u32),
+}
+
+impl<'a> FrameTarget<'a> {
+    /// The whole of an offscreen target (the benchmark's, `render`'s).
+    pub fn offscreen(target: &'a OffscreenTarget) -> FrameTarget<'a> {
+        FrameTarget {
+            colour: &target.colour_view,
+            depth: &target.depth,
+            size: (target.width, target.height),
+        }
+    }
 }
 
 /// One frame's report, whatever its plan.
