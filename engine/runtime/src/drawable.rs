@@ -31,7 +31,9 @@ pub struct DrawableScene {
 
 impl DrawableScene {
     /// Uploads a package's GPU scene straight from its mapping (no meshing): buildings, the LOD
-    /// scene of `cluster_tree` over the same buffers, and the occluders the package holds.
+    /// scene of `cluster_tree` over the same buffers, and the occluders the package holds. The
+    /// mapping's pages leave resident memory as they are uploaded (the CPU copies of the
+    /// records read them again from the page cache).
     pub fn upload_package(
         gpu: &GpuContext,
         gpu_scene: &GpuScene,
@@ -43,6 +45,7 @@ impl DrawableScene {
         let lod = cluster_tree.map(|tree| LodScene::upload_package(gpu, &buildings, &view, tree));
         let occluders = (!view.occluders.records.is_empty())
             .then(|| OccluderMeshes::upload_package(gpu, &view));
+        view.release_resident(gpu_scene.bytes());
         DrawableScene {
             buildings,
             lod,

@@ -20,3 +20,4 @@ pub mod plan;
 pub mod render;
 pub mod runner;
 pub mod scene_gpu;
+pub mod upload;

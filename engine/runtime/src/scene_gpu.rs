@@ -9,15 +9,15 @@
 //! The layout is computed on the CPU by [`SceneGeometry`]; a scene package holds it ready
 //! ([`GpuSceneView`]), and [`SceneGpu::upload_package`] uploads it from the package's mapping.
 
-use bytemuck::Zeroable;
 use citywalk_scenes::City;
 use citywalk_scenes::frustum::{Containment, Frustum};
 use citywalk_scenes::package::GpuSceneView;
 use citywalk_shaders::{BuildingRecord, CullPart, DrawIndexedIndirectArgs, SceneVertex};
 use glam::Vec3;
-use wgpu::util::DeviceExt;
+use std::sync::Arc;
 
 use crate::gpu::GpuContext;
+use crate::upload::{array_buffer, buffer_from_chunks};
 
 pub use citywalk_scenes::cull_parts;
 pub use citywalk_scenes::scene_geometry::{SceneGeometry, check_layout};
@@ -47,8 +47,8 @@ pub struct SceneGpu {
     pub all_draws_buffer: wgpu::Buffer,
     /// CPU copy of the records, indexed by building id.
     pub records: Vec<BuildingRecord>,
-    /// CPU copy of the cull parts.
-    pub parts: Vec<CullPart>,
+    /// CPU copy of the cull parts (shared by the scenes over the same buffers).
+    pub parts: Arc<[CullPart]>,
     /// The ground plane's draw.
     pub ground: DrawIndexedIndirectArgs,
     /// Bounds of all buildings.
@@ -65,13 +65,17 @@ impl SceneGpu {
 
     /// Uploads prepared geometry.
     pub fn upload(gpu: &GpuContext, geometry: &SceneGeometry) -> SceneGpu {
-        let geometry_buffers =
-            GeometryBuffers::upload(gpu, &geometry.vertices, &geometry.indices, &geometry.parts);
+        let arrays = (
+            &geometry.vertices[..],
+            &geometry.indices[..],
+            &geometry.parts[..],
+        );
+        let geometry_buffers = GeometryBuffers::upload(gpu, arrays, &|_| {});
         Self::with_records(
             gpu,
             geometry_buffers,
             &geometry.records,
-            &geometry.parts,
+            geometry.parts.as_slice().into(),
             geometry.ground,
             geometry.bounds,
         )
@@ -79,16 +83,18 @@ impl SceneGpu {
 
     /// Uploads the buildings of a package's GPU scene straight from its bytes (no meshing):
     /// the records of draw ids `0..building_count`, with the whole vertex, index and part
-    /// arrays, which [`crate::lod::scene::LodScene::upload_package`] then shares.
+    /// arrays, which [`crate::lod::scene::LodScene::upload_package`] then shares. The view's
+    /// pages are released as they are uploaded ([`GpuSceneView::release_resident`]).
     pub fn upload_package(gpu: &GpuContext, view: &GpuSceneView<'_>) -> SceneGpu {
         let buildings = &view.records[..view.building_count as usize];
-        let geometry_buffers =
-            GeometryBuffers::upload(gpu, view.vertices, view.indices, view.parts);
+        let release = |bytes: &[u8]| view.release_resident(bytes);
+        let arrays = (view.vertices, view.indices, view.parts);
+        let geometry_buffers = GeometryBuffers::upload(gpu, arrays, &release);
         Self::with_records(
             gpu,
             geometry_buffers,
             buildings,
-            view.parts,
+            view.parts.into(),
             view.ground,
             records_bounds(buildings),
         )
@@ -111,7 +117,7 @@ impl SceneGpu {
             gpu,
             geometry_buffers,
             records,
-            &shared.parts,
+            Arc::clone(&shared.parts),
             shared.ground,
             bounds,
         )
@@ -121,29 +127,35 @@ impl SceneGpu {
         gpu: &GpuContext,
         buffers: GeometryBuffers,
         records: &[BuildingRecord],
-        parts: &[CullPart],
+        parts: Arc<[CullPart]>,
         ground: DrawIndexedIndirectArgs,
         bounds: (Vec3, Vec3),
     ) -> SceneGpu {
-        let device = &gpu.device;
-        let padded = [BuildingRecord::zeroed()];
-        let records_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("building records"),
-            contents: bytemuck::cast_slice(if records.is_empty() { &padded } else { records }),
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-        });
-        let all_draws: Vec<DrawIndexedIndirectArgs> = records
-            .iter()
-            .map(BuildingRecord::draw_args)
-            .chain(std::iter::once(ground))
-            .collect();
-        let all_draws_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("all building draws"),
-            contents: bytemuck::cast_slice(&all_draws),
-            usage: wgpu::BufferUsages::INDIRECT
+        // At least one record long (zeroed), so the buffer can always be bound.
+        let records_buffer = array_buffer(
+            gpu,
+            "building records",
+            records,
+            wgpu::BufferUsages::STORAGE,
+            &|_| {},
+        );
+        // One draw per record, then the ground's, made chunk by chunk.
+        const DRAW: usize = size_of::<DrawIndexedIndirectArgs>();
+        let all_draws_buffer = buffer_from_chunks(
+            gpu,
+            "all building draws",
+            (records.len() + 1) * DRAW,
+            wgpu::BufferUsages::INDIRECT
                 | wgpu::BufferUsages::STORAGE
                 | wgpu::BufferUsages::COPY_SRC,
-        });
+            |range, out| {
+                let draws = range.start / DRAW..range.end / DRAW;
+                for (slot, id) in out.chunks_exact_mut(DRAW).zip(draws) {
+                    let draw = records.get(id).map_or(ground, BuildingRecord::draw_args);
+                    slot.copy_from_slice(bytemuck::bytes_of(&draw));
+                }
+            },
+        );
         SceneGpu {
             vertex_buffer: buffers.vertex_buffer,
             index_buffer: buffers.index_buffer,
@@ -151,7 +163,7 @@ impl SceneGpu {
             parts_buffer: buffers.parts_buffer,
             all_draws_buffer,
             records: records.to_vec(),
-            parts: parts.to_vec(),
+            parts,
             ground,
             bounds,
             triangle_count: records.iter().map(|r| r.index_count as usize / 3).sum(),
@@ -211,42 +223,30 @@ struct GeometryBuffers {
 }
 
 impl GeometryBuffers {
+    /// Uploads vertices, indices and cull parts (each at least one zeroed item long, so it can
+    /// always be bound), handing their bytes to `release` as they reach the GPU.
     fn upload(
         gpu: &GpuContext,
-        vertices: &[SceneVertex],
-        indices: &[u32],
-        parts: &[CullPart],
+        (vertices, indices, parts): (&[SceneVertex], &[u32], &[CullPart]),
+        release: &dyn Fn(&[u8]),
     ) -> GeometryBuffers {
-        let device = &gpu.device;
-        let init = |label, contents: &[u8], usage| {
-            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents,
-                usage,
-            })
-        };
-        let no_parts = [CullPart::zeroed()];
-        let parts = if parts.is_empty() {
-            &no_parts[..]
-        } else {
-            parts
-        };
+        use wgpu::BufferUsages as U;
         GeometryBuffers {
-            vertex_buffer: init(
+            vertex_buffer: array_buffer(
+                gpu,
                 "scene vertices",
-                bytemuck::cast_slice(vertices),
-                wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::STORAGE,
+                vertices,
+                U::VERTEX | U::STORAGE,
+                release,
             ),
-            index_buffer: init(
+            index_buffer: array_buffer(
+                gpu,
                 "scene indices",
-                bytemuck::cast_slice(indices),
-                wgpu::BufferUsages::INDEX | wgpu::BufferUsages::STORAGE,
+                indices,
+                U::INDEX | U::STORAGE,
+                release,
             ),
-            parts_buffer: init(
-                "building cull parts",
-                bytemuck::cast_slice(parts),
-                wgpu::BufferUsages::STORAGE,
-            ),
+            parts_buffer: array_buffer(gpu, "building cull parts", parts, U::STORAGE, release),
         }
     }
 }

@@ -216,13 +216,19 @@ const PARALLEL_DECODE_BYTES: usize = 16 << 20;
 const CRC_CHUNK: usize = 64 << 20;
 
 /// Starts hashing `payload` (chunks of [`CRC_CHUNK`] on scoped threads, combined in order; a
-/// payload of one chunk on the caller's) and returns the function that gives its CRC-32.
+/// payload of one chunk on the caller's) and returns the function that gives its CRC-32. Each
+/// chunk goes to `release` once hashed.
 fn payload_crc<'scope>(
     scope: &'scope std::thread::Scope<'scope, '_>,
     payload: &'scope [u8],
+    release: &'scope (dyn Fn(&[u8]) + Sync),
 ) -> Box<dyn FnOnce() -> u32 + 'scope> {
     if payload.len() <= CRC_CHUNK {
-        return Box::new(move || crc32fast::hash(payload));
+        return Box::new(move || {
+            let crc = crc32fast::hash(payload);
+            release(payload);
+            crc
+        });
     }
     let chunks: Vec<_> = payload
         .chunks(CRC_CHUNK)
@@ -230,6 +236,7 @@ fn payload_crc<'scope>(
             scope.spawn(move || {
                 let mut h = crc32fast::Hasher::new();
                 h.update(chunk);
+                release(chunk);
                 h
             })
         })
@@ -265,6 +272,16 @@ fn truncated(what: &str, needed: u64, len: usize) -> PackageError {
 /// Verifies magic, version, header checksum, section table, padding and every section's
 /// checksum; returns the section table.
 pub fn verify(bytes: &[u8]) -> Result<Vec<SectionEntry>, PackageError> {
+    verify_releasing(bytes, &|_| {})
+}
+
+/// [`verify`], handing each stretch of a section to `release` once its checksum has read it
+/// (a memory-mapped package gives those pages back, so checking gigabytes does not keep them
+/// resident).
+pub(super) fn verify_releasing(
+    bytes: &[u8],
+    release: &(dyn Fn(&[u8]) + Sync),
+) -> Result<Vec<SectionEntry>, PackageError> {
     let len = bytes.len();
     if len < MAGIC.len() {
         return if bytes == &MAGIC[..len] && len > 0 {
@@ -369,7 +386,7 @@ pub fn verify(bytes: &[u8]) -> Result<Vec<SectionEntry>, PackageError> {
             .iter()
             .map(|e| {
                 let payload = &bytes[e.offset as usize..(e.offset + e.length) as usize];
-                (e, payload_crc(scope, payload))
+                (e, payload_crc(scope, payload, release))
             })
             .collect();
         checks
@@ -624,7 +641,20 @@ mod tests {
         let payload: Vec<u8> = (0..len as u32)
             .map(|i| (i.wrapping_mul(2_654_435_761) >> 13) as u8)
             .collect();
-        let crc = std::thread::scope(|scope| payload_crc(scope, &payload)());
+        // Every chunk is handed over once hashed: together, the whole payload once.
+        let released = std::sync::Mutex::new(Vec::new());
+        let release = |chunk: &[u8]| {
+            let start = chunk.as_ptr() as usize - payload.as_ptr() as usize;
+            released.lock().expect("lock").push((start, chunk.len()));
+        };
+        let crc = std::thread::scope(|scope| payload_crc(scope, &payload, &release)());
         assert_eq!(crc, crc32fast::hash(&payload));
+        let mut released = released.into_inner().expect("lock");
+        released.sort_unstable();
+        let chunks: Vec<_> = (0..len)
+            .step_by(CRC_CHUNK)
+            .map(|start| (start, CRC_CHUNK.min(len - start)))
+            .collect();
+        assert_eq!(released, chunks);
     }
 }

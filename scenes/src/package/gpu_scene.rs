@@ -158,6 +158,25 @@ pub struct GpuSceneView<'a> {
     pub ground: DrawIndexedIndirectArgs,
     /// Bounds of every record (buildings and cluster meshes).
     pub bounds: (Vec3, Vec3),
+    /// The package mapping the arrays lie in, if any ([`GpuSceneView::release_resident`]).
+    pages: MappedPages<'a>,
+}
+
+/// The memory map a view's arrays are borrowed from (`None` for an owned scene).
+#[derive(Clone, Copy)]
+struct MappedPages<'a>(Option<&'a memmap2::Mmap>);
+
+impl fmt::Debug for MappedPages<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(if self.0.is_some() { "mapped" } else { "owned" })
+    }
+}
+
+/// Views of the same arrays are equal wherever their bytes live.
+impl PartialEq for MappedPages<'_> {
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
 }
 
 impl GpuScene {
@@ -328,6 +347,10 @@ impl GpuScene {
                 Vec3::from_array(l.header.bounds_min_m),
                 Vec3::from_array(l.header.bounds_max_m),
             ),
+            pages: MappedPages(match &self.storage {
+                Storage::Mapped { map, .. } => Some(map),
+                Storage::Owned(_) => None,
+            }),
         }
     }
 
@@ -346,6 +369,16 @@ impl GpuScene {
 }
 
 impl GpuSceneView<'_> {
+    /// Tells the system that `bytes` (part of one of the view's arrays, already copied to the
+    /// GPU) will not be read again soon: where the scene lies in a package's memory map their
+    /// pages leave the process's resident memory (they are read again from the page cache if
+    /// needed); an owned scene is left as it is.
+    pub fn release_resident(&self, bytes: &[u8]) {
+        if let Some(map) = self.pages.0 {
+            super::map::release_resident(map, bytes);
+        }
+    }
+
     /// Number of cluster-node draw ids after the buildings.
     pub fn cluster_count(&self) -> usize {
         self.records.len() - self.building_count as usize

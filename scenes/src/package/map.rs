@@ -23,18 +23,19 @@ impl PackageFile {
         };
         let file = std::fs::File::open(path).map_err(io)?;
         let map = map_read_only(&file).map_err(io)?;
-        let sections = format::verify(&map).map_err(|e| match e {
-            PackageError::Version {
-                path: None,
-                found,
-                supported,
-            } => PackageError::Version {
-                path: Some(path.to_path_buf()),
-                found,
-                supported,
-            },
-            e => e,
-        })?;
+        let sections = format::verify_releasing(&map, &|bytes| release_resident(&map, bytes))
+            .map_err(|e| match e {
+                PackageError::Version {
+                    path: None,
+                    found,
+                    supported,
+                } => PackageError::Version {
+                    path: Some(path.to_path_buf()),
+                    found,
+                    supported,
+                },
+                e => e,
+            })?;
         Ok(PackageFile {
             path: path.to_path_buf(),
             map: Arc::new(map),
@@ -79,9 +80,43 @@ impl PackageFile {
     }
 
     /// Decodes the sections `what` names (see [`format::Decode`]); the GPU scene stays in the
-    /// mapping.
+    /// mapping. The other sections' pages are given back once decoded.
     pub fn decode_as(&self, what: format::Decode) -> Result<ScenePackage, PackageError> {
-        format::decode_mapped(&self.map, &self.sections, what)
+        let package = format::decode_mapped(&self.map, &self.sections, what);
+        let gpu_scene = format::SectionKind::GpuScene as u32;
+        for e in self.sections.iter().filter(|e| e.kind != gpu_scene) {
+            let range = e.offset as usize..(e.offset + e.length) as usize;
+            if let Some(bytes) = self.map.get(range) {
+                release_resident(&self.map, bytes);
+            }
+        }
+        package
+    }
+}
+
+/// Gives back to the system the pages of `map` that hold `bytes` (no-op where `bytes` is not
+/// part of `map`): they leave the process's resident memory and stay in the page cache, so a
+/// later read of them costs a minor fault. Opening a package touches each byte once (checksum,
+/// decode, upload to the GPU), and a gigabyte package must not stay resident because of it.
+#[expect(
+    unsafe_code,
+    reason = "MADV_DONTNEED is an unchecked advice in memmap2: on a writable private mapping it \
+              would discard writes"
+)]
+pub(crate) fn release_resident(map: &memmap2::Mmap, bytes: &[u8]) {
+    let start = (bytes.as_ptr() as usize).wrapping_sub(map.as_ptr() as usize);
+    if start > map.len() || bytes.len() > map.len() - start {
+        return;
+    }
+    // SAFETY: `map` is a read-only shared mapping of a file nobody writes (see
+    // `map_read_only`); MADV_DONTNEED drops this process's pages of it, and the next read
+    // maps the file's unchanged bytes again, so every `&[u8]` into the mapping keeps its value
+    // (neighbouring bytes on the same pages included).
+    #[cfg(unix)]
+    if let Err(e) = unsafe {
+        map.unchecked_advise_range(memmap2::UncheckedAdvice::DontNeed, start, bytes.len())
+    } {
+        tracing::debug!("madvise(DONTNEED) on a package mapping failed: {e}");
     }
 }
 

@@ -330,6 +330,14 @@ fn the_gpu_scene_round_trips_and_is_read_in_place_from_the_mapping() {
     assert!(mapped.gpu_scene.is_mapped());
     assert_eq!(mapped.gpu_scene.view(), view);
     assert_eq!(mapped, pkg);
+    // Pages given back after an upload are read again from the file, unchanged; an owned
+    // scene is left alone.
+    let mapped_view = mapped.gpu_scene.view();
+    mapped_view.release_resident(mapped.gpu_scene.bytes());
+    assert_eq!(mapped.gpu_scene.bytes(), pkg.gpu_scene.bytes());
+    assert_eq!(mapped.gpu_scene.view(), view);
+    view.release_resident(pkg.gpu_scene.bytes());
+    assert_eq!(pkg.gpu_scene.bytes(), back.gpu_scene.bytes());
     std::fs::remove_dir_all(&dir).ok();
 }
 

@@ -13,6 +13,7 @@ use glam::Vec3;
 use crate::camera::Camera;
 use crate::frame::sphere_index::SphereIndex;
 use crate::gpu::GpuContext;
+use crate::upload::{array_buffer, buffer_from_chunks};
 
 /// One occluder on the GPU: its draw and its bounds for the CPU selection.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -79,19 +80,31 @@ impl OccluderMeshes {
     /// occluder's building id; triangles with an index outside their mesh and non-finite meshes
     /// are left out).
     pub fn upload(gpu: &GpuContext, set: &OccluderSet) -> OccluderMeshes {
-        Self::upload_arrays(gpu, OccluderArrays::of(set).view())
+        Self::upload_arrays(gpu, OccluderArrays::of(set).view(), &|_| {})
     }
 
-    /// Uploads the occluders of a package's GPU scene, straight from its mapping.
+    /// Uploads the occluders of a package's GPU scene, straight from its mapping (whose pages
+    /// are released as they are uploaded).
     pub fn upload_package(gpu: &GpuContext, scene: &GpuSceneView<'_>) -> OccluderMeshes {
-        Self::upload_arrays(gpu, scene.occluders)
+        Self::upload_arrays(gpu, scene.occluders, &|bytes| scene.release_resident(bytes))
     }
 
-    fn upload_arrays(gpu: &GpuContext, arrays: OccluderArraysView<'_>) -> OccluderMeshes {
+    fn upload_arrays(
+        gpu: &GpuContext,
+        arrays: OccluderArraysView<'_>,
+        release: &dyn Fn(&[u8]),
+    ) -> OccluderMeshes {
         let occluders: Vec<OccluderDraw> = arrays.records.iter().map(OccluderDraw::of).collect();
         // Buffers are never empty, so they can always be bound.
-        let vertex_buffer = crate::render::vertex_buffer(&gpu.device, "occluder", arrays.vertices);
-        let index_buffer = absolute_index_buffer(&gpu.device, &arrays);
+        let vertex_buffer = array_buffer(
+            gpu,
+            "occluder vertices",
+            arrays.vertices,
+            wgpu::BufferUsages::VERTEX,
+            release,
+        );
+        let index_buffer = absolute_index_buffer(gpu, &arrays);
+        release(bytemuck::cast_slice(arrays.indices));
         OccluderMeshes {
             vertex_buffer,
             index_buffer,
@@ -186,39 +199,52 @@ fn merge_ranges(ranges: &mut Vec<(u32, u32)>) {
 }
 
 /// The occluders' index buffer with every index made absolute (its record's base vertex added),
-/// written straight into the mapped buffer one record at a time (no second copy of all the
-/// indices on the CPU). Indices outside every record are never drawn and stay zero.
-fn absolute_index_buffer(device: &wgpu::Device, arrays: &OccluderArraysView<'_>) -> wgpu::Buffer {
+/// made chunk by chunk in the buffer's order ([`buffer_from_chunks`]: no second copy of all the
+/// indices). Indices outside every record are never drawn and stay zero; at least one
+/// triangle long, so it can always be bound.
+fn absolute_index_buffer(gpu: &GpuContext, arrays: &OccluderArraysView<'_>) -> wgpu::Buffer {
     const U32: usize = size_of::<u32>();
     let len = arrays.indices.len().max(3);
-    let buffer = device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("occluder indices"),
-        size: (len * U32) as u64,
-        usage: wgpu::BufferUsages::INDEX,
-        mapped_at_creation: true,
-    });
-    {
-        // As `wgpu::util::DeviceExt::create_buffer_init`: a buffer created mapped is mapped
-        // (write-only, zeroed).
-        let mut mapped = buffer
-            .slice(..)
-            .get_mapped_range_mut()
-            .expect("a buffer created mapped can be written");
-        let mut out = mapped.slice(..);
-        let mut absolute: Vec<u32> = Vec::new();
-        for r in arrays.records {
-            let (first, count) = (r.first_index as usize, r.index_count as usize);
-            let Some(source) = arrays.indices.get(first..first.saturating_add(count)) else {
-                continue;
-            };
-            absolute.clear();
-            absolute.extend(source.iter().map(|i| i.wrapping_add(r.base_vertex)));
-            out.slice(first * U32..(first + count) * U32)
-                .copy_from_slice(bytemuck::cast_slice(&absolute));
-        }
-    }
-    buffer.unmap();
-    buffer
+    let range_of = |r: &OccluderRecord| {
+        let first = r.first_index as usize;
+        (first, first.saturating_add(r.index_count as usize))
+    };
+    // Records by first index: each chunk then reads the records from the first one that has
+    // not ended before it (ranges may be empty; they do not overlap in a valid package, but a
+    // later record that did would still be written).
+    let mut order: Vec<&OccluderRecord> = arrays.records.iter().collect();
+    order.sort_by_key(|r| r.first_index);
+    let mut next = 0;
+    buffer_from_chunks(
+        gpu,
+        "occluder indices",
+        len * U32,
+        wgpu::BufferUsages::INDEX,
+        |bytes, out| {
+            let chunk = bytes.start / U32..bytes.end / U32;
+            while order
+                .get(next)
+                .is_some_and(|r| range_of(r).1 <= chunk.start)
+            {
+                next += 1;
+            }
+            let out: &mut [u32] = bytemuck::cast_slice_mut(out);
+            for r in order[next..]
+                .iter()
+                .take_while(|r| range_of(r).0 < chunk.end)
+            {
+                let (first, end) = range_of(r);
+                let (from, to) = (first.max(chunk.start), end.min(chunk.end));
+                let Some(source) = arrays.indices.get(from..to) else {
+                    continue;
+                };
+                let target = &mut out[from - chunk.start..to - chunk.start];
+                for (t, i) in target.iter_mut().zip(source) {
+                    *t = i.wrapping_add(r.base_vertex);
+                }
+            }
+        },
+    )
 }
 
 /// [`OccluderMeshes::select`] over `occluders` and their `spheres` ([`Sphere::of`], one each,

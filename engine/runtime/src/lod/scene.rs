@@ -12,13 +12,11 @@
 //! `building_count` records, so [`LodScene::upload_package`] shares the vertex, index and part
 //! buffers with it: the building geometry is on the GPU once.
 
-use bytemuck::Zeroable;
 use citywalk_scenes::cluster_tree::ClusterTree;
 use citywalk_scenes::package::{GpuScene, GpuSceneView};
 use citywalk_scenes::{BuildingId, City};
 use citywalk_shaders::BuildingRecord;
 use citywalk_shaders::constants::NO_PARENT;
-use wgpu::util::DeviceExt;
 
 use crate::camera::Camera;
 use crate::gpu::GpuContext;
@@ -26,6 +24,7 @@ use crate::hzb::tree_cull::TreeBuffers;
 use crate::lod::gpu_tree::TreeArrays;
 use crate::lod::{LodCriterion, LodCut, LodTree, LodView};
 use crate::scene_gpu::SceneGpu;
+use crate::upload::array_buffer;
 
 pub use citywalk_scenes::scene_geometry::{cull_records, draw_id_parents, lod_geometry};
 
@@ -119,22 +118,14 @@ impl LodScene {
         view: &GpuSceneView<'_>,
         tree: ClusterTree,
     ) -> LodScene {
-        let storage = |label, contents: &[u8]| {
-            gpu.device
-                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some(label),
-                    contents,
-                    usage: wgpu::BufferUsages::STORAGE,
-                })
-        };
-        let one_record = [BuildingRecord::zeroed()];
-        let cull_records_buffer = storage(
+        let release = |bytes: &[u8]| view.release_resident(bytes);
+        // Empty arrays (no tree) are one zeroed record and one parent that names none.
+        let cull_records_buffer = array_buffer(
+            gpu,
             "lod cull records",
-            bytemuck::cast_slice(if view.cull_records.is_empty() {
-                &one_record
-            } else {
-                view.cull_records
-            }),
+            view.cull_records,
+            wgpu::BufferUsages::STORAGE,
+            &release,
         );
         let no_parent = [NO_PARENT];
         let parents = if view.parents.is_empty() {
@@ -146,7 +137,13 @@ impl LodScene {
         let tree_gpu = TreeBuffers::upload(gpu, &TreeArrays::build(&tree, view.building_count));
         LodScene {
             tree_gpu,
-            parents_buffer: storage("lod draw-id parents", bytemuck::cast_slice(parents)),
+            parents_buffer: array_buffer(
+                gpu,
+                "lod draw-id parents",
+                parents,
+                wgpu::BufferUsages::STORAGE,
+                &release,
+            ),
             cull_records_buffer,
             cull_records: view.cull_records.to_vec(),
             gpu_scene: SceneGpu::sharing(gpu, buildings, view.records, view.bounds),

@@ -199,29 +199,6 @@ pub fn fullscreen_pipeline(
     })
 }
 
-/// A vertex buffer of `vertices` (one zero vertex when empty, so it can always be bound).
-pub(crate) fn vertex_buffer(
-    device: &wgpu::Device,
-    label: &str,
-    vertices: &[citywalk_shaders::SceneVertex],
-) -> wgpu::Buffer {
-    use wgpu::util::DeviceExt;
-    let one_vertex = [citywalk_shaders::SceneVertex {
-        position_m: [0.0; 3],
-        building_id: 0,
-    }];
-    let vertices = if vertices.is_empty() {
-        &one_vertex[..]
-    } else {
-        vertices
-    };
-    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some(&format!("{label} vertices")),
-        contents: bytemuck::cast_slice(vertices),
-        usage: wgpu::BufferUsages::VERTEX,
-    })
-}
-
 /// Begins a render pass into `colour` and `depth` that clears colour to `clear` and depth to
 /// reversed-Z infinity, storing both: the start of every scene-drawing pass. `timestamp_writes`
 /// times the pass ([`crate::gpu_timer::GpuTimer::render_pass_writes`]).

@@ -1,0 +1,138 @@
+//! Large arrays to the GPU at a bounded memory cost.
+//!
+//! `create_buffer_init` and `Queue::write_buffer` both copy through a staging buffer that lives
+//! until the submission that consumes it has completed. Uploading a package's arrays (1.6 GB at
+//! a million buildings) in one go therefore holds them twice at once, and on a software adapter,
+//! whose GPU memory is process memory, a third time with the mapped file's pages: the 1M bench
+//! peaked at 7.7 GB where the scene needs 3.7 GB. Here an array goes up in chunks of
+//! [`UPLOAD_CHUNK_BYTES`], each chunk's submission is waited for before the next (which frees its
+//! staging), and the source bytes of each chunk are handed to a `release` function (a package's
+//! memory map gives those pages back: see `GpuSceneView::release_resident`).
+
+use crate::gpu::GpuContext;
+
+/// Bytes copied per submission: large enough that the waits cost little (about 50 at a
+/// million buildings), small enough that the staging is a rounding error.
+pub const UPLOAD_CHUNK_BYTES: usize = 32 << 20;
+
+/// A buffer of `usage` holding `items`, or one zeroed item when there is none (so that it can
+/// always be bound), uploaded chunk by chunk; the bytes of each chunk are given to `release`
+/// once on the GPU.
+pub fn array_buffer<T: bytemuck::Pod>(
+    gpu: &GpuContext,
+    label: &str,
+    items: &[T],
+    usage: wgpu::BufferUsages,
+    release: &dyn Fn(&[u8]),
+) -> wgpu::Buffer {
+    let contents: &[u8] = bytemuck::cast_slice(items);
+    let len = contents.len().max(size_of::<T>());
+    buffer_from_chunks(gpu, label, len, usage, |range, out| {
+        // Past the items (the one padding item) `out` stays zero.
+        let source = contents.get(range).unwrap_or(&[]);
+        out[..source.len()].copy_from_slice(source);
+        release(source);
+    })
+}
+
+/// A buffer of `usage`, `len` bytes long (rounded up to a multiple of 4, at least 4), whose
+/// bytes are produced chunk by chunk, in order: `fill(range, out)` writes bytes `range` into
+/// `out` (zeroed, `range.len()` long, 4-byte aligned; ranges start at multiples of 4). Each
+/// chunk is on the GPU before the next is produced.
+pub fn buffer_from_chunks(
+    gpu: &GpuContext,
+    label: &str,
+    len: usize,
+    usage: wgpu::BufferUsages,
+    mut fill: impl FnMut(std::ops::Range<usize>, &mut [u8]),
+) -> wgpu::Buffer {
+    let size = len
+        .max(1)
+        .next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT as usize);
+    let buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: size as u64,
+        usage: usage | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    // `u32`s, so that `out` is 4-byte aligned (callers cast it to `u32`s).
+    let mut chunk = vec![0u32; size.min(UPLOAD_CHUNK_BYTES) / 4];
+    let mut start = 0;
+    while start < size {
+        let end = (start + UPLOAD_CHUNK_BYTES).min(size);
+        let out = &mut bytemuck::cast_slice_mut(&mut chunk)[..end - start];
+        out.fill(0);
+        // The padding past `len` stays zero.
+        let filled = end.min(len).saturating_sub(start);
+        fill(start..start + filled, &mut out[..filled]);
+        gpu.queue.write_buffer(&buffer, start as u64, out);
+        if size > UPLOAD_CHUNK_BYTES {
+            // The staging of this chunk is freed once its copy has run.
+            gpu.queue.submit([]);
+            gpu.wait_idle();
+        }
+        start = end;
+    }
+    buffer
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Reads a buffer back (it must allow `COPY_SRC`).
+    fn read_back(gpu: &GpuContext, buffer: &wgpu::Buffer) -> Vec<u8> {
+        let staging = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("upload test readback"),
+            size: buffer.size(),
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, buffer.size());
+        gpu.queue.submit([encoder.finish()]);
+        staging
+            .slice(..)
+            .map_async(wgpu::MapMode::Read, |r| r.expect("map"));
+        gpu.wait_idle();
+        staging
+            .slice(..)
+            .get_mapped_range()
+            .expect("mapped")
+            .to_vec()
+    }
+
+    /// An array of several chunks and a ragged end arrives whole, each source byte released
+    /// exactly once; an empty one is one zeroed item.
+    #[test]
+    fn chunked_upload_equals_the_source_and_releases_every_byte_once() {
+        let Ok(gpu) = GpuContext::headless() else {
+            assert!(std::env::var_os("CI").is_none(), "no adapter in CI");
+            return;
+        };
+        let len = 2 * UPLOAD_CHUNK_BYTES + 4 * 1001;
+        let contents: Vec<u8> = (0..len).map(|i| (i * 7 + i / 251) as u8).collect();
+        let released = std::cell::Cell::new(0usize);
+        let last_end = std::cell::Cell::new(contents.as_ptr() as usize);
+        let buffer = array_buffer(
+            &gpu,
+            "upload test",
+            &contents,
+            wgpu::BufferUsages::COPY_SRC,
+            &|bytes| {
+                assert_eq!(bytes.as_ptr() as usize, last_end.get(), "chunks in order");
+                last_end.set(bytes.as_ptr() as usize + bytes.len());
+                released.set(released.get() + bytes.len());
+            },
+        );
+        assert_eq!(released.get(), len);
+        assert!(
+            read_back(&gpu, &buffer) == contents,
+            "the buffer holds the source"
+        );
+
+        let empty: &[[u32; 3]] = &[];
+        let one = array_buffer(&gpu, "empty", empty, wgpu::BufferUsages::COPY_SRC, &|_| {});
+        assert_eq!(read_back(&gpu, &one), vec![0u8; 12]);
+    }
+}
