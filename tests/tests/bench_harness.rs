@@ -60,7 +60,8 @@ fn bench_scene(gpu: &GpuContext, city: &City) -> BenchScene {
             city,
             None,
             Some((UrbanBlocks::default(), BQuadtree::default())),
-        ),
+        )
+        .expect("the scene fits the GPU"),
     }
 }
 
@@ -318,7 +319,8 @@ fn decimated_baseline_is_measured_against_brute_force() {
         "{} triangles for a target of {target}",
         decimated.triangles
     );
-    let decimated_gpu = SceneGpu::upload(&gpu, &decimated.geometry(&geometry));
+    let decimated_gpu =
+        SceneGpu::upload(&gpu, &decimated.geometry(&geometry)).expect("the scene fits the GPU");
     let mut runner = DecimatedBaseline::new(&gpu);
     let records = runner
         .run_path(

@@ -74,7 +74,7 @@ fn pyramid_view_shows_level_k_texel_for_texel_in_the_reference_grey() {
     // A wall 20 m ahead filling the left half of the view (looking along +x, +y is left), sky
     // above the right half, ground below. A viewport that is not a power of two.
     let city = boxes(&[(20.0, 0.0, 30.0, 400.0, 300.0)]);
-    let scene = SceneGpu::upload_city(&gpu, &city);
+    let scene = SceneGpu::upload_city(&gpu, &city).expect("the scene fits the GPU");
     let camera = Camera::new(Vec3::new(0.0, 0.0, 10.0), 0.0, 0.0);
     let size = (96, 60);
     let mut source = DepthPyramid::new(&gpu);
@@ -147,7 +147,7 @@ fn cluster_view_paints_each_drawn_entry_in_its_own_colour() {
         }
     }
     let city = boxes(&specs);
-    let scene = SceneGpu::upload_city(&gpu, &city);
+    let scene = SceneGpu::upload_city(&gpu, &city).expect("the scene fits the GPU");
     let camera = Camera::new(Vec3::new(50.0, 30.0, 300.0), 0.0, -89f32.to_radians());
     let size = (160, 120);
     let target = OffscreenTarget::new(&gpu, size.0, size.1, FORMAT).expect("target");
@@ -207,7 +207,7 @@ fn occluder_view_blends_occluders_where_they_project_and_highlights_the_selected
         }],
         per_building: Vec::new(),
     };
-    let frame_meshes = OccluderMeshes::upload(&gpu, &set);
+    let frame_meshes = OccluderMeshes::upload(&gpu, &set).expect("the scene fits the GPU");
     let meshes = OccluderOverlayMeshes::of(&frame_meshes);
     assert_eq!(meshes.ranges.len(), 1);
     let camera = Camera::new(Vec3::new(0.0, 0.0, 10.0), 0.0, 0.0);

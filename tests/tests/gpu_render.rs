@@ -36,7 +36,7 @@ fn small_town_matches_golden() {
     let Some(gpu) = gpu_or_skip("small_town_matches_golden") else {
         return;
     };
-    let scene = SceneGpu::upload_city(&gpu, &small_town());
+    let scene = SceneGpu::upload_city(&gpu, &small_town()).expect("the scene fits the GPU");
     let renderer = BruteRenderer::new(&gpu, BruteRenderer::PNG_FORMAT);
     let (w, h) = (161, 97);
     let rgba = renderer
@@ -53,7 +53,7 @@ fn frame_shows_sky_ground_and_buildings() {
     let Some(gpu) = gpu_or_skip("frame_shows_sky_ground_and_buildings") else {
         return;
     };
-    let scene = SceneGpu::upload_city(&gpu, &small_town());
+    let scene = SceneGpu::upload_city(&gpu, &small_town()).expect("the scene fits the GPU");
     let renderer = BruteRenderer::new(&gpu, BruteRenderer::PNG_FORMAT);
     let (w, h) = (320, 180);
     let camera = Camera::new(Vec3::new(-60.0, -70.0, 8.0), 45f32.to_radians(), 0.0);

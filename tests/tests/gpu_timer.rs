@@ -27,6 +27,7 @@ fn scene(gpu: &GpuContext) -> SceneGpu {
         }
     }
     SceneGpu::upload_city(gpu, &citywalk_tests::city_builder::boxes(&specs))
+        .expect("the scene fits the GPU")
 }
 
 /// Draws, builds the pyramid from the depth and culls, timing each pass (the phase `never` has
@@ -227,9 +228,10 @@ fn the_gated_frame_times_every_phase_in_order() {
         }
     }
     let city = citywalk_tests::city_builder::boxes(&specs);
-    let scene = SceneGpu::upload_city(&gpu, &city);
+    let scene = SceneGpu::upload_city(&gpu, &city).expect("the scene fits the GPU");
     let occluders =
-        OccluderMeshes::upload(&gpu, &build_occluders(&city, &OccluderParams::default()));
+        OccluderMeshes::upload(&gpu, &build_occluders(&city, &OccluderParams::default()))
+            .expect("the scene fits the GPU");
     let target = OffscreenTarget::new(&gpu, W, H, BruteRenderer::PNG_FORMAT).expect("target");
     let mut renderer = CullingRenderer::new(&gpu, BruteRenderer::PNG_FORMAT);
     let mut visibility = Visibility::default();

@@ -1054,7 +1054,7 @@ fn gpu_cull_of_a_rendered_city_never_hides_a_visible_building() {
         }
     }
     let city = citywalk_tests::city_builder::boxes(&specs);
-    let scene = SceneGpu::upload_city(&gpu, &city);
+    let scene = SceneGpu::upload_city(&gpu, &city).expect("the scene fits the GPU");
     let n = scene.building_count() as u32;
     let renderer = BruteRenderer::new(&gpu, BruteRenderer::PNG_FORMAT);
     let oracle = Oracle::new(&gpu);

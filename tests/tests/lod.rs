@@ -227,8 +227,8 @@ fn lod_cut_has_no_false_culls_and_saves_triangles_from_the_air() {
         return;
     };
     let (city, tree) = city_and_tree();
-    let scene = SceneGpu::upload_city(&gpu, city);
-    let lod = LodScene::upload(&gpu, city, tree.clone());
+    let scene = SceneGpu::upload_city(&gpu, city).expect("the scene fits the GPU");
+    let lod = LodScene::upload(&gpu, city, tree.clone()).expect("the scene fits the GPU");
     let oracle = Oracle::new(&gpu);
     let brute_triangles = scene.triangle_count as u64;
     let criteria = [
@@ -387,7 +387,8 @@ fn bench_lod_mode_has_no_false_culls() {
     let mut renderers = BenchRenderers::new(&gpu);
     for criterion in [None, Some(LodCriterion::YANG_PAPER)] {
         let blocks = (package.blocks.clone(), package.quadtree.clone());
-        let mut drawable = DrawableScene::upload_city(&gpu, city, Some(tree.clone()), Some(blocks));
+        let mut drawable = DrawableScene::upload_city(&gpu, city, Some(tree.clone()), Some(blocks))
+            .expect("the scene fits the GPU");
         if let Some(lod) = &mut drawable.lod {
             lod.criterion = criterion;
         }
@@ -533,14 +534,15 @@ fn the_package_scene_equals_the_scene_built_from_the_city() {
         std::fs::remove_dir_all(&dir).ok();
         return;
     };
-    let from_city = SceneGpu::upload_city(&gpu, city);
-    let from_package = SceneGpu::upload_package(&gpu, &view);
+    let from_city = SceneGpu::upload_city(&gpu, city).expect("the scene fits the GPU");
+    let from_package = SceneGpu::upload_package(&gpu, &view).expect("the scene fits the GPU");
     assert_eq!(from_package.records, from_city.records);
     assert_eq!(from_package.parts, from_city.parts);
     assert_eq!(from_package.triangle_count, from_city.triangle_count);
     assert_eq!(from_package.bounds, from_city.bounds);
-    let lod_from_city = LodScene::upload(&gpu, city, tree.clone());
-    let lod_from_package = LodScene::upload_package(&gpu, &from_package, &view, tree.clone());
+    let lod_from_city = LodScene::upload(&gpu, city, tree.clone()).expect("the scene fits the GPU");
+    let lod_from_package = LodScene::upload_package(&gpu, &from_package, &view, tree.clone())
+        .expect("the scene fits the GPU");
     assert_eq!(lod_from_package.gpu_scene.records, lod.records);
     assert_eq!(
         lod_from_package.gpu_scene.records,

@@ -29,7 +29,7 @@ fn building_behind_a_wall_is_hidden_and_one_seen_through_a_gap_is_visible() {
         (60.0, -60.0, 70.0, -40.0, 30.0),
         (-50.0, -10.0, -40.0, 10.0, 30.0),
     ]);
-    let scene = SceneGpu::upload_city(&gpu, &city);
+    let scene = SceneGpu::upload_city(&gpu, &city).expect("the scene fits the GPU");
     let oracle = Oracle::new(&gpu);
     let set = oracle
         .visible_set(&gpu, &scene, &eye_east(), 640, 480)
@@ -76,7 +76,7 @@ fn pixel_counts_add_up_at_odd_sizes() {
         (45.0, -10.0, 60.0, 10.0, 40.0),
         (80.0, -50.0, 100.0, 50.0, 8.0),
     ]);
-    let scene = SceneGpu::upload_city(&gpu, &city);
+    let scene = SceneGpu::upload_city(&gpu, &city).expect("the scene fits the GPU");
     let oracle = Oracle::new(&gpu);
     let camera = Camera::new(Vec3::new(-20.0, 0.0, 5.0), 0.0, 5f32.to_radians());
     for (w, h) in [(1001, 777), (97, 61), (1, 1), (257, 3)] {
@@ -138,7 +138,7 @@ fn chelsea_overview_sees_many_buildings() {
         .filter(|r| r.index_count == 0)
         .count();
     assert_eq!(empty, 0, "{empty} buildings without triangles");
-    let scene = SceneGpu::upload(&gpu, &geometry);
+    let scene = SceneGpu::upload(&gpu, &geometry).expect("the scene fits the GPU");
     let camera = Camera::overview(scene.bounds.0, scene.bounds.1);
     let oracle = Oracle::new(&gpu);
     let set = oracle

@@ -101,7 +101,7 @@ fn cross_check(
     (width, height): (u32, u32),
     step: u32,
 ) -> (usize, usize, usize, usize) {
-    let scene = SceneGpu::upload(gpu, geometry);
+    let scene = SceneGpu::upload(gpu, geometry).expect("the scene fits the GPU");
     let image = Oracle::new(gpu)
         .id_image(gpu, &scene, camera, width, height)
         .expect("id image");

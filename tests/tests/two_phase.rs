@@ -62,9 +62,9 @@ fn prepare(gpu: &GpuContext, name: &'static str, package: &'static ScenePackage)
     let city = package.city();
     TestScene {
         name,
-        scene: SceneGpu::upload_city(gpu, &city),
-        occluders: OccluderMeshes::upload(gpu, occluders),
-        lod: LodScene::upload(gpu, &city, tree),
+        scene: SceneGpu::upload_city(gpu, &city).expect("the scene fits the GPU"),
+        occluders: OccluderMeshes::upload(gpu, occluders).expect("the scene fits the GPU"),
+        lod: LodScene::upload(gpu, &city, tree).expect("the scene fits the GPU"),
         city,
         package,
     }
@@ -769,11 +769,12 @@ fn bench_scene(
 ) -> BenchScene {
     let tree = package.cluster_tree.clone().filter(|_| lod);
     let blocks = (package.blocks.clone(), package.quadtree.clone());
-    let mut drawable = DrawableScene::upload_city(gpu, city, tree, Some(blocks));
+    let mut drawable =
+        DrawableScene::upload_city(gpu, city, tree, Some(blocks)).expect("the scene fits the GPU");
     drawable.occluders = package
         .occluders
         .as_ref()
-        .map(|set| OccluderMeshes::upload(gpu, set));
+        .map(|set| OccluderMeshes::upload(gpu, set).expect("the scene fits the GPU"));
     BenchScene {
         name: name.into(),
         drawable,

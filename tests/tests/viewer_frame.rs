@@ -68,7 +68,7 @@ fn every_stage_combination_and_debug_view_renders_and_reports_its_counts() {
     )
     .camera();
     let format = BruteRenderer::PNG_FORMAT;
-    let mut drawer = FrameDrawer::new(&gpu, format, scene);
+    let mut drawer = FrameDrawer::new(&gpu, format, scene).expect("the scene fits the GPU");
     drawer.wait_for_reports = true;
     let target = OffscreenTarget::new(&gpu, SIZE.0, SIZE.1, format).expect("target");
     let mut frame = |settings: &RenderSettings, camera: &Camera| -> (Drawn, Vec<u8>) {

@@ -97,6 +97,8 @@ pub enum BenchError {
     Frame(#[from] citywalk_runtime::frame::FrameError),
     #[error("writing {path}: {reason}")]
     Write { path: PathBuf, reason: String },
+    #[error("{0}; the benchmark stops")]
+    DeviceLost(String),
 }
 
 /// The renderers a run reuses across frames.
@@ -322,6 +324,9 @@ pub fn run_path(
     // Each path starts with nothing visible from a previous frame.
     renderers.reset_visibility();
     for i in 0..path.poses.len() {
+        if let Some(why) = gpu.lost() {
+            return Err(BenchError::DeviceLost(why));
+        }
         let camera = pose_camera(path, i);
         // Outside every mode's timing: `oracle` draws this set, but finding it is not its work.
         let visible_ids = oracle_visible(gpu, renderers, scene, &camera, w, h)?;

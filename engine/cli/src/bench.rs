@@ -216,7 +216,8 @@ pub fn run_benchmark_with(
         // occluder set; a preprocessed input's set drew the same arrays).
         drop(occluders);
         let mut drawable =
-            DrawableScene::upload_package(&gpu, &gpu_scene, cluster_tree, Some((blocks, quadtree)));
+            DrawableScene::upload_package(&gpu, &gpu_scene, cluster_tree, Some((blocks, quadtree)))
+                .with_context(|| format!("cannot draw {}", scene_path.display()))?;
         if let Some(lod) = &mut drawable.lod {
             lod.criterion = LOD_CRITERION.get().copied().flatten();
         }
@@ -275,7 +276,8 @@ pub fn run_benchmark_with(
                 .triangles(&name, geometry.building_triangle_count(), &records)
                 .with_context(|| format!("{name}: no frames to size the baseline by"))?;
             let decimated = decimate_city(&geometry, budget);
-            let decimated_gpu = SceneGpu::upload(&gpu, &decimated.geometry(&geometry));
+            let decimated_gpu = SceneGpu::upload(&gpu, &decimated.geometry(&geometry))
+                .with_context(|| format!("{name}: cannot draw the decimated baseline"))?;
             eprintln!(
                 "{name}: decimated to {} triangles (budget {budget}, {:?}) in {:.1} s",
                 decimated.triangles,

@@ -142,7 +142,8 @@ fn load_drawable(
 ) -> anyhow::Result<(City, DrawableScene)> {
     if mode == Mode::Brute && !crate::scene_input::is_package(path)? {
         let city = crate::scene_input::load_city(path, load)?;
-        let scene = DrawableScene::upload_city(gpu, &city, None, None);
+        let scene = DrawableScene::upload_city(gpu, &city, None, None)
+            .with_context(|| format!("cannot draw {}", path.display()))?;
         return Ok((city, scene));
     }
     let parts = crate::scene_input::load_scene_to_draw(path, load)?.into_parts();
@@ -151,7 +152,8 @@ fn load_drawable(
         &parts.gpu_scene,
         parts.cluster_tree,
         Some((parts.blocks, parts.quadtree)),
-    );
+    )
+    .with_context(|| format!("cannot draw {}", path.display()))?;
     Ok((parts.city, scene))
 }
 

@@ -15,6 +15,7 @@ use crate::lod::scene::LodScene;
 use crate::plan::SceneFeatures;
 use crate::runner::SceneRefs;
 use crate::scene_gpu::SceneGpu;
+use crate::upload::UploadError;
 
 /// The scene's buildings on the GPU, with the optional structures of the frame's stages.
 #[derive(Debug)]
@@ -33,25 +34,29 @@ impl DrawableScene {
     /// Uploads a package's GPU scene straight from its mapping (no meshing): buildings, the LOD
     /// scene of `cluster_tree` over the same buffers, and the occluders the package holds. The
     /// mapping's pages leave resident memory as they are uploaded (the CPU copies of the
-    /// records read them again from the page cache).
+    /// records read them again from the page cache). An array over the GPU's limits or
+    /// memory is an error naming it.
     pub fn upload_package(
         gpu: &GpuContext,
         gpu_scene: &GpuScene,
         cluster_tree: Option<ClusterTree>,
         blocks: Option<(UrbanBlocks, BQuadtree)>,
-    ) -> DrawableScene {
+    ) -> Result<DrawableScene, UploadError> {
         let view = gpu_scene.view();
-        let buildings = SceneGpu::upload_package(gpu, &view);
-        let lod = cluster_tree.map(|tree| LodScene::upload_package(gpu, &buildings, &view, tree));
+        let buildings = SceneGpu::upload_package(gpu, &view)?;
+        let lod = cluster_tree
+            .map(|tree| LodScene::upload_package(gpu, &buildings, &view, tree))
+            .transpose()?;
         let occluders = (!view.occluders.records.is_empty())
-            .then(|| OccluderMeshes::upload_package(gpu, &view));
+            .then(|| OccluderMeshes::upload_package(gpu, &view))
+            .transpose()?;
         view.release_resident(gpu_scene.bytes());
-        DrawableScene {
+        Ok(DrawableScene {
             buildings,
             lod,
             blocks,
             occluders,
-        }
+        })
     }
 
     /// Meshes and uploads a city loaded from a raw input, as preprocessing does for a package
@@ -62,7 +67,7 @@ impl DrawableScene {
         city: &City,
         cluster_tree: Option<ClusterTree>,
         blocks: Option<(UrbanBlocks, BQuadtree)>,
-    ) -> DrawableScene {
+    ) -> Result<DrawableScene, UploadError> {
         let gpu_scene = GpuScene::build(city, cluster_tree.as_ref(), None);
         Self::upload_package(gpu, &gpu_scene, cluster_tree, blocks)
     }

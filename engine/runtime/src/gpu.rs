@@ -5,6 +5,8 @@
 //! preferred, else the software one (lavapipe / llvmpipe). Optional features are requested as
 //! `adapter.features() & wanted` and every user keeps a path for their absence.
 
+use std::sync::{Arc, Mutex};
+
 use thiserror::Error;
 
 /// Why no GPU context could be made.
@@ -43,6 +45,8 @@ pub struct GpuContext {
     /// The optional features actually enabled: `adapter.features() & WANTED_FEATURES` (narrowed
     /// further by [`GpuContext::headless_with_features`]).
     pub features: wgpu::Features,
+    /// Why the device was lost, once it is ([`GpuContext::lost`]).
+    lost: Arc<Mutex<Option<String>>>,
 }
 
 /// The instance descriptor from the environment, without wgpu's validation of indirect calls
@@ -172,6 +176,7 @@ impl GpuContext {
             features = ?features,
             "GPU adapter"
         );
+        let lost = watch_for_loss(&device);
         Ok(GpuContext {
             instance,
             adapter,
@@ -179,6 +184,7 @@ impl GpuContext {
             queue,
             adapter_info,
             features,
+            lost,
         })
     }
 
@@ -200,6 +206,16 @@ impl GpuContext {
         self.features.contains(feature)
     }
 
+    /// Why the device was lost (a driver reset, a removed GPU, `destroy`), or `None` while it
+    /// works. Once lost, every later call on it fails: a frame loop checks this and stops with
+    /// the reason instead of drawing.
+    pub fn lost(&self) -> Option<String> {
+        self.lost
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .clone()
+    }
+
     /// Blocks until all submitted work has finished.
     pub fn wait_idle(&self) {
         // An error here means the device was lost; later calls report it.
@@ -207,6 +223,38 @@ impl GpuContext {
             tracing::warn!("device poll failed: {e}");
         }
     }
+}
+
+/// Records the device's loss for [`GpuContext::lost`], and keeps the errors of calls made on a
+/// lost device (which wgpu reports as uncaptured errors) from panicking: those are expected
+/// and the loss is reported once. Any other uncaptured error is a bug and panics, as wgpu's
+/// default handler does.
+fn watch_for_loss(device: &wgpu::Device) -> Arc<Mutex<Option<String>>> {
+    let lost = Arc::new(Mutex::new(None::<String>));
+    let record = Arc::clone(&lost);
+    device.set_device_lost_callback(move |reason, message| {
+        let why = match reason {
+            wgpu::DeviceLostReason::Destroyed => format!("the device was destroyed ({message})"),
+            wgpu::DeviceLostReason::Unknown => format!("the GPU device was lost: {message}"),
+        };
+        tracing::error!("{why}");
+        *record
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner) = Some(why);
+    });
+    let seen = Arc::clone(&lost);
+    device.on_uncaptured_error(Arc::new(move |error: wgpu::Error| {
+        let is_lost = seen
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .is_some();
+        if is_lost {
+            tracing::debug!("after the device was lost: {error}");
+        } else {
+            panic!("wgpu error: {error}");
+        }
+    }));
+    lost
 }
 
 /// Preference order of adapters: hardware first, software last; Vulkan before GL among equals.
@@ -224,4 +272,34 @@ fn adapter_rank(info: &wgpu::AdapterInfo) -> (u8, u8) {
         _ => 0,
     };
     (device, backend)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A device that is lost says why, and the calls made on it afterwards (which fail) do not
+    /// panic.
+    #[test]
+    fn a_lost_device_says_why_and_later_calls_do_not_panic() {
+        let Ok(gpu) = GpuContext::headless() else {
+            assert!(std::env::var_os("CI").is_none(), "no adapter in CI");
+            return;
+        };
+        assert_eq!(gpu.lost(), None);
+        gpu.device.destroy();
+        gpu.wait_idle();
+        let why = gpu.lost().expect("the loss is recorded");
+        assert!(why.contains("destroyed"), "{why}");
+        // Calls on the lost device fail without panicking.
+        let buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("after the loss"),
+            size: 64,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        gpu.queue.write_buffer(&buffer, 0, &[0u8; 64]);
+        gpu.queue.submit([]);
+        gpu.wait_idle();
+    }
 }

@@ -17,7 +17,7 @@ use glam::Vec3;
 use std::sync::Arc;
 
 use crate::gpu::GpuContext;
-use crate::upload::{array_buffer, buffer_from_chunks};
+use crate::upload::{UploadError, array_buffer, buffer_from_chunks};
 
 pub use citywalk_scenes::cull_parts;
 pub use citywalk_scenes::scene_geometry::{SceneGeometry, check_layout};
@@ -58,19 +58,19 @@ pub struct SceneGpu {
 }
 
 impl SceneGpu {
-    /// Meshes and uploads `city`.
-    pub fn upload_city(gpu: &GpuContext, city: &City) -> SceneGpu {
+    /// Meshes and uploads `city` (an error when an array does not fit the GPU).
+    pub fn upload_city(gpu: &GpuContext, city: &City) -> Result<SceneGpu, UploadError> {
         Self::upload(gpu, &SceneGeometry::from_city(city))
     }
 
     /// Uploads prepared geometry.
-    pub fn upload(gpu: &GpuContext, geometry: &SceneGeometry) -> SceneGpu {
+    pub fn upload(gpu: &GpuContext, geometry: &SceneGeometry) -> Result<SceneGpu, UploadError> {
         let arrays = (
             &geometry.vertices[..],
             &geometry.indices[..],
             &geometry.parts[..],
         );
-        let geometry_buffers = GeometryBuffers::upload(gpu, arrays, &|_| {});
+        let geometry_buffers = GeometryBuffers::upload(gpu, arrays, &|_| {})?;
         Self::with_records(
             gpu,
             geometry_buffers,
@@ -85,11 +85,14 @@ impl SceneGpu {
     /// the records of draw ids `0..building_count`, with the whole vertex, index and part
     /// arrays, which [`crate::lod::scene::LodScene::upload_package`] then shares. The view's
     /// pages are released as they are uploaded ([`GpuSceneView::release_resident`]).
-    pub fn upload_package(gpu: &GpuContext, view: &GpuSceneView<'_>) -> SceneGpu {
+    pub fn upload_package(
+        gpu: &GpuContext,
+        view: &GpuSceneView<'_>,
+    ) -> Result<SceneGpu, UploadError> {
         let buildings = &view.records[..view.building_count as usize];
         let release = |bytes: &[u8]| view.release_resident(bytes);
         let arrays = (view.vertices, view.indices, view.parts);
-        let geometry_buffers = GeometryBuffers::upload(gpu, arrays, &release);
+        let geometry_buffers = GeometryBuffers::upload(gpu, arrays, &release)?;
         Self::with_records(
             gpu,
             geometry_buffers,
@@ -107,7 +110,7 @@ impl SceneGpu {
         shared: &SceneGpu,
         records: &[BuildingRecord],
         bounds: (Vec3, Vec3),
-    ) -> SceneGpu {
+    ) -> Result<SceneGpu, UploadError> {
         let geometry_buffers = GeometryBuffers {
             vertex_buffer: shared.vertex_buffer.clone(),
             index_buffer: shared.index_buffer.clone(),
@@ -130,7 +133,7 @@ impl SceneGpu {
         parts: Arc<[CullPart]>,
         ground: DrawIndexedIndirectArgs,
         bounds: (Vec3, Vec3),
-    ) -> SceneGpu {
+    ) -> Result<SceneGpu, UploadError> {
         // At least one record long (zeroed), so the buffer can always be bound.
         let records_buffer = array_buffer(
             gpu,
@@ -138,7 +141,7 @@ impl SceneGpu {
             records,
             wgpu::BufferUsages::STORAGE,
             &|_| {},
-        );
+        )?;
         // One draw per record, then the ground's, made chunk by chunk.
         const DRAW: usize = size_of::<DrawIndexedIndirectArgs>();
         let all_draws_buffer = buffer_from_chunks(
@@ -155,8 +158,8 @@ impl SceneGpu {
                     slot.copy_from_slice(bytemuck::bytes_of(&draw));
                 }
             },
-        );
-        SceneGpu {
+        )?;
+        Ok(SceneGpu {
             vertex_buffer: buffers.vertex_buffer,
             index_buffer: buffers.index_buffer,
             records_buffer,
@@ -167,7 +170,7 @@ impl SceneGpu {
             ground,
             bounds,
             triangle_count: records.iter().map(|r| r.index_count as usize / 3).sum(),
-        }
+        })
     }
 
     /// Number of buildings.
@@ -229,25 +232,25 @@ impl GeometryBuffers {
         gpu: &GpuContext,
         (vertices, indices, parts): (&[SceneVertex], &[u32], &[CullPart]),
         release: &dyn Fn(&[u8]),
-    ) -> GeometryBuffers {
+    ) -> Result<GeometryBuffers, UploadError> {
         use wgpu::BufferUsages as U;
-        GeometryBuffers {
+        Ok(GeometryBuffers {
             vertex_buffer: array_buffer(
                 gpu,
                 "scene vertices",
                 vertices,
                 U::VERTEX | U::STORAGE,
                 release,
-            ),
+            )?,
             index_buffer: array_buffer(
                 gpu,
                 "scene indices",
                 indices,
                 U::INDEX | U::STORAGE,
                 release,
-            ),
-            parts_buffer: array_buffer(gpu, "building cull parts", parts, U::STORAGE, release),
-        }
+            )?,
+            parts_buffer: array_buffer(gpu, "building cull parts", parts, U::STORAGE, release)?,
+        })
     }
 }
 

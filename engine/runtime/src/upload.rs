@@ -11,6 +11,35 @@
 
 use crate::gpu::GpuContext;
 
+/// Why an array did not reach the GPU: the adapter's limits or its memory, named with the
+/// array and its size, instead of wgpu's panic on an uncaptured error.
+#[derive(Debug, thiserror::Error)]
+pub enum UploadError {
+    #[error(
+        "the scene's {what} take {bytes} bytes ({mib:.0} MiB), over this GPU's {limit_name} of \
+         {limit} bytes ({limit_mib:.0} MiB): the city is too large for this adapter",
+        mib = *bytes as f64 / MIB,
+        limit_mib = *limit as f64 / MIB
+    )]
+    OverLimit {
+        what: String,
+        bytes: u64,
+        limit: u64,
+        limit_name: &'static str,
+    },
+    #[error(
+        "out of GPU memory for the scene's {what} ({bytes} bytes, {mib:.0} MiB): {message}",
+        mib = *bytes as f64 / MIB
+    )]
+    OutOfMemory {
+        what: String,
+        bytes: u64,
+        message: String,
+    },
+}
+
+const MIB: f64 = 1024.0 * 1024.0;
+
 /// Bytes copied per submission: large enough that the waits cost little (about 50 at a
 /// million buildings), small enough that the staging is a rounding error.
 pub const UPLOAD_CHUNK_BYTES: usize = 32 << 20;
@@ -24,7 +53,7 @@ pub fn array_buffer<T: bytemuck::Pod>(
     items: &[T],
     usage: wgpu::BufferUsages,
     release: &dyn Fn(&[u8]),
-) -> wgpu::Buffer {
+) -> Result<wgpu::Buffer, UploadError> {
     let contents: &[u8] = bytemuck::cast_slice(items);
     let len = contents.len().max(size_of::<T>());
     buffer_from_chunks(gpu, label, len, usage, |range, out| {
@@ -38,23 +67,34 @@ pub fn array_buffer<T: bytemuck::Pod>(
 /// A buffer of `usage`, `len` bytes long (rounded up to a multiple of 4, at least 4), whose
 /// bytes are produced chunk by chunk, in order: `fill(range, out)` writes bytes `range` into
 /// `out` (zeroed, `range.len()` long, 4-byte aligned; ranges start at multiples of 4). Each
-/// chunk is on the GPU before the next is produced.
+/// chunk is on the GPU before the next is produced. A size over the device's limits (of any
+/// buffer, or of a storage binding when `usage` has `STORAGE`) or a failed allocation is an
+/// error naming `label`.
 pub fn buffer_from_chunks(
     gpu: &GpuContext,
     label: &str,
     len: usize,
     usage: wgpu::BufferUsages,
     mut fill: impl FnMut(std::ops::Range<usize>, &mut [u8]),
-) -> wgpu::Buffer {
+) -> Result<wgpu::Buffer, UploadError> {
     let size = len
         .max(1)
         .next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT as usize);
+    check_limits(&gpu.device.limits(), label, size as u64, usage)?;
+    let out_of_memory = gpu.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
     let buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
         label: Some(label),
         size: size as u64,
         usage: usage | wgpu::BufferUsages::COPY_DST,
         mapped_at_creation: false,
     });
+    if let Some(error) = pollster::block_on(out_of_memory.pop()) {
+        return Err(UploadError::OutOfMemory {
+            what: label.to_owned(),
+            bytes: size as u64,
+            message: error.to_string(),
+        });
+    }
     // `u32`s, so that `out` is 4-byte aligned (callers cast it to `u32`s).
     let mut chunk = vec![0u32; size.min(UPLOAD_CHUNK_BYTES) / 4];
     let mut start = 0;
@@ -73,7 +113,33 @@ pub fn buffer_from_chunks(
         }
         start = end;
     }
-    buffer
+    Ok(buffer)
+}
+
+/// Whether a buffer of `bytes` and `usage` fits `limits`.
+fn check_limits(
+    limits: &wgpu::Limits,
+    label: &str,
+    bytes: u64,
+    usage: wgpu::BufferUsages,
+) -> Result<(), UploadError> {
+    let storage = usage.contains(wgpu::BufferUsages::STORAGE).then_some((
+        "max_storage_buffer_binding_size",
+        limits.max_storage_buffer_binding_size,
+    ));
+    let over = [("max_buffer_size", limits.max_buffer_size)]
+        .into_iter()
+        .chain(storage)
+        .find(|&(_, limit)| bytes > limit);
+    match over {
+        Some((limit_name, limit)) => Err(UploadError::OverLimit {
+            what: label.to_owned(),
+            bytes,
+            limit,
+            limit_name,
+        }),
+        None => Ok(()),
+    }
 }
 
 #[cfg(test)]
@@ -124,7 +190,8 @@ mod tests {
                 last_end.set(bytes.as_ptr() as usize + bytes.len());
                 released.set(released.get() + bytes.len());
             },
-        );
+        )
+        .expect("within the limits");
         assert_eq!(released.get(), len);
         assert!(
             read_back(&gpu, &buffer) == contents,
@@ -132,7 +199,35 @@ mod tests {
         );
 
         let empty: &[[u32; 3]] = &[];
-        let one = array_buffer(&gpu, "empty", empty, wgpu::BufferUsages::COPY_SRC, &|_| {});
+        let one = array_buffer(&gpu, "empty", empty, wgpu::BufferUsages::COPY_SRC, &|_| {})
+            .expect("within the limits");
         assert_eq!(read_back(&gpu, &one), vec![0u8; 12]);
+    }
+
+    /// An array over the device's buffer limit, or over its storage binding limit when bound
+    /// as storage, is an error naming the array and the limit (and nothing is allocated).
+    #[test]
+    fn an_array_over_the_limits_is_an_error_naming_it() {
+        let limits = wgpu::Limits {
+            max_buffer_size: 1 << 20,
+            max_storage_buffer_binding_size: 1 << 16,
+            ..wgpu::Limits::default()
+        };
+        let storage = wgpu::BufferUsages::STORAGE;
+        let vertex = wgpu::BufferUsages::VERTEX;
+        assert!(check_limits(&limits, "a", 1 << 16, storage).is_ok());
+        assert!(check_limits(&limits, "a", 1 << 20, vertex).is_ok());
+        let error = check_limits(&limits, "building records", (1 << 16) + 4, storage)
+            .expect_err("over the storage binding limit");
+        let text = error.to_string();
+        assert!(
+            text.contains("building records")
+                && text.contains("65540 bytes")
+                && text.contains("max_storage_buffer_binding_size of 65536 bytes"),
+            "{text}"
+        );
+        let error = check_limits(&limits, "scene vertices", (1 << 20) + 4, vertex)
+            .expect_err("over the buffer limit");
+        assert!(error.to_string().contains("max_buffer_size"), "{error}");
     }
 }

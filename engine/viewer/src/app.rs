@@ -149,7 +149,7 @@ impl App {
                 "the scene was uploaded to an earlier window".to_string(),
             ));
         };
-        let mut drawer = FrameDrawer::new(&surface.gpu, surface.config.format, scene);
+        let mut drawer = FrameDrawer::new(&surface.gpu, surface.config.format, scene)?;
         // A screenshot's panel shows the counts of the frame it captures.
         drawer.wait_for_reports = self.options.screenshot.is_some();
         let overlay = Overlay::new(
@@ -352,6 +352,10 @@ impl App {
         let Some(gfx) = &mut self.gfx else {
             return Ok(());
         };
+        // A lost device draws nothing more: stop with its reason (not a panic at the next call).
+        if let Some(why) = gfx.surface.gpu.lost() {
+            return Err(ViewerError::DeviceLost(why));
+        }
         let Acquired::Frame(frame) = gfx.surface.acquire()? else {
             return Ok(());
         };

@@ -20,6 +20,7 @@ use citywalk_runtime::render::debug::{
     ClusterView, DepthPyramid, OccluderOverlay, OccluderOverlayMeshes, PyramidView,
 };
 use citywalk_runtime::runner::{Completion, FrameReport, FrameRunner, FrameTarget};
+use citywalk_runtime::upload::UploadError;
 
 /// What the viewer draws from, on the CPU.
 #[derive(Debug)]
@@ -86,21 +87,26 @@ pub struct FrameDrawer {
 }
 
 impl FrameDrawer {
-    /// Uploads `scene` and makes every pipeline for colour targets of `format`.
-    pub fn new(gpu: &GpuContext, format: wgpu::TextureFormat, scene: ViewerScene) -> FrameDrawer {
+    /// Uploads `scene` and makes every pipeline for colour targets of `format` (an error when
+    /// the scene does not fit the GPU).
+    pub fn new(
+        gpu: &GpuContext,
+        format: wgpu::TextureFormat,
+        scene: ViewerScene,
+    ) -> Result<FrameDrawer, UploadError> {
         let (drawable, occluder_overlay_meshes) = match &scene.gpu_scene {
             Some(package) => {
                 let drawable =
-                    DrawableScene::upload_package(gpu, package, scene.cluster_tree, scene.blocks);
+                    DrawableScene::upload_package(gpu, package, scene.cluster_tree, scene.blocks)?;
                 let overlay = drawable.occluders.as_ref().map(OccluderOverlayMeshes::of);
                 (drawable, overlay)
             }
             None => (
-                DrawableScene::upload_city(gpu, &scene.city, scene.cluster_tree, scene.blocks),
+                DrawableScene::upload_city(gpu, &scene.city, scene.cluster_tree, scene.blocks)?,
                 None,
             ),
         };
-        FrameDrawer {
+        Ok(FrameDrawer {
             runner: FrameRunner::new(gpu, format),
             drawable,
             occluder_overlay_meshes,
@@ -112,7 +118,7 @@ impl FrameDrawer {
             depth_pyramid: DepthPyramid::new(gpu),
             pyramid_view: PyramidView::new(gpu, format),
             occluder_overlay: OccluderOverlay::new(gpu, format),
-        }
+        })
     }
 
     /// Buildings and their triangles in the scene.

@@ -77,6 +77,10 @@ pub enum ViewerError {
     Surface(String),
     #[error(transparent)]
     Gpu(#[from] GpuError),
+    #[error(transparent)]
+    Upload(#[from] citywalk_runtime::upload::UploadError),
+    #[error("{0}; the viewer stops (restart it to reopen the scene)")]
+    DeviceLost(String),
     #[error("screenshot: {0}")]
     Screenshot(#[from] screenshot::ScreenshotError),
     #[error("writing screenshot {path}: {source}")]

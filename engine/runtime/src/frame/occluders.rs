@@ -13,7 +13,7 @@ use glam::Vec3;
 use crate::camera::Camera;
 use crate::frame::sphere_index::SphereIndex;
 use crate::gpu::GpuContext;
-use crate::upload::{array_buffer, buffer_from_chunks};
+use crate::upload::{UploadError, array_buffer, buffer_from_chunks};
 
 /// One occluder on the GPU: its draw and its bounds for the CPU selection.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -79,13 +79,16 @@ impl OccluderMeshes {
     /// Uploads every drawable occluder of `set` ([`OccluderArrays::of`]: vertices carry the
     /// occluder's building id; triangles with an index outside their mesh and non-finite meshes
     /// are left out).
-    pub fn upload(gpu: &GpuContext, set: &OccluderSet) -> OccluderMeshes {
+    pub fn upload(gpu: &GpuContext, set: &OccluderSet) -> Result<OccluderMeshes, UploadError> {
         Self::upload_arrays(gpu, OccluderArrays::of(set).view(), &|_| {})
     }
 
     /// Uploads the occluders of a package's GPU scene, straight from its mapping (whose pages
     /// are released as they are uploaded).
-    pub fn upload_package(gpu: &GpuContext, scene: &GpuSceneView<'_>) -> OccluderMeshes {
+    pub fn upload_package(
+        gpu: &GpuContext,
+        scene: &GpuSceneView<'_>,
+    ) -> Result<OccluderMeshes, UploadError> {
         Self::upload_arrays(gpu, scene.occluders, &|bytes| scene.release_resident(bytes))
     }
 
@@ -93,7 +96,7 @@ impl OccluderMeshes {
         gpu: &GpuContext,
         arrays: OccluderArraysView<'_>,
         release: &dyn Fn(&[u8]),
-    ) -> OccluderMeshes {
+    ) -> Result<OccluderMeshes, UploadError> {
         let occluders: Vec<OccluderDraw> = arrays.records.iter().map(OccluderDraw::of).collect();
         // Buffers are never empty, so they can always be bound.
         let vertex_buffer = array_buffer(
@@ -102,10 +105,10 @@ impl OccluderMeshes {
             arrays.vertices,
             wgpu::BufferUsages::VERTEX,
             release,
-        );
-        let index_buffer = absolute_index_buffer(gpu, &arrays);
+        )?;
+        let index_buffer = absolute_index_buffer(gpu, &arrays)?;
         release(bytemuck::cast_slice(arrays.indices));
-        OccluderMeshes {
+        Ok(OccluderMeshes {
             vertex_buffer,
             index_buffer,
             index: SphereIndex::new(
@@ -116,7 +119,7 @@ impl OccluderMeshes {
             ),
             spheres: occluders.iter().map(Sphere::of).collect(),
             occluders,
-        }
+        })
     }
 
     /// The occluders to draw for `camera` on a viewport `height_px` tall: in the frustum, and
@@ -202,7 +205,10 @@ fn merge_ranges(ranges: &mut Vec<(u32, u32)>) {
 /// made chunk by chunk in the buffer's order ([`buffer_from_chunks`]: no second copy of all the
 /// indices). Indices outside every record are never drawn and stay zero; at least one
 /// triangle long, so it can always be bound.
-fn absolute_index_buffer(gpu: &GpuContext, arrays: &OccluderArraysView<'_>) -> wgpu::Buffer {
+fn absolute_index_buffer(
+    gpu: &GpuContext,
+    arrays: &OccluderArraysView<'_>,
+) -> Result<wgpu::Buffer, UploadError> {
     const U32: usize = size_of::<u32>();
     let len = arrays.indices.len().max(3);
     let range_of = |r: &OccluderRecord| {

@@ -31,11 +31,11 @@ use citywalk_shaders::{
     DrawIndexedIndirectArgs, HZB_CULL_WGSL, HzbCullParams, TreeCullParams, TreeLandmark, TreeNode,
 };
 use glam::Mat4;
-use wgpu::util::DeviceExt;
 
 use super::build::HzbPyramid;
 use crate::gpu::GpuContext;
 use crate::lod::gpu_tree::TreeArrays;
+use crate::upload::{UploadError, array_buffer};
 
 /// The tree's arrays on the GPU (made once per LOD scene).
 #[derive(Debug)]
@@ -51,30 +51,23 @@ pub struct TreeBuffers {
 }
 
 impl TreeBuffers {
-    pub fn upload(gpu: &GpuContext, arrays: &TreeArrays) -> TreeBuffers {
-        fn storage<T: bytemuck::Pod + bytemuck::Zeroable>(
+    pub fn upload(gpu: &GpuContext, arrays: &TreeArrays) -> Result<TreeBuffers, UploadError> {
+        fn storage<T: bytemuck::Pod>(
             gpu: &GpuContext,
             label: &str,
             items: &[T],
-        ) -> wgpu::Buffer {
-            let one = [T::zeroed()];
-            let items = if items.is_empty() { &one[..] } else { items };
-            gpu.device
-                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some(label),
-                    contents: bytemuck::cast_slice(items),
-                    usage: wgpu::BufferUsages::STORAGE,
-                })
+        ) -> Result<wgpu::Buffer, UploadError> {
+            array_buffer(gpu, label, items, wgpu::BufferUsages::STORAGE, &|_| {})
         }
-        TreeBuffers {
-            nodes: storage::<TreeNode>(gpu, "tree nodes", &arrays.nodes),
-            children: storage(gpu, "tree children", &arrays.children),
-            landmarks: storage::<TreeLandmark>(gpu, "tree landmarks", &arrays.landmarks),
-            leaf_of: storage(gpu, "tree leaf of building", &arrays.leaf_of),
+        Ok(TreeBuffers {
+            nodes: storage::<TreeNode>(gpu, "tree nodes", &arrays.nodes)?,
+            children: storage(gpu, "tree children", &arrays.children)?,
+            landmarks: storage::<TreeLandmark>(gpu, "tree landmarks", &arrays.landmarks)?,
+            leaf_of: storage(gpu, "tree leaf of building", &arrays.leaf_of)?,
             node_count: arrays.nodes.len() as u32,
             root: arrays.root,
             levels: arrays.levels,
-        }
+        })
     }
 }
 

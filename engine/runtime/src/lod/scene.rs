@@ -24,7 +24,7 @@ use crate::hzb::tree_cull::TreeBuffers;
 use crate::lod::gpu_tree::TreeArrays;
 use crate::lod::{LodCriterion, LodCut, LodTree, LodView};
 use crate::scene_gpu::SceneGpu;
-use crate::upload::array_buffer;
+use crate::upload::{UploadError, array_buffer};
 
 pub use citywalk_scenes::scene_geometry::{cull_records, draw_id_parents, lod_geometry};
 
@@ -103,10 +103,14 @@ pub fn covered_by(tree: &ClusterTree, building_count: u32, id: u32) -> Covered<'
 impl LodScene {
     /// Meshes and uploads the buildings of `city` and the cluster meshes of `tree` (built from
     /// `city`), as preprocessing does for a package ([`GpuScene::build`]).
-    pub fn upload(gpu: &GpuContext, city: &City, tree: ClusterTree) -> LodScene {
+    pub fn upload(
+        gpu: &GpuContext,
+        city: &City,
+        tree: ClusterTree,
+    ) -> Result<LodScene, UploadError> {
         let scene = GpuScene::build(city, Some(&tree), None);
         let view = scene.view();
-        Self::upload_package(gpu, &SceneGpu::upload_package(gpu, &view), &view, tree)
+        Self::upload_package(gpu, &SceneGpu::upload_package(gpu, &view)?, &view, tree)
     }
 
     /// The combined scene of a package's GPU scene `view` (with the package's `tree`), over the
@@ -117,7 +121,7 @@ impl LodScene {
         buildings: &SceneGpu,
         view: &GpuSceneView<'_>,
         tree: ClusterTree,
-    ) -> LodScene {
+    ) -> Result<LodScene, UploadError> {
         let release = |bytes: &[u8]| view.release_resident(bytes);
         // Empty arrays (no tree) are one zeroed record and one parent that names none.
         let cull_records_buffer = array_buffer(
@@ -126,7 +130,7 @@ impl LodScene {
             view.cull_records,
             wgpu::BufferUsages::STORAGE,
             &release,
-        );
+        )?;
         let no_parent = [NO_PARENT];
         let parents = if view.parents.is_empty() {
             &no_parent[..]
@@ -134,8 +138,8 @@ impl LodScene {
             view.parents
         };
         let tree = LodTree::new(tree);
-        let tree_gpu = TreeBuffers::upload(gpu, &TreeArrays::build(&tree, view.building_count));
-        LodScene {
+        let tree_gpu = TreeBuffers::upload(gpu, &TreeArrays::build(&tree, view.building_count))?;
+        Ok(LodScene {
             tree_gpu,
             parents_buffer: array_buffer(
                 gpu,
@@ -143,14 +147,14 @@ impl LodScene {
                 parents,
                 wgpu::BufferUsages::STORAGE,
                 &release,
-            ),
+            )?,
             cull_records_buffer,
             cull_records: view.cull_records.to_vec(),
-            gpu_scene: SceneGpu::sharing(gpu, buildings, view.records, view.bounds),
+            gpu_scene: SceneGpu::sharing(gpu, buildings, view.records, view.bounds)?,
             building_count: view.building_count,
             tree,
             criterion: None,
-        }
+        })
     }
 
     /// The buildings drawn id `id` stands for ([`covered_by`]).
