@@ -16,8 +16,8 @@ use crate::gpu::GpuContext;
 #[derive(Debug, thiserror::Error)]
 pub enum UploadError {
     #[error(
-        "the scene's {what} take {bytes} bytes ({mib:.0} MiB), over this GPU's {limit_name} of \
-         {limit} bytes ({limit_mib:.0} MiB): the city is too large for this adapter",
+        "the scene's {what} take {bytes} bytes ({mib:.0} MiB), over this GPU's max_buffer_size \
+         of {limit} bytes ({limit_mib:.0} MiB): the city is too large for this adapter",
         mib = *bytes as f64 / MIB,
         limit_mib = *limit as f64 / MIB
     )]
@@ -25,7 +25,6 @@ pub enum UploadError {
         what: String,
         bytes: u64,
         limit: u64,
-        limit_name: &'static str,
     },
     #[error(
         "out of GPU memory for the scene's {what} ({bytes} bytes, {mib:.0} MiB): {message}",
@@ -124,7 +123,6 @@ fn check_limits(limits: &wgpu::Limits, label: &str, bytes: u64) -> Result<(), Up
             what: label.to_owned(),
             bytes,
             limit: limits.max_buffer_size,
-            limit_name: "max_buffer_size",
         });
     }
     Ok(())
@@ -145,15 +143,7 @@ mod tests {
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
         encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, buffer.size());
         gpu.queue.submit([encoder.finish()]);
-        staging
-            .slice(..)
-            .map_async(wgpu::MapMode::Read, |r| r.expect("map"));
-        gpu.wait_idle();
-        staging
-            .slice(..)
-            .get_mapped_range()
-            .expect("mapped")
-            .to_vec()
+        crate::render::targets::map_read(gpu, &staging).expect("read back")
     }
 
     /// An array of several chunks and a ragged end arrives whole, each source byte released
