@@ -220,12 +220,15 @@ fn a_package_opened_to_draw_has_the_occluder_sets_arrays_and_no_set() {
         "the buildings to draw differ"
     );
     // The cluster meshes are stored once, in the GPU scene: a full read restores them, a read
-    // to draw leaves them there.
+    // to draw leaves them there, and the footprints out.
     assert_eq!(full.cluster_tree, pkg.cluster_tree);
     let mut tree = full.cluster_tree.expect("a tree");
     assert!(tree.nodes.iter().any(|n| !n.mesh.indices.is_empty()));
-    tree.nodes
-        .iter_mut()
-        .for_each(|n| n.mesh = Default::default());
+    assert!(!tree.vertices.is_empty() && tree.nodes.iter().all(|n| !n.footprint.is_empty()));
+    tree.vertices.clear();
+    tree.nodes.iter_mut().for_each(|n| {
+        n.mesh = Default::default();
+        n.footprint.clear();
+    });
     assert_eq!(to_draw.cluster_tree, Some(tree));
 }

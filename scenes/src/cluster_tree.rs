@@ -239,6 +239,18 @@ pub struct ClusterTree {
 }
 
 impl ClusterTree {
+    /// Frees the footprints and their shared vertex array. Drawing never reads them (the cut
+    /// reads bounds and errors, the cluster meshes are in the GPU scene); at a million
+    /// buildings they are a quarter of a gigabyte. A tree without footprints no longer passes
+    /// [`ClusterTree::check_invariants`]: this is for a package decoded to draw
+    /// ([`crate::package::Decode::Runtime`]).
+    pub fn drop_footprints(&mut self) {
+        self.vertices = Vec::new();
+        for node in &mut self.nodes {
+            node.footprint = Vec::new();
+        }
+    }
+
     /// The nodes at depth `level` plus the leaves shallower than it: a complete cut.
     pub fn cut_at_level(&self, level: u32) -> Vec<u32> {
         let mut out = Vec::new();

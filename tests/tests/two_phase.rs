@@ -19,7 +19,6 @@ use citywalk_runtime::frame::{
     CullingOptions, CullingRenderer, FrameOutput, OccluderMeshes, Visibility,
 };
 use citywalk_runtime::gpu::GpuContext;
-use citywalk_runtime::hzb::cull::CULL_VISIBLE;
 use citywalk_runtime::lod::LodCriterion;
 use citywalk_runtime::lod::scene::{LodFrame, LodScene};
 use citywalk_runtime::oracle::{Oracle, VisibleSet};
@@ -304,14 +303,13 @@ impl Harness {
         assert!(
             missing.ids.is_empty(),
             "{}, {config}, {}x{}, camera {}: visible buildings {:?} not drawn \
-             (pixels {:?}, status {:?})",
+             (pixels {:?})",
             scene.name,
             size.0,
             size.1,
             camera.to_arg_string(),
             missing.ids,
             missing.pixels,
-            missing.status,
         );
         // The counts add up.
         let s = &out.stats;
@@ -325,12 +323,11 @@ impl Harness {
     }
 }
 
-/// The oracle-visible buildings a frame did not draw, with their visible pixels and cull status
-/// (for the failure message).
+/// The oracle-visible buildings a frame did not draw, with their visible pixels (for the failure
+/// message).
 struct Undrawn {
     ids: Vec<u32>,
     pixels: Vec<u32>,
-    status: Vec<u32>,
 }
 
 impl Undrawn {
@@ -346,7 +343,6 @@ impl Undrawn {
                 .iter()
                 .map(|&b| visible.pixel_counts[b as usize])
                 .collect(),
-            status: ids.iter().map(|&b| out.status[b as usize]).collect(),
             ids,
         }
     }
@@ -436,13 +432,11 @@ impl Harness {
         assert!(
             missing.ids.is_empty(),
             "{}, combined {criterion:?}, {w}x{h}, camera {}: visible buildings {:?} not \
-             drawn, neither themselves nor through a cluster (pixels {:?}, status {:?}, in the \
-             cut {:?})",
+             drawn, neither themselves nor through a cluster (pixels {:?}, in the cut {:?})",
             scene.name,
             camera.to_arg_string(),
             missing.ids,
             missing.pixels,
-            missing.status,
             missing
                 .ids
                 .iter()
@@ -920,15 +914,18 @@ fn fast_turn_draws_the_disoccluded_buildings_and_near_boxes_are_kept() {
     );
     for (config, options) in configurations() {
         let mut visibility = Visibility::default();
+        // Nothing is drawn early in a fresh stream: what is drawn, the cull kept.
         let out = h.frame(&scene, &options, &mut visibility, &inside, (320, 200));
-        assert_eq!(
-            out.status[id], CULL_VISIBLE,
+        assert!(
+            out.drawn.contains(&(id as u32)) && visibility.is_visible(id as u32),
             "{config}: near-crossing box culled"
         );
-        assert!(out.drawn.contains(&(id as u32)));
         // The box test must also keep it when other buildings were drawn early.
         let out = h.frame(&scene, &options, &mut visibility, &inside, (320, 200));
-        assert_eq!(out.status[id], CULL_VISIBLE, "{config}: second frame");
+        assert!(
+            visibility.is_visible(id as u32),
+            "{config}: near-crossing box culled in the second frame"
+        );
         assert!(
             h.visible_set(&scene, &inside, (320, 200))
                 .visible
@@ -1308,4 +1305,88 @@ fn gpu_cut_matches_its_cpu_reference() {
         "tree cull: {compared} kept by the reference, {extra} more by the GPU, {clusters} clusters"
     );
     assert!(compared > 0 && clusters > 0);
+}
+
+/// A polled tree report is whole or none: a frame whose kept or early list outgrew its report
+/// slot gives no output when polled (part of the lists would undercount what was drawn) and
+/// makes the next reports larger; the next frame's polled output then equals the same frame
+/// waited for, which reads the lists whole.
+#[test]
+fn a_polled_tree_report_is_whole_or_none() {
+    let Some((mut h, scene)) = harness("two_phase polled tree report", generated) else {
+        return;
+    };
+    let lod = &scene.lod;
+    let size = (320, 200);
+    let target =
+        OffscreenTarget::new(&h.gpu, size.0, size.1, BruteRenderer::PNG_FORMAT).expect("target");
+    let options = CullingOptions {
+        occluders: true,
+        occluder_gate: false,
+        ..CullingOptions::default()
+    };
+    // One aerial camera twice: the second frame draws the first one's set early.
+    let camera = aerial_camera(&mut Rng(0x5eed_0302), &scene.scene);
+    let cameras = [camera, camera];
+    // Waited for: the reference outputs of the two frames.
+    let mut visibility = Visibility::default();
+    let waited: Vec<FrameOutput> = cameras
+        .iter()
+        .map(|camera| {
+            h.renderer
+                .render_tree(
+                    &h.gpu,
+                    lod,
+                    lod.default_criterion(camera),
+                    Some(&scene.occluders),
+                    &options,
+                    &mut visibility,
+                    camera,
+                    &target.colour_view,
+                    size,
+                )
+                .expect("tree frame")
+        })
+        .collect();
+    let kept = waited[0].drawn_themselves.len() + waited[0].clusters.len();
+    assert!(kept > 1, "the first frame keeps {kept}");
+    // Polled, with a one-entry report: the first frame's report is dropped and grows the
+    // slot; the second is read whole.
+    let mut renderer = CullingRenderer::new(&h.gpu, BruteRenderer::PNG_FORMAT);
+    renderer.set_tree_report_entries(1);
+    let mut visibility = Visibility::default();
+    let polled: Vec<Option<FrameOutput>> = cameras
+        .iter()
+        .map(|camera| {
+            renderer
+                .submit_tree(
+                    &h.gpu,
+                    lod,
+                    lod.default_criterion(camera),
+                    Some(&scene.occluders),
+                    &options,
+                    &mut visibility,
+                    camera,
+                    &target.colour_view,
+                    size,
+                )
+                .expect("tree frame");
+            h.gpu.wait_idle();
+            renderer
+                .poll_report(&h.gpu, (&lod.gpu_scene, Some(lod)))
+                .expect("poll")
+        })
+        .collect();
+    assert!(polled[0].is_none(), "a report of one entry read in part");
+    assert!(renderer.tree_report_entries() as usize >= kept);
+    let second = polled[1].as_ref().expect("the grown report is read");
+    let w = &waited[1];
+    assert_eq!(second.drawn, w.drawn);
+    assert_eq!(second.drawn_early, w.drawn_early);
+    assert_eq!(second.drawn_themselves, w.drawn_themselves);
+    assert_eq!(second.clusters, w.clusters);
+    assert_eq!(
+        (second.stats.cull_kept, second.stats.triangles),
+        (w.stats.cull_kept, w.stats.triangles)
+    );
 }

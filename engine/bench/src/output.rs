@@ -106,6 +106,9 @@ pub struct SceneLoad {
     /// Resident memory of the process when the scene was ready (MiB; `None` where the
     /// platform does not say). With a software adapter the GPU's buffers are in it too.
     pub resident_mib: Option<f64>,
+    /// GPU memory the device's allocator held when the scene was ready (MiB; `None` where the
+    /// backend keeps no report): the scene's buffers and the frames' targets.
+    pub gpu_allocated_mib: Option<f64>,
 }
 
 /// Everything `bench.json` holds.
@@ -345,18 +348,21 @@ pub fn summary_markdown(report: &BenchReport) -> String {
         report.size[1]
     );
     if !report.scenes.is_empty() {
-        out.push_str("| scene | buildings | triangles | ready (s) | resident (MiB) |\n");
-        out.push_str("|---|---:|---:|---:|---:|\n");
+        out.push_str(
+            "| scene | buildings | triangles | ready (s) | resident (MiB) | GPU allocated (MiB) |\n",
+        );
+        out.push_str("|---|---:|---:|---:|---:|---:|\n");
+        let mib = |m: Option<f64>| m.map_or("n/a".to_string(), |m| format!("{m:.0}"));
         for l in &report.scenes {
             let _ = writeln!(
                 out,
-                "| {} | {} | {} | {:.2} | {} |",
+                "| {} | {} | {} | {:.2} | {} | {} |",
                 l.scene,
                 l.buildings,
                 l.triangles,
                 l.ready_s,
-                l.resident_mib
-                    .map_or("n/a".to_string(), |m| format!("{m:.0}"))
+                mib(l.resident_mib),
+                mib(l.gpu_allocated_mib)
             );
         }
         let peak = report.peak_resident_mib;

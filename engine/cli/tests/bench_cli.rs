@@ -122,6 +122,11 @@ fn bench_writes_its_files_and_plots() {
         .as_f64()
         .expect("peak_resident_mib");
     assert!(resident > 1.0 && peak >= resident, "{resident} {peak}");
+    // Vulkan's allocator reports what the scene's buffers hold (lavapipe's are process memory).
+    let on_gpu = scenes[0]["gpu_allocated_mib"]
+        .as_f64()
+        .expect("gpu_allocated_mib");
+    assert!(on_gpu > 0.0 && on_gpu < resident, "{on_gpu} {resident}");
     assert_eq!(printed, json);
     let summary = std::fs::read_to_string(out.join("summary.md")).expect("summary.md");
     assert!(

@@ -246,10 +246,6 @@ pub struct FrameStats {
 pub struct FrameOutput {
     /// Buildings drawn (early ∪ kept), themselves or through a drawn cluster, in id order.
     pub drawn: Vec<u32>,
-    /// Per building: `CULL_VISIBLE`, `CULL_FRUSTUM_OUTSIDE` or `CULL_OCCLUDED` (with a LOD cut,
-    /// the status of the candidates covering it; `CULL_FRUSTUM_OUTSIDE` when the cut left it
-    /// out).
-    pub status: Vec<u32>,
     /// Cluster tree nodes whose mesh was drawn, ascending (LOD cut only).
     pub clusters: Vec<u32>,
     /// Buildings the early pass drew (last frame's visible set as the GPU held it, through the
@@ -578,7 +574,8 @@ impl CullingRenderer {
     }
 
     /// The newest report that is ready, without waiting (older ready ones are dropped); `None`
-    /// when none is, or when it belongs to a scene other than `scene` / `lod`.
+    /// when none is, when it belongs to a scene other than `scene` / `lod`, or when it is a
+    /// tree frame's whose lists outgrew the report (the next reports copy more).
     pub fn poll_report(
         &mut self,
         gpu: &GpuContext,
@@ -603,7 +600,7 @@ impl CullingRenderer {
         if slot.pending.tree.is_some() {
             return match lod {
                 Some(lod) if lod.building_count as usize == slot.pending.buildings => {
-                    self.read_tree_report(gpu, slot, lod, visibility).map(Some)
+                    self.read_tree_report(gpu, slot, lod, visibility)
                 }
                 _ => Ok(None),
             };
@@ -634,7 +631,7 @@ impl CullingRenderer {
         if let Some(visibility) = visibility {
             candidates.update_visibility(visibility, &status);
         }
-        let mut output = candidates.statistics(status, !self.multi_draw_count);
+        let mut output = candidates.statistics(&status, !self.multi_draw_count);
         let stats = &mut output.stats;
         stats.occluders_drawn = pending.occluders.len() as u32;
         stats.occluder_triangles = pending.occluder_triangles;

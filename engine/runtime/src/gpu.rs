@@ -216,6 +216,13 @@ impl GpuContext {
             .clone()
     }
 
+    /// Memory the device's allocator holds for buffers and textures (MiB; `None` where the
+    /// backend keeps no report). On a software adapter it is process memory.
+    pub fn allocated_mib(&self) -> Option<f64> {
+        let report = self.device.generate_allocator_report()?;
+        Some(report.total_allocated_bytes as f64 / (1024.0 * 1024.0))
+    }
+
     /// Blocks until all submitted work has finished.
     pub fn wait_idle(&self) {
         // An error here means the device was lost; later calls report it.

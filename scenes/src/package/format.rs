@@ -417,9 +417,10 @@ pub enum Decode {
     All,
     /// What drawing the scene needs: every section but the occluder set (the runtime draws the
     /// occluders from the GPU scene's arrays), which is left `None`, the cluster tree's meshes
-    /// (drawn from the GPU scene too) and the buildings' parts and tags, left empty. At a
-    /// million buildings these are gigabytes of heap and seconds of decoding no frame reads;
-    /// what is left (footprints, heights, source meshes) is what camera paths need.
+    /// (drawn from the GPU scene too) and footprints ([`ClusterTree::drop_footprints`]), and
+    /// the buildings' parts and tags, left empty. At a million buildings these are gigabytes
+    /// of heap and seconds of decoding no frame reads; what is left of the buildings
+    /// (footprints, heights, source meshes) is what camera paths need.
     Runtime,
     /// [`Decode::Runtime`] with the buildings whole (parts and tags): what the viewer needs,
     /// whose walking collides with the parts and whose panel shows the tags.
@@ -562,14 +563,18 @@ fn decode_with(
             b.tags = tags;
         }
     }
-    let mut cluster_tree = cluster_tree?;
-    if let (Some(tree), Decode::All) = (&mut cluster_tree, what) {
-        restore_cluster_meshes(tree, &gpu_scene.view()).map_err(|reason| {
-            PackageError::Inconsistent {
-                sections: "cluster tree, gpu scene".into(),
-                reason,
-            }
-        })?;
+    let mut cluster_tree: Option<ClusterTree> = cluster_tree?;
+    match (&mut cluster_tree, what) {
+        (Some(tree), Decode::All) => {
+            restore_cluster_meshes(tree, &gpu_scene.view()).map_err(|reason| {
+                PackageError::Inconsistent {
+                    sections: "cluster tree, gpu scene".into(),
+                    reason,
+                }
+            })?
+        }
+        (Some(tree), Decode::Runtime | Decode::RuntimeWithDetails) => tree.drop_footprints(),
+        (None, _) => {}
     }
     let pkg = ScenePackage {
         frame: required(decode_one(bytes, entries, K::Frame)?, K::Frame)?,

@@ -162,7 +162,7 @@ impl<'a> Candidates<'a> {
 
     /// The frame's counts and drawn buildings from the cull `status` (one per candidate);
     /// `late_commands_all`: the late pass walks every candidate's command (no draw count).
-    pub fn statistics(&self, status: Vec<u32>, late_commands_all: bool) -> FrameOutput {
+    pub fn statistics(&self, status: &[u32], late_commands_all: bool) -> FrameOutput {
         let early_drawn = self.early.iter().filter(|&&d| d).count() as u32;
         let mut stats = FrameStats {
             building_count: self.building_count as u32,
@@ -173,10 +173,9 @@ impl<'a> Candidates<'a> {
             draw_calls: 1 + early_drawn,
             ..FrameStats::default()
         };
-        // Per building: drawn itself, drawn through a cluster, best cull status seen.
+        // Per building: drawn itself, drawn through a cluster.
         let mut itself = vec![false; self.building_count];
         let mut through_cluster = vec![false; self.building_count];
-        let mut building_status = vec![CULL_FRUSTUM_OUTSIDE; self.building_count];
         let mut clusters = Vec::new();
         for (i, &s) in status.iter().enumerate().take(self.len()) {
             let r = self.record(i);
@@ -205,23 +204,18 @@ impl<'a> Candidates<'a> {
             if drawn && let Some(node) = cluster {
                 clusters.push(node);
             }
-            self.for_each_covered(i, |b| {
-                let b = b as usize;
-                let Some(st) = building_status.get_mut(b) else {
-                    return;
+            if drawn {
+                let marks = if cluster.is_some() {
+                    &mut through_cluster
+                } else {
+                    &mut itself
                 };
-                // Visible beats occluded beats outside.
-                if s == CULL_VISIBLE || (s == CULL_OCCLUDED && *st == CULL_FRUSTUM_OUTSIDE) {
-                    *st = s;
-                }
-                if drawn {
-                    if cluster.is_some() {
-                        through_cluster[b] = true;
-                    } else {
-                        itself[b] = true;
+                self.for_each_covered(i, |b| {
+                    if let Some(mark) = marks.get_mut(b as usize) {
+                        *mark = true;
                     }
-                }
-            });
+                });
+            }
         }
         let drawn: Vec<u32> = (0..self.building_count)
             .filter(|&b| itself[b] || through_cluster[b])
@@ -253,11 +247,6 @@ impl<'a> Candidates<'a> {
             drawn_themselves,
             lod_cut: self.lod.is_some(),
             occluders: Vec::new(),
-            status: if self.lod.is_none() {
-                status
-            } else {
-                building_status
-            },
             clusters,
             stats,
         }
@@ -355,11 +344,10 @@ mod tests {
         let status = vec![CULL_OCCLUDED, CULL_VISIBLE];
         c.update_visibility(&mut visibility, &status);
         assert_eq!(visibility.visible_ids(), vec![0, 2]);
-        let out = c.statistics(status, false);
+        let out = c.statistics(&status, false);
         assert_eq!(out.drawn, vec![0, 2]);
         assert_eq!(out.clusters, vec![2]);
         assert!(out.drawn_early.is_empty());
-        assert_eq!(out.status, vec![CULL_VISIBLE, CULL_OCCLUDED, CULL_VISIBLE]);
         let s = &out.stats;
         assert_eq!((s.candidates, s.cull_kept, s.occlusion_culled), (2, 1, 1));
         assert_eq!((s.clusters_drawn, s.buildings_through_clusters), (1, 2));
@@ -373,7 +361,7 @@ mod tests {
         let status = vec![CULL_VISIBLE, CULL_VISIBLE, CULL_OCCLUDED];
         c.update_visibility(&mut visibility, &status);
         assert_eq!(visibility.visible_ids(), vec![0, 1]);
-        let out = c.statistics(status, true);
+        let out = c.statistics(&status, true);
         assert_eq!(out.drawn, vec![0, 1, 2]);
         assert_eq!(out.drawn_early, vec![0, 2]);
         assert!(out.clusters.is_empty());
@@ -403,7 +391,7 @@ mod tests {
         assert_eq!(c.early, vec![true, false, false, true]);
         assert_eq!(c.gate_culled, 1);
         let out = c.statistics(
-            vec![CULL_VISIBLE, CULL_OCCLUDED, CULL_VISIBLE, CULL_OCCLUDED],
+            &[CULL_VISIBLE, CULL_OCCLUDED, CULL_VISIBLE, CULL_OCCLUDED],
             false,
         );
         let s = &out.stats;
@@ -424,10 +412,9 @@ mod tests {
         let status = vec![CULL_VISIBLE, CULL_FRUSTUM_OUTSIDE, CULL_OCCLUDED];
         c.update_visibility(&mut visibility, &status);
         assert_eq!(visibility.visible_ids(), vec![0]);
-        let out = c.statistics(status.clone(), false);
+        let out = c.statistics(&status, false);
         assert_eq!(out.drawn, vec![0, 2]);
         assert_eq!(out.drawn_early, vec![0, 2]);
-        assert_eq!(out.status, status);
         assert_eq!(out.stats.frustum_culled, 1);
         assert_eq!(out.stats.buildings_through_clusters, 0);
     }

@@ -15,7 +15,8 @@
 //! The CPU's work is the same for any city: two uniform blocks, the occluder selection, and a
 //! fixed number of dispatches (the tree's levels plus two). Its report is O(what was drawn): the
 //! kept and early lists, up to [`CullingRenderer::tree_report_entries`] each (grown when a frame
-//! keeps more; a frame waited for is read whole).
+//! keeps more). A frame waited for is read whole; a polled report whose lists outgrew it is
+//! dropped, never read in part.
 
 use std::time::Instant;
 
@@ -64,6 +65,13 @@ impl CullingRenderer {
     /// Kept and early ids the next tree frame's report copies.
     pub fn tree_report_entries(&self) -> u32 {
         self.tree_report_entries
+    }
+
+    /// Sets the kept and early ids the next tree frame's report copies (at least 1; a frame
+    /// that keeps more grows it again). More up front spares a viewer the first polled reports
+    /// of a wide cut, which are dropped until the report holds the lists whole.
+    pub fn set_tree_report_entries(&mut self, entries: u32) {
+        self.tree_report_entries = entries.max(1);
     }
 
     /// Records and submits one LOD frame of `lod` whose cut the GPU computes under `criterion`
@@ -281,14 +289,16 @@ impl CullingRenderer {
 
     /// A tree frame's output from its report slot. Lists longer than the slot holds are read
     /// whole from the GPU when `gpu` is given (a frame waited for: nothing has overwritten them
-    /// since), else the report covers the copied part only; either way later reports copy more.
+    /// since); without it (a polled report, whose lists a later frame may have overwritten)
+    /// the output is `None`: a part of the lists would undercount what was drawn. Either way
+    /// later reports copy more.
     pub(super) fn read_tree_report(
         &mut self,
         gpu: Option<&GpuContext>,
         slot: ReadSlot<PendingFrame>,
         lod: &LodScene,
         visibility: Option<&mut Visibility>,
-    ) -> Result<FrameOutput, FrameError> {
+    ) -> Result<Option<FrameOutput>, FrameError> {
         let ReadSlot {
             bytes,
             layout,
@@ -309,8 +319,16 @@ impl CullingRenderer {
         let early_count =
             (counters[TREE_C_EARLY_LISTED as usize] as usize).min(tree.capacity as usize);
         let copied = layout.candidates as usize;
+        let needed = kept_count.max(early_count);
+        if needed as u32 > self.tree_report_entries {
+            self.tree_report_entries = (needed as u32).saturating_mul(2).next_power_of_two();
+        }
         let (kept, early) = match gpu {
-            Some(gpu) if kept_count.max(early_count) > copied => {
+            _ if needed <= copied => (
+                words(layout.status_at(), kept_count),
+                words(layout.early_at(), early_count),
+            ),
+            Some(gpu) => {
                 let header_bytes = u64::from(TREE_LIST_HEADER) * 4;
                 let half_at = header_bytes + u64::from(tree.half) * u64::from(tree.capacity) * 4;
                 (
@@ -318,15 +336,16 @@ impl CullingRenderer {
                     read_words(gpu, &tree.early_ids, 0, early_count)?,
                 )
             }
-            _ => (
-                words(layout.status_at(), kept_count.min(copied)),
-                words(layout.early_at(), early_count.min(copied)),
-            ),
+            None => {
+                tracing::debug!(
+                    frame = pending.number,
+                    needed,
+                    copied,
+                    "tree report dropped: its lists outgrew the report"
+                );
+                return Ok(None);
+            }
         };
-        let needed = kept_count.max(early_count) as u32;
-        if needed > self.tree_report_entries {
-            self.tree_report_entries = needed.saturating_mul(2).next_power_of_two();
-        }
         if counters[TREE_C_OVERFLOW as usize] != 0 {
             tracing::error!(
                 "tree cull overflowed its queue or lists (frame {}): the frame is incomplete",
@@ -356,7 +375,7 @@ impl CullingRenderer {
             .times_from(&pending.timed, &bytes[..layout.timestamps_bytes as usize]);
         output.occluders = pending.occluders;
         output.lod_cut = true;
-        Ok(output)
+        Ok(Some(output))
     }
 }
 
@@ -451,7 +470,6 @@ pub(super) fn tree_output(
     };
     FrameOutput {
         drawn,
-        status: Vec::new(),
         clusters,
         drawn_early: early,
         drawn_themselves: themselves,
