@@ -281,7 +281,7 @@ fn select_occluders(
     };
     match index {
         Some(index) if prefilter => index
-            .near(eye, reach_per_radius)
+            .near(eye, reach_per_radius, frustum)
             .into_iter()
             .filter(|&i| wanted(i))
             .collect(),
