@@ -61,7 +61,10 @@ fn timed_frame(gpu: &GpuContext, timer: &mut GpuTimer, scene: &SceneGpu) -> (Gpu
     cull.encode_timed(
         gpu,
         &mut encoder,
-        (&scene.records_buffer, Some(&scene.parts_buffer)),
+        (
+            &scene.all.as_ref().expect("a plain scene").records_buffer,
+            Some(&scene.parts_buffer),
+        ),
         n,
         (&pyramid, view_proj),
         timer.compute_pass_writes("cull"),

@@ -1091,7 +1091,10 @@ fn gpu_cull_of_a_rendered_city_never_hides_a_visible_building() {
         cull.encode(
             &gpu,
             &mut encoder,
-            (&scene.records_buffer, Some(&scene.parts_buffer)),
+            (
+                &scene.all.as_ref().expect("a plain scene").records_buffer,
+                Some(&scene.parts_buffer),
+            ),
             n,
             &pyramid,
             vp,

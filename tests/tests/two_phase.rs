@@ -1205,6 +1205,7 @@ fn gpu_cut_matches_its_cpu_reference() {
     use citywalk_runtime::hzb::reference::tree_cull;
     use citywalk_runtime::lod::LodView;
     use citywalk_runtime::lod::gpu_tree::{TreeArrays, tree_params};
+    use citywalk_runtime::lod::scene::cull_records;
 
     let Some((mut h, generated_city)) = harness("two_phase gpu cut reference", generated) else {
         return;
@@ -1216,6 +1217,8 @@ fn gpu_cut_matches_its_cpu_reference() {
     for scene in [&generated_city, &den_haag, &wide] {
         let lod = &scene.lod;
         let arrays = TreeArrays::build(&lod.tree, lod.building_count);
+        // The records the GPU cull tests (on the GPU only), made again as preprocessing does.
+        let cull_records = cull_records(&lod.gpu_scene.records, lod.building_count, &lod.tree.tree);
         // The plain and LOD scenes share their parts.
         let parts = &scene.scene.parts;
         for i in 0..8 {
@@ -1266,13 +1269,13 @@ fn gpu_cut_matches_its_cpu_reference() {
             let reference: Vec<u32> = tree_cull(
                 &pyramid,
                 &arrays,
-                (&lod.cull_records, parts),
+                (&cull_records, parts),
                 view_proj,
                 &params,
             )
             .into_iter()
             // The output lists clusters with a mesh only.
-            .filter(|&id| id < lod.building_count || lod.cull_records[id as usize].index_count > 0)
+            .filter(|&id| id < lod.building_count || cull_records[id as usize].index_count > 0)
             .collect();
             let mut gpu: Vec<u32> = out.drawn_themselves.clone();
             gpu.extend(out.clusters.iter().map(|&c| lod.building_count + c));

@@ -169,6 +169,8 @@ pub enum FrameError {
         "frame {0} recorded no report: every readback slot was still in flight (poll the reports)"
     )]
     NoReport(u64),
+    #[error("the scene has no records of its own on the GPU (a LOD scene): cull it as a LOD cut")]
+    NoRecords,
 }
 
 /// What the frame does besides the two HiZ phases.
@@ -452,7 +454,7 @@ impl CullingRenderer {
         self.frames += 1;
         let number = self.frames;
         let no_parents = self.no_parents.clone();
-        let frame = FrameInputs::of(scene, &no_parents);
+        let frame = FrameInputs::of(scene, &no_parents)?;
         let n = frame.candidates;
         if let Some(ids) = frame.lod_ids {
             let bytes: &[u8] = bytemuck::cast_slice(ids);
@@ -1016,11 +1018,14 @@ struct FrameInputs<'a> {
 }
 
 impl<'a> FrameInputs<'a> {
-    fn of(scene: FrameScene<'a>, no_parents: &'a wgpu::Buffer) -> FrameInputs<'a> {
-        match scene {
+    fn of(
+        scene: FrameScene<'a>,
+        no_parents: &'a wgpu::Buffer,
+    ) -> Result<FrameInputs<'a>, FrameError> {
+        Ok(match scene {
             FrameScene::Buildings(s) => FrameInputs {
                 geometry: s,
-                records: &s.records_buffer,
+                records: &s.all.as_ref().ok_or(FrameError::NoRecords)?.records_buffer,
                 parents: no_parents,
                 lod_ids: None,
                 building_count: s.building_count() as u32,
@@ -1033,9 +1038,9 @@ impl<'a> FrameInputs<'a> {
                 parents: &lod.parents_buffer,
                 lod_ids: Some(ids),
                 building_count: lod.building_count,
-                draw_id_count: lod.cull_records.len() as u32,
+                draw_id_count: lod.gpu_scene.records.len() as u32,
                 candidates: ids.len(),
             },
-        }
+        })
     }
 }

@@ -14,6 +14,7 @@ use citywalk_scenes::frustum::{Containment, Frustum};
 use citywalk_scenes::package::GpuSceneView;
 use citywalk_shaders::{BuildingRecord, CullPart, DrawIndexedIndirectArgs, SceneVertex};
 use glam::Vec3;
+use std::ops::Deref;
 use std::sync::Arc;
 
 use crate::gpu::GpuContext;
@@ -37,16 +38,15 @@ pub struct SceneGpu {
     pub vertex_buffer: wgpu::Buffer,
     /// `u32` indices, relative to each range's `base_vertex`.
     pub index_buffer: wgpu::Buffer,
-    /// [`BuildingRecord`] array (storage, read-only in shaders); at least one record long even
-    /// for an empty scene, so it can always be bound.
-    pub records_buffer: wgpu::Buffer,
     /// [`CullPart`] array the records name (storage, read-only); at least one part long.
     pub parts_buffer: wgpu::Buffer,
-    /// One [`DrawIndexedIndirectArgs`] per building in id order, then the ground's: the
-    /// brute-force draw list (`INDIRECT | STORAGE | COPY_SRC`).
-    pub all_draws_buffer: wgpu::Buffer,
-    /// CPU copy of the records, indexed by building id.
-    pub records: Vec<BuildingRecord>,
+    /// The records and the brute-force draw list on the GPU, which the cull of every building
+    /// and [`SceneGpu::draw_all`] read; `None` for a scene made [`SceneGpu::sharing`] another's
+    /// buffers (the LOD scene: its cull reads `LodScene::cull_records_buffer` and nothing draws
+    /// all of its draw ids at once; at a million buildings they would be 150 MB).
+    pub all: Option<AllDraws>,
+    /// CPU copy of the records, indexed by draw id.
+    pub records: Records,
     /// CPU copy of the cull parts (shared by the scenes over the same buffers).
     pub parts: Arc<[CullPart]>,
     /// The ground plane's draw.
@@ -55,6 +55,57 @@ pub struct SceneGpu {
     pub bounds: (Vec3, Vec3),
     /// Building triangles (the ground excluded).
     pub triangle_count: usize,
+}
+
+/// A plain scene's records and brute-force draw list on the GPU ([`SceneGpu::all`]).
+#[derive(Debug)]
+pub struct AllDraws {
+    /// [`BuildingRecord`] array (storage, read-only in shaders); at least one record long even
+    /// for an empty scene, so it can always be bound.
+    pub records_buffer: wgpu::Buffer,
+    /// One [`DrawIndexedIndirectArgs`] per building in id order, then the ground's
+    /// (`INDIRECT | STORAGE | COPY_SRC`).
+    pub all_draws_buffer: wgpu::Buffer,
+}
+
+/// Draw records on the CPU: one copy shared by the plain scene (the buildings, a prefix) and the
+/// LOD scene over the same buffers (every draw id).
+#[derive(Debug, Clone)]
+pub struct Records {
+    array: Arc<[BuildingRecord]>,
+    len: usize,
+}
+
+impl Records {
+    /// The first `len` records of `array` (all of them when `len` is larger).
+    pub fn prefix(array: Arc<[BuildingRecord]>, len: usize) -> Records {
+        let len = len.min(array.len());
+        Records { array, len }
+    }
+
+    /// Every record of the array these are a prefix of.
+    pub fn whole(&self) -> Records {
+        Records::prefix(Arc::clone(&self.array), usize::MAX)
+    }
+}
+
+impl From<&[BuildingRecord]> for Records {
+    fn from(records: &[BuildingRecord]) -> Records {
+        Records::prefix(records.into(), usize::MAX)
+    }
+}
+
+impl PartialEq for Records {
+    fn eq(&self, other: &Records) -> bool {
+        **self == **other
+    }
+}
+
+impl Deref for Records {
+    type Target = [BuildingRecord];
+    fn deref(&self) -> &[BuildingRecord] {
+        &self.array[..self.len]
+    }
 }
 
 impl SceneGpu {
@@ -74,7 +125,7 @@ impl SceneGpu {
         Self::with_records(
             gpu,
             geometry_buffers,
-            &geometry.records,
+            geometry.records.as_slice().into(),
             geometry.parts.as_slice().into(),
             geometry.ground,
             geometry.bounds,
@@ -82,54 +133,47 @@ impl SceneGpu {
     }
 
     /// Uploads the buildings of a package's GPU scene straight from its bytes (no meshing):
-    /// the records of draw ids `0..building_count`, with the whole vertex, index and part
-    /// arrays, which [`crate::lod::scene::LodScene::upload_package`] then shares. The view's
-    /// pages are released as they are uploaded ([`GpuSceneView::release_resident`]).
+    /// the records of draw ids `0..building_count` (a prefix of the CPU copy of every draw
+    /// id's), with the whole vertex, index and part arrays, which
+    /// [`crate::lod::scene::LodScene::upload_package`] then shares. The view's pages are
+    /// released as they are uploaded ([`GpuSceneView::release_resident`]).
     pub fn upload_package(
         gpu: &GpuContext,
         view: &GpuSceneView<'_>,
     ) -> Result<SceneGpu, UploadError> {
-        let buildings = &view.records[..view.building_count as usize];
         let release = |bytes: &[u8]| view.release_resident(bytes);
+        // The CPU copies first: the mapping's pages they read then leave resident memory with
+        // the records' release here and the parts' upload below, not at the end of the load.
+        let records = Records::prefix(view.records.into(), view.building_count as usize);
+        release(bytemuck::cast_slice(view.records));
+        let parts: Arc<[CullPart]> = view.parts.into();
         let arrays = (view.vertices, view.indices, view.parts);
         let geometry_buffers = GeometryBuffers::upload(gpu, arrays, &release)?;
-        Self::with_records(
-            gpu,
-            geometry_buffers,
-            buildings,
-            view.parts.into(),
-            view.ground,
-            records_bounds(buildings),
-        )
+        let bounds = records_bounds(&records);
+        Self::with_records(gpu, geometry_buffers, records, parts, view.ground, bounds)
     }
 
     /// A scene over the vertex, index and part buffers (and ground) of `shared`, with other
-    /// records into them (`records` must index `shared`'s arrays).
-    pub(crate) fn sharing(
-        gpu: &GpuContext,
-        shared: &SceneGpu,
-        records: &[BuildingRecord],
-        bounds: (Vec3, Vec3),
-    ) -> Result<SceneGpu, UploadError> {
-        let geometry_buffers = GeometryBuffers {
+    /// records into them (`records` must index `shared`'s arrays), and no records or draw list
+    /// of its own on the GPU ([`SceneGpu::all`]).
+    pub(crate) fn sharing(shared: &SceneGpu, records: Records, bounds: (Vec3, Vec3)) -> SceneGpu {
+        SceneGpu {
             vertex_buffer: shared.vertex_buffer.clone(),
             index_buffer: shared.index_buffer.clone(),
             parts_buffer: shared.parts_buffer.clone(),
-        };
-        Self::with_records(
-            gpu,
-            geometry_buffers,
+            all: None,
+            triangle_count: triangles(&records),
             records,
-            Arc::clone(&shared.parts),
-            shared.ground,
+            parts: Arc::clone(&shared.parts),
+            ground: shared.ground,
             bounds,
-        )
+        }
     }
 
     fn with_records(
         gpu: &GpuContext,
         buffers: GeometryBuffers,
-        records: &[BuildingRecord],
+        records: Records,
         parts: Arc<[CullPart]>,
         ground: DrawIndexedIndirectArgs,
         bounds: (Vec3, Vec3),
@@ -138,7 +182,7 @@ impl SceneGpu {
         let records_buffer = array_buffer(
             gpu,
             "building records",
-            records,
+            &records,
             wgpu::BufferUsages::STORAGE,
             &|_| {},
         )?;
@@ -162,14 +206,16 @@ impl SceneGpu {
         Ok(SceneGpu {
             vertex_buffer: buffers.vertex_buffer,
             index_buffer: buffers.index_buffer,
-            records_buffer,
             parts_buffer: buffers.parts_buffer,
-            all_draws_buffer,
-            records: records.to_vec(),
+            all: Some(AllDraws {
+                records_buffer,
+                all_draws_buffer,
+            }),
+            triangle_count: triangles(&records),
+            records,
             parts,
             ground,
             bounds,
-            triangle_count: records.iter().map(|r| r.index_count as usize / 3).sum(),
         })
     }
 
@@ -199,11 +245,22 @@ impl SceneGpu {
     }
 
     /// Draws every building and the ground with one multi-draw over
-    /// [`SceneGpu::all_draws_buffer`] (one indirect draw per building, so the per-building
+    /// [`AllDraws::all_draws_buffer`] (one indirect draw per building, so the per-building
     /// ranges are exercised exactly as a culling pass will emit them). Call after
-    /// [`SceneGpu::bind`].
+    /// [`SceneGpu::bind`]. A scene without a draw list of its own (the LOD scene, whose draw
+    /// ids overlap: every building and every cluster above it) draws the ground only.
     pub fn draw_all(&self, pass: &mut wgpu::RenderPass<'_>) {
-        pass.multi_draw_indexed_indirect(&self.all_draws_buffer, 0, self.records.len() as u32 + 1);
+        match &self.all {
+            Some(all) => pass.multi_draw_indexed_indirect(
+                &all.all_draws_buffer,
+                0,
+                self.records.len() as u32 + 1,
+            ),
+            None => {
+                tracing::error!("draw_all of a scene without a draw list: the ground only");
+                self.draw_ground(pass);
+            }
+        }
     }
 
     /// Draws the ground plane only.
@@ -252,6 +309,11 @@ impl GeometryBuffers {
             parts_buffer: array_buffer(gpu, "building cull parts", parts, U::STORAGE, release)?,
         })
     }
+}
+
+/// Triangles of `records`.
+fn triangles(records: &[BuildingRecord]) -> usize {
+    records.iter().map(|r| r.index_count as usize / 3).sum()
 }
 
 /// The union of the records' boxes (those not inverted), as [`SceneGeometry`] computes its

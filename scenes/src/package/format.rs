@@ -564,6 +564,11 @@ fn decode_with(
         }
     }
     let mut cluster_tree: Option<ClusterTree> = cluster_tree?;
+    if let Some(tree) = &mut cluster_tree {
+        // serde grows a decoded `Vec` by doubling (it caps what it reserves up front): at a
+        // million buildings the nodes' slack is 150 MB.
+        tree.nodes.shrink_to_fit();
+    }
     match (&mut cluster_tree, what) {
         (Some(tree), Decode::All) => {
             restore_cluster_meshes(tree, &gpu_scene.view()).map_err(|reason| {

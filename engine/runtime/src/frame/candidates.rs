@@ -12,7 +12,7 @@
 //! much as (the ground, buildings, occluders contained in buildings), and a cluster mesh is not
 //! contained in its buildings (it fills the negative space between them). Clusters therefore
 //! always go through the cull, which tests the box of everything they stand for
-//! ([`crate::lod::scene::LodScene::cull_records`]).
+//! ([`crate::lod::scene::LodScene::cull_records_buffer`]).
 
 use citywalk_scenes::cluster_tree::ClusterTree;
 use citywalk_shaders::BuildingRecord;
@@ -26,8 +26,9 @@ use crate::lod::scene::{LodScene, covered_by};
 pub(super) struct LodSource<'a> {
     /// Buildings of the scene; draw id `building_count + n` is cluster node `n`.
     pub building_count: u32,
-    /// Per draw id, the record the cull tests ([`LodScene::cull_records`]).
-    pub cull_records: &'a [BuildingRecord],
+    /// Per draw id, its draw record (the cull tests [`LodScene::cull_records_buffer`]'s, whose
+    /// index ranges are the same; the CPU reads only those).
+    pub records: &'a [BuildingRecord],
     pub tree: &'a ClusterTree,
 }
 
@@ -35,7 +36,7 @@ impl<'a> LodSource<'a> {
     pub fn of(lod: &'a LodScene) -> LodSource<'a> {
         LodSource {
             building_count: lod.building_count,
-            cull_records: &lod.cull_records,
+            records: &lod.gpu_scene.records,
             tree: &lod.tree.tree,
         }
     }
@@ -76,7 +77,7 @@ impl<'a> Candidates<'a> {
     /// ([`crate::lod::scene::LodFrame::draw_ids`]), with the early entry's `early_status`.
     pub fn lod(lod: LodSource<'a>, draw_ids: &'a [u32], early_status: &[u32]) -> Candidates<'a> {
         let mut c = Candidates {
-            records: lod.cull_records,
+            records: lod.records,
             early: Vec::new(),
             gate_culled: 0,
             lod: Some((lod, draw_ids)),
@@ -324,7 +325,7 @@ mod tests {
     fn source<'a>(tree: &'a ClusterTree, records: &'a [BuildingRecord]) -> LodSource<'a> {
         LodSource {
             building_count: 3,
-            cull_records: records,
+            records,
             tree,
         }
     }

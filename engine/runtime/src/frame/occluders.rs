@@ -1,8 +1,6 @@
 //! The virtual occluders on the GPU and their per-frame selection by projected size (Germs &
 //! Jansen 2001 build them offline; the pre-pass draws the ones near the camera).
 
-use std::borrow::Cow;
-
 use citywalk_scenes::frustum::{Containment, Frustum};
 use citywalk_scenes::occluder::OccluderSet;
 use citywalk_scenes::occluder_draws::{OccluderArrays, OccluderArraysView, OccluderRecord};
@@ -52,8 +50,6 @@ pub struct OccluderMeshes {
     pub(super) index_buffer: wgpu::Buffer,
     /// One entry per occluder with a non-empty mesh.
     pub occluders: Vec<OccluderDraw>,
-    /// Per entry of `occluders`: its bounding sphere, for the selection's distance pre-filter.
-    spheres: Vec<Sphere>,
     /// The spheres binned by radius, centres in R-trees: the selection visits only those near
     /// enough to be wanted.
     index: SphereIndex,
@@ -106,8 +102,7 @@ impl OccluderMeshes {
             wgpu::BufferUsages::VERTEX,
             release,
         )?;
-        let index_buffer = absolute_index_buffer(gpu, &arrays)?;
-        release(bytemuck::cast_slice(arrays.indices));
+        let index_buffer = absolute_index_buffer(gpu, &arrays, release)?;
         Ok(OccluderMeshes {
             vertex_buffer,
             index_buffer,
@@ -117,7 +112,6 @@ impl OccluderMeshes {
                     .map(Sphere::of)
                     .map(|s| (s.centre_m, s.radius_m)),
             ),
-            spheres: occluders.iter().map(Sphere::of).collect(),
             occluders,
         })
     }
@@ -134,16 +128,11 @@ impl OccluderMeshes {
         min_px: f32,
     ) -> Vec<usize> {
         let px_per_rad = height_px as f32 / (camera.fov_y_rad * 0.5).tan();
-        let indexed =
-            self.spheres.len() == self.occluders.len() && self.index.len() == self.occluders.len();
-        let spheres: Cow<'_, [Sphere]> = if indexed {
-            Cow::Borrowed(&self.spheres)
-        } else {
-            Cow::Owned(self.occluders.iter().map(Sphere::of).collect())
-        };
+        // The index holds the occluders it was made with (`occluders` is public).
+        let indexed = self.index.len() == self.occluders.len();
         select_occluders(
             &self.occluders,
-            (&spheres, indexed.then_some(&self.index)),
+            indexed.then_some(&self.index),
             camera.position,
             frustum,
             px_per_rad,
@@ -204,22 +193,36 @@ fn merge_ranges(ranges: &mut Vec<(u32, u32)>) {
 /// The occluders' index buffer with every index made absolute (its record's base vertex added),
 /// made chunk by chunk in the buffer's order ([`buffer_from_chunks`]: no second copy of all the
 /// indices). Indices outside every record are never drawn and stay zero; at least one
-/// triangle long, so it can always be bound.
+/// triangle long, so it can always be bound. The records' and each chunk's source bytes go to
+/// `release` once read.
 fn absolute_index_buffer(
     gpu: &GpuContext,
     arrays: &OccluderArraysView<'_>,
+    release: &dyn Fn(&[u8]),
 ) -> Result<wgpu::Buffer, UploadError> {
     const U32: usize = size_of::<u32>();
     let len = arrays.indices.len().max(3);
-    let range_of = |r: &OccluderRecord| {
-        let first = r.first_index as usize;
-        (first, first.saturating_add(r.index_count as usize))
-    };
+    /// What the indices need of a record: its index range and base vertex.
+    #[derive(Clone, Copy)]
+    struct Range {
+        first: usize,
+        end: usize,
+        base_vertex: u32,
+    }
     // Records by first index: each chunk then reads the records from the first one that has
     // not ended before it (ranges may be empty; they do not overlap in a valid package, but a
     // later record that did would still be written).
-    let mut order: Vec<&OccluderRecord> = arrays.records.iter().collect();
-    order.sort_by_key(|r| r.first_index);
+    let mut order: Vec<Range> = arrays
+        .records
+        .iter()
+        .map(|r| Range {
+            first: r.first_index as usize,
+            end: (r.first_index as usize).saturating_add(r.index_count as usize),
+            base_vertex: r.base_vertex,
+        })
+        .collect();
+    release(bytemuck::cast_slice(arrays.records));
+    order.sort_by_key(|r| r.first);
     let mut next = 0;
     buffer_from_chunks(
         gpu,
@@ -228,19 +231,12 @@ fn absolute_index_buffer(
         wgpu::BufferUsages::INDEX,
         |bytes, out| {
             let chunk = bytes.start / U32..bytes.end / U32;
-            while order
-                .get(next)
-                .is_some_and(|r| range_of(r).1 <= chunk.start)
-            {
+            while order.get(next).is_some_and(|r| r.end <= chunk.start) {
                 next += 1;
             }
             let out: &mut [u32] = bytemuck::cast_slice_mut(out);
-            for r in order[next..]
-                .iter()
-                .take_while(|r| range_of(r).0 < chunk.end)
-            {
-                let (first, end) = range_of(r);
-                let (from, to) = (first.max(chunk.start), end.min(chunk.end));
+            for r in order[next..].iter().take_while(|r| r.first < chunk.end) {
+                let (from, to) = (r.first.max(chunk.start), r.end.min(chunk.end));
                 let Some(source) = arrays.indices.get(from..to) else {
                     continue;
                 };
@@ -249,16 +245,19 @@ fn absolute_index_buffer(
                     *t = i.wrapping_add(r.base_vertex);
                 }
             }
+            let read = chunk.start.min(arrays.indices.len())..chunk.end.min(arrays.indices.len());
+            release(bytemuck::cast_slice(&arrays.indices[read]));
         },
     )
 }
 
-/// [`OccluderMeshes::select`] over `occluders` and their `spheres` ([`Sphere::of`], one each,
-/// and their index when there is one): the indices of those [`occluder_wanted`] admits,
-/// ascending.
+/// [`OccluderMeshes::select`] over `occluders` (and the index of their spheres,
+/// [`Sphere::of`], when there is one): the indices of those [`occluder_wanted`] admits,
+/// ascending. The spheres are made again from the boxes as they are tested (a few thousand
+/// a frame through the index), not kept: at a million buildings they would be 24 MB.
 fn select_occluders(
     occluders: &[OccluderDraw],
-    (spheres, index): (&[Sphere], Option<&SphereIndex>),
+    index: Option<&SphereIndex>,
     eye: Vec3,
     frustum: &Frustum,
     px_per_rad: f32,
@@ -270,7 +269,8 @@ fn select_occluders(
     let reach_per_radius = (px_per_rad / min_px).max(1.0) * (1.0 + 1e-3);
     let prefilter = min_px > 0.0 && reach_per_radius.is_finite();
     let wanted = |i: usize| {
-        let (o, sphere) = (&occluders[i], spheres[i]);
+        let o = &occluders[i];
+        let sphere = Sphere::of(o);
         if prefilter {
             let reach_m = sphere.radius_m * reach_per_radius;
             if sphere.centre_m.distance_squared(eye) > reach_m * reach_m {
@@ -405,13 +405,12 @@ mod tests {
                 }
             })
             .collect();
-        let spheres: Vec<Sphere> = occluders.iter().map(Sphere::of).collect();
         for min_px in [DEFAULT_OCCLUDER_MIN_PX, 1.0, 48.0, 0.0, -1.0, f32::NAN] {
             let exact: Vec<usize> = (0..occluders.len())
                 .filter(|&i| {
                     occluder_wanted(
                         &occluders[i],
-                        spheres[i],
+                        Sphere::of(&occluders[i]),
                         camera.position,
                         &frustum,
                         px_per_rad,
@@ -419,10 +418,15 @@ mod tests {
                     )
                 })
                 .collect();
-            let index = SphereIndex::new(spheres.iter().map(|s| (s.centre_m, s.radius_m)));
+            let index = SphereIndex::new(
+                occluders
+                    .iter()
+                    .map(Sphere::of)
+                    .map(|s| (s.centre_m, s.radius_m)),
+            );
             let indexed = select_occluders(
                 &occluders,
-                (&spheres, Some(&index)),
+                Some(&index),
                 camera.position,
                 &frustum,
                 px_per_rad,
@@ -431,7 +435,7 @@ mod tests {
             assert_eq!(indexed, exact, "min_px {min_px}, indexed");
             let selected = select_occluders(
                 &occluders,
-                (&spheres, None),
+                None,
                 camera.position,
                 &frustum,
                 px_per_rad,

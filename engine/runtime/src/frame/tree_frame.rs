@@ -95,7 +95,7 @@ impl CullingRenderer {
         self.fit_targets(gpu, width, height)?;
         self.frames += 1;
         let number = self.frames;
-        let draw_id_count = lod.cull_records.len() as u32;
+        let draw_id_count = lod.gpu_scene.records.len() as u32;
         let (_, frame_stamp) = visibility.begin_frame(gpu, draw_id_count);
         let capacity = draw_id_count.max(1);
         let (lists, last_half, early_valid) = visibility.tree_lists(gpu, capacity, frame_stamp);
@@ -417,7 +417,8 @@ pub(super) fn tree_output(
 ) -> FrameOutput {
     let n = lod.building_count;
     let index_count = |id: u32| {
-        lod.cull_records
+        lod.gpu_scene
+            .records
             .get(id as usize)
             .map_or(0, |r| r.index_count)
     };

@@ -286,7 +286,7 @@ impl HzbCull {
     }
 
     /// Records the cull of the first `box_count` records of `records` (a storage buffer of
-    /// [`BuildingRecord`], e.g. [`crate::scene_gpu::SceneGpu::records_buffer`], whose part ranges
+    /// [`BuildingRecord`], e.g. [`crate::scene_gpu::AllDraws::records_buffer`], whose part ranges
     /// index `parts`, e.g. [`crate::scene_gpu::SceneGpu::parts_buffer`]; `None` when no record
     /// names parts) against
     /// `pyramid` (built from this frame's depth, seen with `view_proj`). Clears the commands and

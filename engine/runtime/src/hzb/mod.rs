@@ -8,7 +8,7 @@
 //! ```text
 //! early pass: draw last frame's visible set into depth (DepthTarget)
 //! pyramid.build(&mut encoder, &depth.view);
-//! cull.encode(&gpu, &mut encoder, (&scene.records_buffer, Some(&scene.parts_buffer)), n,
+//! cull.encode(&gpu, &mut encoder, (&all.records_buffer, Some(&scene.parts_buffer)), n,
 //!             &pyramid, view_proj)?;
 //! late pass:  multi_draw_indexed_indirect_count(cull.commands_buffer(), 0,
 //!                                               cull.count_buffer(), 0, n)

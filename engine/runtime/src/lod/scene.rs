@@ -2,7 +2,7 @@
 //! [`SelectedRenderer`](crate::render::selected::SelectedRenderer) draw list, or one candidate
 //! list of the two-phase occlusion-culled frame
 //! ([`CullingRenderer::render_lod`](crate::frame::CullingRenderer::render_lod), which culls
-//! clusters by [`LodScene::cull_records`]).
+//! clusters by [`LodScene::cull_records_buffer`]).
 //!
 //! Layout: draw ids `0..building_count` are the buildings (the same ids and geometry as
 //! [`crate::scene_gpu::SceneGeometry::from_city`]), then id `building_count + n` is the cluster mesh of tree node
@@ -15,7 +15,6 @@
 use citywalk_scenes::cluster_tree::ClusterTree;
 use citywalk_scenes::package::{GpuScene, GpuSceneView};
 use citywalk_scenes::{BuildingId, City};
-use citywalk_shaders::BuildingRecord;
 use citywalk_shaders::constants::NO_PARENT;
 
 use crate::camera::Camera;
@@ -38,14 +37,13 @@ pub struct LodScene {
     /// The criterion of [`LodScene::default_criterion`]; `None` picks the Chang walkthrough or
     /// flyover preset by the camera's altitude.
     pub criterion: Option<LodCriterion>,
-    /// Per draw id, the record the occlusion cull of the combined frame tests
+    /// Per draw id, on the GPU only, the record the occlusion cull of the combined frame tests
     /// ([`crate::frame::CullingRenderer::render_lod`]): a building's own record; a cluster's
     /// record with its bounds widened to contain every building under it (a cluster mesh stops
     /// at the area-weighted mean height, below its tallest buildings, and culling it by its own
-    /// box could hide a building the full-detail scene shows). See [`cull_records`].
-    pub cull_records: Vec<BuildingRecord>,
-    /// [`LodScene::cull_records`] on the GPU: the cull reads a candidate's record by its draw
-    /// id, so a frame uploads only the cut's draw ids.
+    /// box could hide a building the full-detail scene shows). See [`cull_records`]. The cull
+    /// reads a candidate's record by its draw id, so a frame uploads only the cut's draw ids;
+    /// the CPU reads the draw records ([`LodScene::gpu_scene`]), whose index ranges are the same.
     pub cull_records_buffer: wgpu::Buffer,
     /// Per draw id, the draw id of the cluster above it ([`draw_id_parents`]), for the GPU's
     /// "visible last frame" test.
@@ -149,8 +147,7 @@ impl LodScene {
                 &release,
             )?,
             cull_records_buffer,
-            cull_records: view.cull_records.to_vec(),
-            gpu_scene: SceneGpu::sharing(gpu, buildings, view.records, view.bounds)?,
+            gpu_scene: SceneGpu::sharing(buildings, buildings.records.whole(), view.bounds),
             building_count: view.building_count,
             tree,
             criterion: None,
