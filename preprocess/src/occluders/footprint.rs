@@ -14,6 +14,7 @@ use glam::DVec3;
 
 use super::OccluderParams;
 use super::cover::RegionCover;
+use super::shell::{self, Closure};
 use super::zlevels::{LevelCandidate, cluster_heights};
 use citywalk_scenes::TriangleMesh;
 
@@ -24,6 +25,9 @@ const ROUNDING_GAP_M2: f64 = 0.01;
 /// Triangles of a building mesh sorted for footprint work.
 #[derive(Debug, Clone)]
 pub struct MeshRegions {
+    /// The shell when it has gaps that rays may pass through ([`shell::closure`]); `None` for
+    /// a closed shell.
+    pub open_shell: Option<OpenShell>,
     /// Upward-facing triangles (corners in f64), with their lowest and highest z.
     roofs: Vec<([DVec3; 3], f64, f64)>,
     /// Projection of the downward-facing triangles above the ground band (overhangs).
@@ -35,6 +39,15 @@ pub struct MeshRegions {
     level_tolerance_m: f64,
     min_level_height_m: f64,
     sloped_roof_step_m: f64,
+}
+
+/// A building shell with gaps, kept for [`shell::walls_on_faces`].
+#[derive(Debug, Clone)]
+pub struct OpenShell {
+    /// Gaps found (see [`shell::Closure::Open`]).
+    pub holes: usize,
+    /// The mesh's triangles, wound outward.
+    pub triangles: Vec<shell::Tri>,
 }
 
 /// Bound on candidate heights per building (sloped-roof samples included), so a huge mesh
@@ -95,9 +108,10 @@ impl MeshRegions {
         if tris.is_empty() {
             return Err("mesh has no triangles".to_owned());
         }
-        // An inside-out mesh has a negative signed volume: flip its normals.
-        let volume: f64 = tris.iter().map(|[a, b, c]| a.dot(b.cross(*c))).sum::<f64>() / 6.0;
-        let sign = if volume < 0.0 { -1.0 } else { 1.0 };
+        // Faces wound inward, one by one or all together, are turned outward first: up and
+        // down below are read from the winding.
+        shell::orient(&mut tris);
+        let closure = shell::closure(&tris);
         let min_z = tris
             .iter()
             .flat_map(|t| t.iter().map(|p| p.z))
@@ -105,8 +119,8 @@ impl MeshRegions {
         let mut roofs = Vec::new();
         let mut grounds = Vec::new();
         let mut overhangs = Vec::new();
-        for t in tris {
-            let n = (t[1] - t[0]).cross(t[2] - t[0]) * sign;
+        for &t in &tris {
+            let n = (t[1] - t[0]).cross(t[2] - t[0]);
             let len = n.length();
             if len <= 1e-12 {
                 continue;
@@ -130,7 +144,15 @@ impl MeshRegions {
         // Heights of levels are measured from the lowest point (the paper's groundplane); each
         // facade then stands on the ground faces under it (`base_under`).
         let base_m = min_z;
+        let open_shell = match closure {
+            Closure::Closed => None,
+            Closure::Open { holes } => Some(OpenShell {
+                holes,
+                triangles: tris,
+            }),
+        };
         Ok(MeshRegions {
+            open_shell,
             roofs,
             overhang,
             base_m,
@@ -387,7 +409,7 @@ pub fn edge_height(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use glam::Vec3;
 

@@ -47,10 +47,13 @@
 //! ([`simplify`]), and a wall-oriented wall is raised above Z only to the height of a higher
 //! level whose (conservative) region covers the whole edge, which is the paper's "minimum Z
 //! found along the edge", quantised down to the level heights. Faces whose normal is almost
-//! horizontal count as walls and are left out, which can only shrink a footprint. An
-//! inside-out mesh (negative signed volume) is flipped first. For 2.5D input the part's own
-//! prism is the volume, and its occluder is the simplified part footprint between the part's
-//! base and top.
+//! horizontal count as walls and are left out, which can only shrink a footprint. All of this
+//! reads up and down from the winding and needs a closed shell, which LoD2 data do not promise:
+//! [`shell`] first winds every face outward (faces wound inward one by one, or whole shells),
+//! and finds shells that rays can pass through (two gaps or more, such as a terraced house
+//! stored without its party walls); their facades keep only the walls that lie on the
+//! building's own wall faces. For 2.5D input the part's own prism is the volume, and its
+//! occluder is the simplified part footprint between the part's base and top.
 
 mod cover;
 pub mod facade;
@@ -59,6 +62,7 @@ pub mod gltf_out;
 pub mod polygons;
 pub mod quality;
 pub mod select;
+mod shell;
 pub mod simplify;
 pub mod zlevels;
 
@@ -204,11 +208,12 @@ pub fn build_occluders(city: &City, params: &OccluderParams) -> OccluderSet {
         set.occluders.extend(built.occluders);
         let end = set.occluders.len() as u32;
         let reason_if_none = if start == end {
-            Some(
-                built
-                    .reason_if_none
-                    .unwrap_or_else(|| "no occluder was produced".to_owned()),
-            )
+            let reason = built
+                .reason_if_none
+                .unwrap_or_else(|| "no occluder was produced".to_owned());
+            // Bad input is named where it is met: the building's source id and the reason.
+            tracing::warn!(building = %building.source_id, %reason, "no occluder");
+            Some(reason)
         } else {
             None
         };
@@ -264,15 +269,24 @@ fn mesh_occluders(
     // levels): the simplified footprint, its base and the facade mesh; `None` when the
     // footprint vanished or the level is no higher than the ground under it.
     let prepared = footprint::PreparedLevels::new(&candidates);
+    // A shell that rays may pass through bounds no solid: only walls lying on its own wall
+    // faces are safe ([`shell`]), and a closed facade's roof is not a wall.
+    let kind = match (&regions.open_shell, params.facade) {
+        (Some(_), FacadeKind::Closed) => FacadeKind::Open,
+        (_, kind) => kind,
+    };
     let facade_of = |c: &LevelCandidate| -> Option<(MultiPolygon<f64>, f64, TriangleMesh)> {
         let footprint = simplify::simplify_footprint(&c.region, params);
         if footprint.0.is_empty() {
             return None;
         }
         let base_m = regions.base_under(&footprint);
-        let mesh = facade::facade_mesh(&footprint, base_m, c.z_m, params.facade, |a, b| {
+        let mut mesh = facade::facade_mesh(&footprint, base_m, c.z_m, kind, |a, b| {
             footprint::edge_height(&prepared, c.z_m, a, b)
         });
+        if let Some(open) = &regions.open_shell {
+            mesh = shell::walls_on_faces(&open.triangles, &mesh);
+        }
         (!mesh.indices.is_empty()).then_some((footprint, base_m, mesh))
     };
     let walls_only = params.select_walls && params.facade != FacadeKind::Closed;
@@ -338,7 +352,7 @@ fn mesh_occluders(
         occluders.push(Occluder {
             building: building.id,
             level: occluders.len() as u32,
-            kind: params.facade,
+            kind,
             z_m: candidate.z_m as f32,
             base_m: base_m as f32,
             footprint,
@@ -346,11 +360,18 @@ fn mesh_occluders(
         });
     }
     if occluders.is_empty() {
-        let mut out = fail(format!(
-            "no level kept a facade (footprints under {} m² after simplification, levels no \
-             higher than the ground under them, or no wall worth its polygon)",
-            params.min_polygon_area_m2
-        ));
+        let mut out = fail(match &regions.open_shell {
+            Some(open) => format!(
+                "open shell ({} gaps rays may pass through) with no facade wall on a wall of \
+                 the building",
+                open.holes
+            ),
+            None => format!(
+                "no level kept a facade (footprints under {} m² after simplification, levels \
+                 no higher than the ground under them, or no wall worth its polygon)",
+                params.min_polygon_area_m2
+            ),
+        });
         out.decisions = decisions_out;
         return out;
     }

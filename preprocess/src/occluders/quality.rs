@@ -7,7 +7,10 @@
 //! model's largest sample, that is Σ facade pixels / Σ model pixels over the views. The images
 //! are rasterised here on the CPU (perspective, edge functions, pixel centres, a boolean mask
 //! per image). Pixels the facade covers and the model does not are counted as *leak*: a
-//! contained facade has none beyond rasterisation noise at shared edges.
+//! contained facade has none beyond rasterisation noise at shared edges. The quality counts
+//! only facade pixels inside the model's silhouette, so it never exceeds 100 %: a facade that
+//! reaches outside its building shows as a leak ([`PixelCounts::leaks`]), never as a quality
+//! above the building's own.
 //!
 //! *Efficiency* (§4.2): polygon counts and average polygon area, before and after. A polygon
 //! is a planar face as in the paper's Table 1 (a wall quad is one polygon; see
@@ -58,11 +61,23 @@ pub struct PixelCounts {
     pub leak_px: u64,
 }
 
+/// Share of a facade's pixels outside its building's silhouette that rasterisation alone
+/// gives (pixel centres on the shared edges of a contained facade); above it, a facade leaks.
+pub const LEAK_NOISE: f64 = 0.005;
+
 impl PixelCounts {
-    /// Occlusion-preserving quality in [0, 1] (more than 1 only with leaks); `None` when the
-    /// model covers no pixel.
+    /// Occlusion-preserving quality in [0, 1]: the facade's pixels inside the model's
+    /// silhouette over the model's; `None` when the model covers no pixel. Leaked pixels are
+    /// not counted here but in [`PixelCounts::leak_fraction`].
     pub fn quality(&self) -> Option<f64> {
-        (self.model_px > 0).then(|| self.facade_px as f64 / self.model_px as f64)
+        (self.model_px > 0)
+            .then(|| self.facade_px.saturating_sub(self.leak_px) as f64 / self.model_px as f64)
+    }
+
+    /// Whether the facade covers more of the view outside its building than rasterisation
+    /// noise ([`LEAK_NOISE`]): it would hide what the building does not.
+    pub fn leaks(&self) -> bool {
+        self.leak_fraction() > LEAK_NOISE
     }
 
     /// Share of the facade's pixels that the model does not cover.
@@ -314,7 +329,8 @@ pub struct BuildingQuality {
     /// Mean polygon (planar face) area of the occluders (m²); 0 without occluders.
     pub occluder_mean_polygon_area_m2: f64,
     pub pixels: PixelCounts,
-    /// Occlusion-preserving quality in [0, 1]; `None` when the model covers no pixel.
+    /// Occlusion-preserving quality in [0, 1] ([`PixelCounts::quality`]); `None` when the model
+    /// covers no pixel.
     pub quality: Option<f64>,
     pub reason_if_none: Option<String>,
 }
@@ -342,10 +358,14 @@ pub struct QualitySummary {
     pub quality_p5: f64,
     pub quality_p25: f64,
     pub quality_p50: f64,
-    /// Counts of buildings per tenth of quality: [0, 0.1), ..., [0.9, 1.0], last bin > 1.
+    /// Counts of buildings per tenth of quality: [0, 0.1), ..., [0.9, 1.0], last bin > 1
+    /// (empty since quality counts only pixels inside the building; kept for the format).
     pub quality_histogram: [usize; 11],
     /// Leaked pixels over facade pixels, all buildings together.
     pub leak_fraction: f64,
+    /// Buildings whose occluders leak ([`PixelCounts::leaks`]).
+    #[serde(default)]
+    pub buildings_with_leaks: usize,
 }
 
 /// Measures every building of `city` against its occluders in `set`. Source counts are taken
@@ -465,6 +485,7 @@ pub fn summarise(rows: &[BuildingQuality]) -> QualitySummary {
         } else {
             leak_px as f64 / facade_px as f64
         },
+        buildings_with_leaks: rows.iter().filter(|r| r.pixels.leaks()).count(),
     }
 }
 
@@ -565,6 +586,12 @@ mod tests {
         let facade = facade_mesh(&square(12.0), 0.0, 20.0, FacadeKind::Open, |_, _| 0.0);
         let counts = measure(&model, &facade, &QualityParams::default());
         assert!(counts.leak_fraction() > 0.02, "{counts:?}");
+        assert!(counts.leaks());
+        // The larger facade covers more pixels than the model, yet its quality is that of the
+        // model's own silhouette at most, the excess reported as a leak.
+        assert!(counts.facade_px > counts.model_px, "{counts:?}");
+        let q = counts.quality().unwrap_or(0.0);
+        assert!(q > 0.97 && q <= 1.0, "{q}");
     }
 
     #[test]
