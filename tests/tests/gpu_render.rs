@@ -94,3 +94,39 @@ fn frame_shows_sky_ground_and_buildings() {
         );
     }
 }
+
+/// Issue 14 (GPU faults): a city whose arrays exceed the GPU's storage binding limit is refused
+/// at upload with an error naming the array and the limit, instead of a wgpu panic when a
+/// frame's bind group binds it. The adapter's own device, whose limit the city is within,
+/// draws it.
+#[test]
+fn a_city_past_the_storage_binding_limit_is_an_error_naming_the_array() {
+    use citywalk_runtime::drawable::DrawableScene;
+    use citywalk_runtime::gpu::GpuContext;
+    use citywalk_scenes::generate::{GenerateParams, generate_city};
+
+    let Some(gpu) = gpu_or_skip("a_city_past_the_storage_binding_limit") else {
+        return;
+    };
+    let mut limits = gpu.adapter.limits();
+    limits.max_storage_buffer_binding_size = 16 << 10;
+    let small = GpuContext::headless_with_limits(limits).expect("a device with lower limits");
+    assert_eq!(
+        small.device.limits().max_storage_buffer_binding_size,
+        16 << 10
+    );
+    // 2,000 buildings: their cull parts and records are about 100 kB each.
+    let city = generate_city(&GenerateParams::new(2000, 3)).expect("generate");
+    let error = DrawableScene::upload_city(&small, &city, None, None)
+        .expect_err("over the storage binding limit");
+    let text = error.to_string();
+    assert!(
+        text.contains("building") && text.contains("max_storage_buffer_binding_size of 16384"),
+        "{text}"
+    );
+    assert!(
+        small.lost().is_none(),
+        "a refused upload leaves the device working"
+    );
+    DrawableScene::upload_city(&gpu, &city, None, None).expect("within the adapter's limits");
+}

@@ -95,9 +95,23 @@ impl GpuContext {
         pollster::block_on(Self::headless_with_features_async(wanted))
     }
 
+    /// A headless context whose device has `limits`, each no better than the adapter's: how a
+    /// scene fares on a smaller GPU (the limits' errors are reached without one).
+    pub fn headless_with_limits(limits: wgpu::Limits) -> Result<GpuContext, GpuError> {
+        pollster::block_on(Self::headless_requesting(WANTED_FEATURES, Some(limits)))
+    }
+
     /// Async form of [`GpuContext::headless_with_features`].
     pub async fn headless_with_features_async(
         wanted: wgpu::Features,
+    ) -> Result<GpuContext, GpuError> {
+        Self::headless_requesting(wanted, None).await
+    }
+
+    /// The headless context of `wanted` features and `limits` (the adapter's when `None`).
+    async fn headless_requesting(
+        wanted: wgpu::Features,
+        limits: Option<wgpu::Limits>,
     ) -> Result<GpuContext, GpuError> {
         let attempts = match wgpu::Backends::from_env() {
             Some(backends) => vec![backends],
@@ -112,7 +126,7 @@ impl GpuContext {
                 .into_iter()
                 .max_by_key(|a| adapter_rank(&a.get_info()))
             {
-                return Self::from_adapter(instance, adapter, wanted).await;
+                return Self::from_adapter(instance, adapter, wanted, limits).await;
             }
         }
         Err(GpuError::NoAdapter {
@@ -143,7 +157,7 @@ impl GpuContext {
                 .filter(|a| a.is_surface_supported(surface))
                 .max_by_key(|a| adapter_rank(&a.get_info()))
                 .ok_or(GpuError::NoSurfaceAdapter { seen })?;
-            Self::from_adapter(instance, adapter, WANTED_FEATURES).await
+            Self::from_adapter(instance, adapter, WANTED_FEATURES, None).await
         })
     }
 
@@ -151,14 +165,19 @@ impl GpuContext {
         instance: wgpu::Instance,
         adapter: wgpu::Adapter,
         wanted: wgpu::Features,
+        limits: Option<wgpu::Limits>,
     ) -> Result<GpuContext, GpuError> {
         let adapter_info = adapter.get_info();
         let features = adapter.features() & WANTED_FEATURES & wanted;
+        let limits = match limits {
+            Some(limits) => limits.or_worse_values_from(&adapter.limits()),
+            None => adapter.limits(),
+        };
         let (device, queue) = adapter
             .request_device(&wgpu::DeviceDescriptor {
                 label: Some("citywalk device"),
                 required_features: features,
-                required_limits: adapter.limits(),
+                required_limits: limits,
                 experimental_features: wgpu::ExperimentalFeatures::disabled(),
                 memory_hints: wgpu::MemoryHints::Performance,
                 trace: wgpu::Trace::Off,

@@ -292,20 +292,8 @@ impl GeometryBuffers {
     ) -> Result<GeometryBuffers, UploadError> {
         use wgpu::BufferUsages as U;
         Ok(GeometryBuffers {
-            vertex_buffer: array_buffer(
-                gpu,
-                "scene vertices",
-                vertices,
-                U::VERTEX | U::STORAGE,
-                release,
-            )?,
-            index_buffer: array_buffer(
-                gpu,
-                "scene indices",
-                indices,
-                U::INDEX | U::STORAGE,
-                release,
-            )?,
+            vertex_buffer: array_buffer(gpu, "scene vertices", vertices, U::VERTEX, release)?,
+            index_buffer: array_buffer(gpu, "scene indices", indices, U::INDEX, release)?,
             parts_buffer: array_buffer(gpu, "building cull parts", parts, U::STORAGE, release)?,
         })
     }

@@ -16,7 +16,7 @@ use crate::gpu::GpuContext;
 #[derive(Debug, thiserror::Error)]
 pub enum UploadError {
     #[error(
-        "the scene's {what} take {bytes} bytes ({mib:.0} MiB), over this GPU's max_buffer_size \
+        "the scene's {what} take {bytes} bytes ({mib:.0} MiB), over this GPU's {limit_name} \
          of {limit} bytes ({limit_mib:.0} MiB): the city is too large for this adapter",
         mib = *bytes as f64 / MIB,
         limit_mib = *limit as f64 / MIB
@@ -24,6 +24,9 @@ pub enum UploadError {
     OverLimit {
         what: String,
         bytes: u64,
+        /// `max_buffer_size`, or `max_storage_buffer_binding_size` for an array a pass binds
+        /// whole as storage.
+        limit_name: &'static str,
         limit: u64,
     },
     #[error(
@@ -78,7 +81,7 @@ pub fn buffer_from_chunks(
     let size = len
         .max(1)
         .next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT as usize);
-    check_limits(&gpu.device.limits(), label, size as u64)?;
+    check_limits(&gpu.device.limits(), label, size as u64, usage)?;
     let out_of_memory = gpu.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
     let buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
         label: Some(label),
@@ -114,16 +117,32 @@ pub fn buffer_from_chunks(
     Ok(buffer)
 }
 
-/// Whether a buffer of `bytes` fits `limits`. Only the buffer's own size is checked: the
-/// storage binding limit (`max_storage_buffer_binding_size`, 128 MiB on lavapipe) applies to
-/// the range a bind group binds, not to the buffer (the 1M scene's vertex buffer is 353 MiB).
-fn check_limits(limits: &wgpu::Limits, label: &str, bytes: u64) -> Result<(), UploadError> {
+/// Whether a buffer of `bytes` and `usage` fits `limits`: its size, and, for a `STORAGE`
+/// buffer, the storage binding limit (`max_storage_buffer_binding_size`, 128 MiB on lavapipe),
+/// since every pass binds its storage arrays whole. The vertex and index buffers (353 MiB each
+/// at a million buildings) are no storage and are bound as vertices and indices, to which only
+/// the buffer's size applies. Checking the scene's arrays here also covers the frames' own
+/// buffers, which hold fewer bytes per draw id than the records (48 bytes): commands 20, lists,
+/// stamps and marks 4; a city past the limit is refused at load with the array named, not by a
+/// wgpu panic when a frame binds it.
+fn check_limits(
+    limits: &wgpu::Limits,
+    label: &str,
+    bytes: u64,
+    usage: wgpu::BufferUsages,
+) -> Result<(), UploadError> {
+    let over = |limit_name, limit| UploadError::OverLimit {
+        what: label.to_owned(),
+        bytes,
+        limit_name,
+        limit,
+    };
     if bytes > limits.max_buffer_size {
-        return Err(UploadError::OverLimit {
-            what: label.to_owned(),
-            bytes,
-            limit: limits.max_buffer_size,
-        });
+        return Err(over("max_buffer_size", limits.max_buffer_size));
+    }
+    let binding = u64::from(limits.max_storage_buffer_binding_size);
+    if usage.contains(wgpu::BufferUsages::STORAGE) && bytes > binding {
+        return Err(over("max_storage_buffer_binding_size", binding));
     }
     Ok(())
 }
@@ -186,19 +205,32 @@ mod tests {
     /// nothing is allocated); the storage binding limit does not apply to the buffer.
     #[test]
     fn an_array_over_the_limits_is_an_error_naming_it() {
+        use wgpu::BufferUsages as U;
         let limits = wgpu::Limits {
             max_buffer_size: 1 << 20,
             max_storage_buffer_binding_size: 1 << 16,
             ..wgpu::Limits::default()
         };
-        assert!(check_limits(&limits, "a", 1 << 20).is_ok());
-        let error =
-            check_limits(&limits, "scene vertices", (1 << 20) + 4).expect_err("over the limit");
+        // A vertex buffer past the storage binding limit is bound as vertices: only its size
+        // counts.
+        assert!(check_limits(&limits, "a", 1 << 20, U::VERTEX).is_ok());
+        let error = check_limits(&limits, "scene vertices", (1 << 20) + 4, U::VERTEX)
+            .expect_err("over the limit");
         let text = error.to_string();
         assert!(
             text.contains("scene vertices")
                 && text.contains("1048580 bytes")
                 && text.contains("max_buffer_size of 1048576 bytes"),
+            "{text}"
+        );
+        // A storage array is bound whole by the passes: the binding limit applies.
+        assert!(check_limits(&limits, "b", 1 << 16, U::STORAGE).is_ok());
+        let error = check_limits(&limits, "lod cull records", (1 << 16) + 4, U::STORAGE)
+            .expect_err("over the binding limit");
+        let text = error.to_string();
+        assert!(
+            text.contains("lod cull records")
+                && text.contains("max_storage_buffer_binding_size of 65536 bytes"),
             "{text}"
         );
     }
