@@ -140,7 +140,7 @@ fn check_limits(
     if bytes > limits.max_buffer_size {
         return Err(over("max_buffer_size", limits.max_buffer_size));
     }
-    let binding = u64::from(limits.max_storage_buffer_binding_size);
+    let binding = limits.max_storage_buffer_binding_size;
     if usage.contains(wgpu::BufferUsages::STORAGE) && bytes > binding {
         return Err(over("max_storage_buffer_binding_size", binding));
     }
