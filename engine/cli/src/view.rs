@@ -176,7 +176,7 @@ fn load_scene(path: &Path, load: &citywalk_scenes::LoadOptions) -> anyhow::Resul
     let scene = if crate::scene_input::is_package(path)? || named_package {
         // What drawing and walking need: the occluders and cluster meshes come from the GPU
         // scene; the buildings' parts are walked against.
-        let package = ScenePackage::read_as(path, Decode::RuntimeWithDetails)
+        let package = ScenePackage::read_as(path, Decode::RuntimeWithParts)
             .with_context(|| format!("cannot read the scene package {}", path.display()))?;
         let parts = package.into_parts();
         ViewerScene {

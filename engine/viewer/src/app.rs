@@ -78,7 +78,7 @@ impl MouseLook {
 }
 
 impl App {
-    pub(super) fn new(scene: ViewerScene, options: ViewerOptions) -> App {
+    pub(super) fn new(mut scene: ViewerScene, options: ViewerOptions) -> App {
         let world = CollisionWorld::from_city(&scene.city);
         let rig = CameraRig::for_city(&scene.city, &world, options.mode);
         tracing::info!(
@@ -87,6 +87,7 @@ impl App {
             start = %rig.camera().to_arg_string(),
             "viewer ready; {KEY_HELP}"
         );
+        scene.release_buildings();
         let player = (options.play.as_ref()).map(|p| PathPlayer::new(p.path.clone(), p.end));
         if let Some(p) = &options.play {
             tracing::info!(poses = p.path.poses.len(), name = %p.path.name, "playing a camera path");

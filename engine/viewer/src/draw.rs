@@ -36,6 +36,15 @@ pub struct ViewerScene {
 }
 
 impl ViewerScene {
+    /// Frees the buildings of a scene that draws from a package's GPU scene, once the collision
+    /// world and the start are made from them: nothing else reads them (the upload reads the
+    /// mapping), and at a million buildings with their parts they are most of a gigabyte.
+    pub fn release_buildings(&mut self) {
+        if self.gpu_scene.is_some() {
+            self.city.buildings = Vec::new();
+        }
+    }
+
     /// What this scene offers to the settings.
     pub fn features(&self) -> SceneFeatures {
         SceneFeatures {

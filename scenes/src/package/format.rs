@@ -422,9 +422,10 @@ pub enum Decode {
     /// of heap and seconds of decoding no frame reads; what is left of the buildings
     /// (footprints, heights, source meshes) is what camera paths need.
     Runtime,
-    /// [`Decode::Runtime`] with the buildings whole (parts and tags): what the viewer needs,
-    /// whose walking collides with the parts and whose panel shows the tags.
-    RuntimeWithDetails,
+    /// [`Decode::Runtime`] with the buildings' parts (their tags are read past without a copy):
+    /// what the viewer needs, whose walking collides with the parts. At a million buildings the
+    /// tags alone are 600 MB of heap.
+    RuntimeWithParts,
 }
 
 /// Decodes a package from bytes (verifying it first).
@@ -461,6 +462,61 @@ type BuildingDetails = (
     Vec<crate::BuildingPart>,
     std::collections::BTreeMap<String, String>,
 );
+
+/// [`BuildingDetails`] with the tags read past ([`SkippedTags`]).
+type PartsOnly = (Vec<crate::BuildingPart>, SkippedTags);
+
+/// A building's tags read and dropped: the map's strings are borrowed from the payload as it is
+/// walked, nothing is allocated.
+struct SkippedTags;
+
+impl<'de> serde::Deserialize<'de> for SkippedTags {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct Walk;
+        impl<'de> serde::de::Visitor<'de> for Walk {
+            type Value = SkippedTags;
+            fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str("a map of tags")
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(
+                self,
+                mut map: A,
+            ) -> Result<SkippedTags, A::Error> {
+                while map.next_entry::<&'de str, &'de str>()?.is_some() {}
+                Ok(SkippedTags)
+            }
+        }
+        deserializer.deserialize_map(Walk)
+    }
+}
+
+/// Decodes the building details section as `T` per building and gives each to `attach` with its
+/// building; a section of another length than the buildings' is an inconsistent package.
+fn attach_details<T: DeserializeOwned>(
+    buildings: &mut [crate::Building],
+    bytes: &[u8],
+    entries: &[SectionEntry],
+    mut attach: impl FnMut(&mut crate::Building, T),
+) -> Result<(), PackageError> {
+    let details: Vec<T> = required(
+        decode_one(bytes, entries, SectionKind::BuildingDetails)?,
+        SectionKind::BuildingDetails,
+    )?;
+    if details.len() != buildings.len() {
+        return Err(PackageError::Inconsistent {
+            sections: "building details, buildings".into(),
+            reason: format!(
+                "details of {} buildings for {}",
+                details.len(),
+                buildings.len()
+            ),
+        });
+    }
+    for (b, d) in buildings.iter_mut().zip(details) {
+        attach(b, d);
+    }
+    Ok(())
+}
 
 fn required<T>(value: Option<T>, kind: SectionKind) -> Result<T, PackageError> {
     value.ok_or_else(|| PackageError::Malformed(format!("missing section {}", kind.name())))
@@ -521,7 +577,7 @@ fn decode_with(
     }
     let occluder_set = |bytes, entries| match what {
         Decode::All => decode_one(bytes, entries, K::Occluders),
-        Decode::Runtime | Decode::RuntimeWithDetails => Ok(None),
+        Decode::Runtime | Decode::RuntimeWithParts => Ok(None),
     };
     // The three large sections decode on threads of their own in a large package (a million
     // buildings take seconds each); the result does not depend on the order.
@@ -543,25 +599,19 @@ fn decode_with(
         })
     };
     let mut buildings = required(buildings?, K::Buildings)?;
-    if what != Decode::Runtime {
-        let details: Vec<BuildingDetails> = required(
-            decode_one(bytes, entries, K::BuildingDetails)?,
-            K::BuildingDetails,
-        )?;
-        if details.len() != buildings.len() {
-            return Err(PackageError::Inconsistent {
-                sections: "building details, buildings".into(),
-                reason: format!(
-                    "details of {} buildings for {}",
-                    details.len(),
-                    buildings.len()
-                ),
-            });
-        }
-        for (b, (parts, tags)) in buildings.iter_mut().zip(details) {
-            b.parts = parts;
-            b.tags = tags;
-        }
+    match what {
+        Decode::Runtime => {}
+        Decode::RuntimeWithParts => attach_details(
+            &mut buildings,
+            bytes,
+            entries,
+            |b, (parts, _): PartsOnly| {
+                b.parts = parts;
+            },
+        )?,
+        Decode::All => attach_details(&mut buildings, bytes, entries, |b, d: BuildingDetails| {
+            (b.parts, b.tags) = d;
+        })?,
     }
     let mut cluster_tree: Option<ClusterTree> = cluster_tree?;
     if let Some(tree) = &mut cluster_tree {
@@ -578,7 +628,7 @@ fn decode_with(
                 }
             })?
         }
-        (Some(tree), Decode::Runtime | Decode::RuntimeWithDetails) => tree.drop_footprints(),
+        (Some(tree), Decode::Runtime | Decode::RuntimeWithParts) => tree.drop_footprints(),
         (None, _) => {}
     }
     let pkg = ScenePackage {
