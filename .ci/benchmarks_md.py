@@ -270,6 +270,14 @@ def bench_tables(bench):
 
 bench_tables(bench)
 
+# The hand-written sections (the 1M city, memory, one-off comparisons), kept across regenerations.
+notes = Path(__file__).with_name("benchmarks_notes.md")
+if notes.exists():
+    text = notes.read_text()
+    if text.startswith("<!--"):
+        text = text[text.index("-->") + 3:]
+    print("\n" + text.strip())
+
 demo = out / "demo-ms.txt"
 if demo.exists():
     print("\n## The main job (`citywalk demo`)\n")
