@@ -283,8 +283,14 @@ fn render_selection(
     })
 }
 
+/// Frames each mode draws at a path's first pose before its frames are timed (the issue's "after
+/// two warm-up frames"): the first compiles and sizes, the second starts from the first's
+/// visible set.
+const WARM_UP_FRAMES: u32 = 2;
+
 /// Runs one path of one scene through every configured mode. Each mode renders the path's
-/// first pose once before timing (shader compilation, buffer growth).
+/// first pose [`WARM_UP_FRAMES`] times before timing (shader compilation, buffer growth, the
+/// first visible set).
 pub fn run_path(
     gpu: &GpuContext,
     renderers: &mut BenchRenderers,
@@ -302,10 +308,14 @@ pub fn run_path(
     }
     let warm_camera = pose_camera(path, 0);
     let warm_visible = oracle_visible(gpu, renderers, scene, &warm_camera, w, h)?;
-    // A new path: `auto` learns its costs anew, trying each of its plans at the first pose
-    // before timing starts (as every mode warms up there).
+    // A new path starts with nothing visible from the previous one, and `auto` learns its
+    // costs anew, trying each of its plans at the first pose before timing starts. Every mode
+    // warms up there with `WARM_UP_FRAMES` frames (shaders, targets, the first early set): the
+    // timed frames are those a viewer draws once it runs, not its first.
+    renderers.reset_visibility();
     renderers.auto = None;
     for &mode in &config.modes {
+        let mut frames = 0;
         loop {
             render_mode(
                 gpu,
@@ -316,13 +326,13 @@ pub fn run_path(
                 &warm_visible,
                 &target,
             )?;
-            if mode != Mode::Auto || !renderers.auto.as_ref().is_some_and(AutoPlanner::exploring) {
+            frames += 1;
+            let exploring = renderers.auto.as_ref().is_some_and(AutoPlanner::exploring);
+            if frames >= WARM_UP_FRAMES && !(mode == Mode::Auto && exploring) {
                 break;
             }
         }
     }
-    // Each path starts with nothing visible from a previous frame.
-    renderers.reset_visibility();
     for i in 0..path.poses.len() {
         if let Some(why) = gpu.lost() {
             return Err(BenchError::DeviceLost(why));
