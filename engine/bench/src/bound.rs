@@ -236,7 +236,7 @@ mod tests {
                 let want = (0..h)
                     .flat_map(|v| (0..w).map(move |u| (u, v)))
                     .filter(|&(u, v)| edge(u, v))
-                    .map(|(u, v)| ((x as f32 - u as f32).powi(2) + (y as f32 - v as f32).powi(2)))
+                    .map(|(u, v)| (x as f32 - u as f32).powi(2) + (y as f32 - v as f32).powi(2))
                     .fold(f32::INFINITY, f32::min)
                     .sqrt();
                 assert!((map.at(x, y) - want).abs() < 1e-4, "({x}, {y})");
