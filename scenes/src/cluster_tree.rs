@@ -14,7 +14,7 @@
 //! merged, simplified hull) contains the footprints of everything below it.
 //!
 //! **Errors are monotone**: for every node, each error measure (`delta_h_m`, `delta_a_m2`,
-//! and each side of `neg_space_box_m`) is at least the same measure of each child,
+//! each side of `neg_space_box_m`, `geometric_error_m`, `colour_error_m`) is at least the same measure of each child,
 //! so a cut that refines a node whenever its error exceeds a tolerance is consistent. The
 //! builder enforces this by taking the maximum with the children where the raw value is lower
 //! (this only ever overstates an error, so the cut stays conservative).
@@ -183,6 +183,17 @@ pub struct ClusterNode {
     /// negative-space area laid out with the aspect of the hull's bounding box, as tall as the
     /// cluster; the runtime projects it and refines while it covers more than ε pixels.
     pub neg_space_box_m: [f32; 3],
+    /// citywalk's geometric error (metres), the quantity 3D Tiles calls `geometricError`: how far
+    /// the cluster mesh departs from the buildings it replaces, `√(vertical² + plan²)` of the
+    /// largest vertical departure (its roof above or below a building's top, its walls below a
+    /// building's base) and the largest plan distance from a point of the hull to the
+    /// buildings' footprints; made monotone. 0 for leaves (drawn as the building itself).
+    pub geometric_error_m: f32,
+    /// How far a point of the untextured cluster mesh, drawn in one colour, can be from an edge
+    /// of the buildings it replaces (metres): the largest inradius of a face of a building's
+    /// bounding box, half its second-smallest side. Textured clusters will lower it. 0 for
+    /// leaves.
+    pub colour_error_m: f32,
     /// Axis-aligned bounds of everything below the node (buildings' full heights).
     pub bounds_min: [f32; 3],
     pub bounds_max: [f32; 3],
@@ -217,6 +228,12 @@ impl ClusterNode {
     /// Number of buildings below the node.
     pub fn building_count(&self) -> usize {
         (self.buildings.1 - self.buildings.0) as usize
+    }
+
+    /// The error the default LOD criterion projects (metres): the larger of the geometric and
+    /// the colour error, so a drawn cluster stays within the tolerance in shape and in colour.
+    pub fn lod_error_m(&self) -> f32 {
+        self.geometric_error_m.max(self.colour_error_m)
     }
 
     /// Volume of the negative-space box (m³), Chang's error measure.
@@ -292,8 +309,8 @@ impl ClusterTree {
     ///   contains its building's footprint (so, transitively, each node contains its buildings);
     ///   containment is exact up to [`ring::CONTAIN_TOL_M`] (1 µm), the rounding of inserted
     ///   intersection points;
-    /// - errors are monotone: Δh, Δa and each side of the negative-space box are at least the
-    ///   children's (Yang's and Chang's measures);
+    /// - errors are monotone: Δh, Δa, each side of the negative-space box, the geometric and
+    ///   the colour error are at least the children's (Yang's, Chang's and citywalk's measures);
     /// - height is within [h_min, h_max]; bounds contain the children's bounds.
     pub fn check_invariants(&self, city: &City) -> Result<(), String> {
         use ring::{Side, locate, ring_contains_ring, ring_is_simple_ccw};
@@ -394,6 +411,8 @@ impl ClusterTree {
                 if child.delta_h_m > node.delta_h_m
                     || child.delta_a_m2 > node.delta_a_m2
                     || (0..3).any(|k| child.neg_space_box_m[k] > node.neg_space_box_m[k])
+                    || child.geometric_error_m > node.geometric_error_m
+                    || child.colour_error_m > node.colour_error_m
                 {
                     return fail(format!("error smaller than child {c}'s"));
                 }

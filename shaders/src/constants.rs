@@ -84,6 +84,7 @@ pub const DEBUG_OCCLUDER_ALPHA: f32 = 0.6;
 /// Tree cull (engine `hzb::tree_cull`): the LOD criterion of `TreeCullParams::criterion`.
 pub const TREE_CRITERION_CHANG: u32 = 0;
 pub const TREE_CRITERION_YANG: u32 = 1;
+pub const TREE_CRITERION_GEOMETRIC: u32 = 2;
 
 /// Tree cull: what the early entry point does with last frame's kept draw ids.
 pub const TREE_EARLY_NONE: u32 = 0;
@@ -136,6 +137,7 @@ pub const WGSL_U32: &[(&str, u32)] = &[
     ("HZB_FINE_SPAN", HZB_FINE_SPAN),
     ("TREE_CRITERION_CHANG", TREE_CRITERION_CHANG),
     ("TREE_CRITERION_YANG", TREE_CRITERION_YANG),
+    ("TREE_CRITERION_GEOMETRIC", TREE_CRITERION_GEOMETRIC),
     ("TREE_EARLY_NONE", TREE_EARLY_NONE),
     ("TREE_EARLY_FRUSTUM", TREE_EARLY_FRUSTUM),
     ("TREE_MAX_LEVELS", TREE_MAX_LEVELS),

@@ -39,12 +39,13 @@ pub struct TreeCullParams {
     pub eye_m: [f32; 3],
     /// Pixels per metre at 1 m: `height_px / (2·tan(fov_y/2))` (engine `lod::LodView`).
     pub px_per_m_at_1m: f32,
-    /// [`TREE_CRITERION_CHANG`](crate::constants::TREE_CRITERION_CHANG) or
-    /// [`TREE_CRITERION_YANG`](crate::constants::TREE_CRITERION_YANG).
+    /// [`TREE_CRITERION_CHANG`](crate::constants::TREE_CRITERION_CHANG),
+    /// [`TREE_CRITERION_YANG`](crate::constants::TREE_CRITERION_YANG) or
+    /// [`TREE_CRITERION_GEOMETRIC`](crate::constants::TREE_CRITERION_GEOMETRIC).
     pub criterion: u32,
-    /// Chang ε (px²) or Yang δh (px).
+    /// Chang ε (px²), Yang δh (px) or the geometric tolerance (px).
     pub tolerance_a: f32,
-    /// Chang τ (px) or Yang δa (px²).
+    /// Chang τ (px) or Yang δa (px²); unused by the geometric criterion.
     pub tolerance_b: f32,
     /// The tree's root node.
     pub root: u32,
@@ -99,7 +100,10 @@ pub struct TreeNode {
     pub delta_a_m2: f32,
     /// 1 when any error is positive (refined whenever the eye is inside the bounds).
     pub has_error: u32,
-    pub _pad: [u32; 2],
+    /// The geometric criterion's error (m): the larger of the node's geometric and colour
+    /// errors (scenes `ClusterNode::lod_error_m`).
+    pub lod_error_m: f32,
+    pub _pad: u32,
 }
 
 /// A landmark candidate of a node: its building and the building's top. WGSL twin:
@@ -206,6 +210,7 @@ mod tests {
             ("delta_h_m", offset_of!(TreeNode, delta_h_m)),
             ("delta_a_m2", offset_of!(TreeNode, delta_a_m2)),
             ("has_error", offset_of!(TreeNode, has_error)),
+            ("lod_error_m", offset_of!(TreeNode, lod_error_m)),
             ("_pad", offset_of!(TreeNode, _pad)),
         ];
         assert_eq!(members.len(), rust.len());

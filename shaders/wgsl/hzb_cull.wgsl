@@ -464,7 +464,8 @@ struct TreeNode {
     delta_h_m: f32,
     delta_a_m2: f32,
     has_error: u32,
-    _pad: vec2<u32>,
+    lod_error_m: f32,
+    _pad: u32,
 }
 
 struct TreeLandmark {
@@ -507,6 +508,9 @@ fn tree_refines(node: TreeNode) -> bool {
     let ppm = tree_px_per_m(node);
     if ppm <= 0.0 {
         return node.has_error != 0u;
+    }
+    if tree.criterion == TREE_CRITERION_GEOMETRIC {
+        return node.lod_error_m * ppm > tree.tolerance_a;
     }
     if tree.criterion == TREE_CRITERION_CHANG {
         return node.chang_area_m2 * ppm * ppm > tree.tolerance_a;

@@ -141,9 +141,13 @@ impl DecimatedBaseline {
         self.render(gpu, decimated, &pose_camera(path, 0), &target);
         for i in 0..path.poses.len() {
             let camera = pose_camera(path, i);
-            let visible = self
+            let ids = self
                 .oracle
-                .visible_set(gpu, &scene.drawable.buildings, &camera, w, h)?;
+                .id_image(gpu, &scene.drawable.buildings, &camera, w, h)?;
+            let visible = citywalk_runtime::oracle::VisibleSet::from_id_image(
+                &ids,
+                scene.drawable.buildings.building_count(),
+            );
             let false_culls = (0..total)
                 .filter(|&b| visible.contains(citywalk_scenes::BuildingId(b as u32)) && !kept[b])
                 .count();
@@ -152,6 +156,9 @@ impl DecimatedBaseline {
             let (frame_ms, cpu_ms) = self.render(gpu, decimated, &camera, &target);
             let rgba = target.read_colour(gpu)?;
             let error = pixel_error(&reference_rgba, &rgba);
+            let bound_px = crate::run::bound_px(scene, &camera);
+            let bound = crate::bound::EdgeDistance::of_frame(&reference_rgba, &ids.pixels, w, h)
+                .check(&reference_rgba, &rgba, bound_px);
             if let Some(dir) = &config.frames_dir
                 && config.png_every > 0
                 && i % config.png_every == 0
@@ -191,6 +198,9 @@ impl DecimatedBaseline {
                 cpu_ms,
                 pixel_error_grey: error.grey_fraction,
                 pixel_error_colour: error.colour_fraction,
+                bound_px,
+                differing_px: bound.differing,
+                beyond_bound_px: bound.beyond,
                 gpu: citywalk_runtime::gpu_timer::GpuTimes::default(),
             });
         }
@@ -275,6 +285,9 @@ mod tests {
             cpu_ms: 0.5,
             pixel_error_grey: 0.0,
             pixel_error_colour: 0.0,
+            bound_px: 2.0,
+            differing_px: 0,
+            beyond_bound_px: 0,
             gpu: citywalk_runtime::gpu_timer::GpuTimes::default(),
         };
         let records = [r("frustum", 100), r("frustum", 300), r("brute", 1000)];

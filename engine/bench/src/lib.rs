@@ -2,6 +2,7 @@
 //! the exact visibility oracle, written as `frames.csv`, `bench.json` and `summary.md`.
 
 pub mod baseline;
+pub mod bound;
 pub mod decimate;
 pub mod mode;
 pub mod output;

@@ -7,6 +7,7 @@ use std::path::Path;
 
 use serde::Serialize;
 
+use crate::bound::BoundCheck;
 use crate::mode::Mode;
 use crate::run::{BenchError, DRAW_PHASES, FrameRecord};
 
@@ -34,6 +35,8 @@ pub const ENTRY_KEYS: &[&str] = &[
     "speedup_vs_brute",
     "oracle_ratio",
     "pixel_error_mean",
+    "bound_violations",
+    "bound_violations_max",
     "gpu_ms_median",
     "gpu_phase_ms_median",
 ];
@@ -84,6 +87,12 @@ pub struct ModeSummary {
     pub pixel_error_mean: f64,
     /// Mean share of pixels differing by more than 40 in a channel (Chang et al. §9).
     pub pixel_error_colour_mean: f64,
+    /// Of all the pixels of the path's frames whose grey level differs from brute force, the
+    /// share farther from every edge of the brute-force frame than the LOD tolerance + 1 px
+    /// ([`crate::bound`]); 0 when none differ.
+    pub bound_violations: f64,
+    /// The largest share of one frame.
+    pub bound_violations_max: f64,
 }
 
 /// The adapter a run used.
@@ -252,6 +261,18 @@ pub fn summarise(records: &[FrameRecord]) -> Vec<ModeSummary> {
                 oracle_ratio: None,
                 pixel_error_mean: mean(rows.iter().map(|r| r.pixel_error_grey)),
                 pixel_error_colour_mean: mean(rows.iter().map(|r| r.pixel_error_colour)),
+                bound_violations: rows
+                    .iter()
+                    .map(|r| r.bound_check())
+                    .fold(BoundCheck::default(), |a, b| BoundCheck {
+                        differing: a.differing + b.differing,
+                        beyond: a.beyond + b.beyond,
+                    })
+                    .share(),
+                bound_violations_max: rows
+                    .iter()
+                    .map(|r| r.bound_check().share())
+                    .fold(0.0, f64::max),
                 scene,
                 path,
                 mode,
@@ -290,7 +311,8 @@ pub fn frames_csv(records: &[FrameRecord]) -> String {
     let phases = gpu_phase_names(records);
     let mut out = String::from(
         "scene,path,mode,frame,visible,drawn,clusters,false_culls,culled_fraction,triangles,draw_calls,\
-         select_ms,frame_ms,cpu_ms,pixel_error_grey,pixel_error_colour,gpu_ms",
+         select_ms,frame_ms,cpu_ms,pixel_error_grey,pixel_error_colour,bound_px,differing_px,\
+         beyond_bound_px,gpu_ms",
     );
     for phase in &phases {
         let _ = write!(out, ",gpu_{phase}_ms");
@@ -300,7 +322,7 @@ pub fn frames_csv(records: &[FrameRecord]) -> String {
     for r in records {
         let _ = write!(
             out,
-            "{},{},{},{},{},{},{},{},{:.6},{},{},{:.4},{:.4},{:.4},{:.6},{:.6},{}",
+            "{},{},{},{},{},{},{},{},{:.6},{},{},{:.4},{:.4},{:.4},{:.6},{:.6},{},{},{},{}",
             csv_field(&r.scene),
             csv_field(&r.path),
             csv_field(&r.mode),
@@ -317,6 +339,9 @@ pub fn frames_csv(records: &[FrameRecord]) -> String {
             r.cpu_ms,
             r.pixel_error_grey,
             r.pixel_error_colour,
+            r.bound_px,
+            r.differing_px,
+            r.beyond_bound_px,
             cell(r.gpu.total_ms()),
         );
         for phase in &phases {
@@ -375,15 +400,16 @@ pub fn summary_markdown(report: &BenchReport) -> String {
     out.push_str(
         "| scene | path | mode | frames | false culls | visible | drawn | clusters | culled | triangles | \
          draw calls | frame ms (median) | p95 | p99 | max | CPU ms (median / p99 / max) | \
-         GPU ms (median) | speed-up vs brute | ÷ oracle | pixel error (grey / colour) |\n",
+         GPU ms (median) | speed-up vs brute | ÷ oracle | pixel error (grey / colour) | \
+         bound violations (path / worst frame) |\n",
     );
     out.push_str(
-        "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+        "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     for e in &report.entries {
         let _ = writeln!(
             out,
-            "| {} | {} | {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.1} % | {:.0} | {:.1} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} / {:.2} / {:.2} | {} | {} | {} | {:.2} % / {:.2} % |",
+            "| {} | {} | {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.1} % | {:.0} | {:.1} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} / {:.2} / {:.2} | {} | {} | {} | {:.2} % / {:.2} % | {:.3} % / {:.3} % |",
             e.scene,
             e.path,
             e.mode,
@@ -410,12 +436,16 @@ pub fn summary_markdown(report: &BenchReport) -> String {
                 .map_or("–".to_string(), |r| format!("{r:.2}×")),
             100.0 * e.pixel_error_mean,
             100.0 * e.pixel_error_colour_mean,
+            100.0 * e.bound_violations,
+            100.0 * e.bound_violations_max,
         );
     }
     out.push_str(
         "\nFrame ms is CPU wall time from recording to the GPU's completion; p95 and p99 are \
          nearest-rank percentiles over the path's frames. CPU ms is the engine's own thread CPU \
-         time per frame (selection, recording, submission; not the wait for the GPU).\n",
+         time per frame (selection, recording, submission; not the wait for the GPU). Bound \
+         violations: of the pixels differing from brute force, the share farther than the LOD \
+         tolerance + 1 px from every edge (colour or id step) of the brute-force frame.\n",
     );
     if report.entries.iter().any(|e| e.mode == Mode::Oracle.name()) {
         out.push_str(
@@ -553,6 +583,9 @@ mod tests {
             cpu_ms: ms / 10.0,
             pixel_error_grey: 0.0,
             pixel_error_colour: 0.0,
+            bound_px: 2.0,
+            differing_px: 0,
+            beyond_bound_px: 0,
             gpu: citywalk_runtime::gpu_timer::GpuTimes::default(),
         }
     }

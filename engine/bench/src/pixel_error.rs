@@ -47,7 +47,7 @@ pub fn pixel_error(reference: &[u8], frame: &[u8]) -> PixelError {
 }
 
 /// Rec. 601 luma of an RGB(A) pixel, rounded to 8 bits.
-fn luma(p: &[u8]) -> u8 {
+pub(crate) fn luma(p: &[u8]) -> u8 {
     let y = 0.299 * f64::from(p[0]) + 0.587 * f64::from(p[1]) + 0.114 * f64::from(p[2]);
     y.round().clamp(0.0, 255.0) as u8
 }

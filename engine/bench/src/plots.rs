@@ -305,6 +305,9 @@ mod tests {
                     cpu_ms: 0.5 + 0.1 * m as f64,
                     pixel_error_grey: 0.001 * m as f64 * f,
                     pixel_error_colour: 0.0005 * m as f64 * f,
+                    bound_px: 2.0,
+                    differing_px: 0,
+                    beyond_bound_px: 0,
                     gpu: citywalk_runtime::gpu_timer::GpuTimes::default(),
                 });
             }

@@ -6,6 +6,7 @@ use std::time::Instant;
 
 use citywalk_scenes::camera_path::CameraPath;
 
+use crate::bound::EdgeDistance;
 use crate::mode::Mode;
 use crate::pixel_error::pixel_error;
 use citywalk_runtime::auto::AutoPlanner;
@@ -15,7 +16,8 @@ use citywalk_runtime::drawable::DrawableScene;
 use citywalk_runtime::frame::Visibility;
 use citywalk_runtime::gpu::GpuContext;
 use citywalk_runtime::gpu_timer::{GpuTimer, GpuTimes};
-use citywalk_runtime::oracle::Oracle;
+use citywalk_runtime::lod::LodCriterion;
+use citywalk_runtime::oracle::{IdImage, Oracle, VisibleSet};
 use citywalk_runtime::render::BruteRenderer;
 use citywalk_runtime::render::selected::SelectedRenderer;
 use citywalk_runtime::render::targets::{OffscreenTarget, ReadbackError};
@@ -74,10 +76,27 @@ pub struct FrameRecord {
     pub pixel_error_grey: f64,
     /// Chang et al. §9: share of pixels differing by more than 40 in a channel.
     pub pixel_error_colour: f64,
+    /// The frame's pixel bound (px): the LOD criterion's tolerance + 1 ([`crate::bound`]).
+    pub bound_px: f32,
+    /// Pixels whose grey level differs from the brute-force frame (the count behind
+    /// `pixel_error_grey`).
+    pub differing_px: u64,
+    /// Of them, those farther than `bound_px` from every edge of the brute-force frame.
+    pub beyond_bound_px: u64,
     /// GPU time per phase from timestamp queries: `draw` for the single-pass modes, the
     /// two-phase frame's phases ([`citywalk_runtime::gpu_timer::FRAME_PHASES`]) for the HiZ modes; every
     /// phase `None` when the adapter has no timestamps, and no phases for an untimed frame.
     pub gpu: GpuTimes,
+}
+
+impl FrameRecord {
+    /// The frame's differing pixels and those beyond the bound.
+    pub fn bound_check(&self) -> crate::bound::BoundCheck {
+        crate::bound::BoundCheck {
+            differing: self.differing_px,
+            beyond: self.beyond_bound_px,
+        }
+    }
 }
 
 /// Why a benchmark run stopped.
@@ -307,7 +326,10 @@ pub fn run_path(
         return Ok(records);
     }
     let warm_camera = pose_camera(path, 0);
-    let warm_visible = oracle_visible(gpu, renderers, scene, &warm_camera, w, h)?;
+    let warm_ids = renderers
+        .oracle
+        .id_image(gpu, &scene.drawable.buildings, &warm_camera, w, h)?;
+    let warm_visible = visible_of(scene, &warm_ids);
     // A new path starts with nothing visible from the previous one, and `auto` learns its
     // costs anew, trying each of its plans at the first pose before timing starts. Every mode
     // warms up there with `WARM_UP_FRAMES` frames (shaders, targets, the first early set): the
@@ -339,7 +361,10 @@ pub fn run_path(
         }
         let camera = pose_camera(path, i);
         // Outside every mode's timing: `oracle` draws this set, but finding it is not its work.
-        let visible_ids = oracle_visible(gpu, renderers, scene, &camera, w, h)?;
+        let ids = renderers
+            .oracle
+            .id_image(gpu, &scene.drawable.buildings, &camera, w, h)?;
+        let visible_ids = visible_of(scene, &ids);
         let mut encoder = gpu
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
@@ -355,10 +380,13 @@ pub fn run_path(
         );
         gpu.queue.submit([encoder.finish()]);
         let reference_rgba = reference.read_colour(gpu)?;
+        let edges = EdgeDistance::of_frame(&reference_rgba, &ids.pixels, w, h);
+        let bound_px = bound_px(scene, &camera);
         for &mode in &config.modes {
             let out = render_mode(gpu, renderers, scene, mode, &camera, &visible_ids, &target)?;
             let rgba = target.read_colour(gpu)?;
             let error = pixel_error(&reference_rgba, &rgba);
+            let bound = edges.check(&reference_rgba, &rgba, bound_px);
             let culled_visible: Vec<u32> = visible_ids
                 .iter()
                 .copied()
@@ -407,6 +435,9 @@ pub fn run_path(
                 cpu_ms: out.cpu_ms,
                 pixel_error_grey: error.grey_fraction,
                 pixel_error_colour: error.colour_fraction,
+                bound_px,
+                differing_px: bound.differing,
+                beyond_bound_px: bound.beyond,
                 gpu: renderers.last_gpu.clone(),
             });
         }
@@ -414,22 +445,24 @@ pub fn run_path(
     Ok(records)
 }
 
-/// The buildings the ID-buffer oracle sees from `camera`, in id order.
-fn oracle_visible(
-    gpu: &GpuContext,
-    renderers: &BenchRenderers,
-    scene: &BenchScene,
-    camera: &Camera,
-    w: u32,
-    h: u32,
-) -> Result<Vec<u32>, BenchError> {
-    let visible = renderers
-        .oracle
-        .visible_set(gpu, &scene.drawable.buildings, camera, w, h)?;
-    let total = scene.drawable.buildings.building_count() as u32;
-    Ok((0..total)
+/// The pixel bound of a frame from `camera`: the LOD criterion's tolerance + 1 px
+/// ([`crate::bound`]); for Chang's and Yang's criteria, which bound no distance, and for a
+/// scene without a cluster tree, the default geometric tolerance's.
+pub(crate) fn bound_px(scene: &BenchScene, camera: &Camera) -> f32 {
+    let tolerance_px = match scene.drawable.refs().lod {
+        Some(lod) => lod.bound_px(camera),
+        None => LodCriterion::tolerance_for_altitude(camera.position.z, f32::INFINITY),
+    };
+    tolerance_px + 1.0
+}
+
+/// The buildings the oracle's id image shows, in id order.
+fn visible_of(scene: &BenchScene, ids: &IdImage) -> Vec<u32> {
+    let total = scene.drawable.buildings.building_count();
+    let visible = VisibleSet::from_id_image(ids, total);
+    (0..total as u32)
         .filter(|&b| visible.contains(citywalk_scenes::BuildingId(b)))
-        .collect())
+        .collect()
 }
 
 fn save_png(file: &std::path::Path, w: u32, h: u32, rgba: Vec<u8>) -> Result<(), BenchError> {

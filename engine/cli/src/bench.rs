@@ -50,9 +50,10 @@ pub struct Args {
     /// occluders), oracle (exactly the oracle's visible set: the fastest any culling could be).
     #[arg(long, default_value = "brute,frustum,quadtree")]
     pub modes: String,
-    /// LOD criterion of the `lod` mode: auto (Chang ε = τ = 1 px at street level, 2 px above
-    /// the roofs), chang-walkthrough, chang-flyover, chang-paper (ε = 100, τ = 2 px),
-    /// yang-paper (δh = 20 px, δa = 200 px).
+    /// LOD criterion of the `lod` mode: auto (the geometric criterion at 1 px at street level,
+    /// 2 px above the roofs), geometric-street (1 px), geometric-roofs (2 px),
+    /// chang-walkthrough (ε = τ = 1 px), chang-flyover (ε = τ = 2 px), chang-paper (ε = 100,
+    /// τ = 2 px), yang-paper (δh = 20 px, δa = 200 px²).
     #[arg(long, default_value = "auto")]
     pub lod_criterion: String,
     /// Frames per generated path (at least 1).

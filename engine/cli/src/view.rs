@@ -63,9 +63,13 @@ pub struct Args {
     /// Start with the screen-space LOD cut on (scene packages with a cluster tree; L toggles).
     #[arg(long)]
     pub lod: bool,
-    /// The LOD criterion at start: `chang` (ε, τ) or `yang` (δh, δa); K switches.
-    #[arg(long, default_value = "chang", value_parser = parse_criterion)]
+    /// The LOD criterion at start: `geometric` (the cluster's geometric and colour error against
+    /// `--tolerance-px`), `chang` (ε, τ) or `yang` (δh, δa); K cycles.
+    #[arg(long, default_value = "geometric", value_parser = parse_criterion)]
     pub criterion: CriterionKind,
+    /// The geometric criterion's tolerance at start (pixels; default 1, street level).
+    #[arg(long, value_parser = parse_tolerance)]
+    pub tolerance_px: Option<f32>,
     /// Chang's ε at start (pixels; default 1, the walkthrough tolerance).
     #[arg(long, value_parser = parse_tolerance)]
     pub epsilon_px: Option<f32>,
@@ -87,7 +91,8 @@ pub struct Args {
 }
 
 fn parse_criterion(s: &str) -> Result<CriterionKind, String> {
-    CriterionKind::parse(s).ok_or_else(|| format!("unknown LOD criterion '{s}' (chang, yang)"))
+    CriterionKind::parse(s)
+        .ok_or_else(|| format!("unknown LOD criterion '{s}' (geometric, chang, yang)"))
 }
 
 fn parse_tolerance(s: &str) -> Result<f32, String> {
@@ -116,6 +121,7 @@ fn start_settings(args: &Args) -> RenderSettings {
     settings.lod.kind = args.criterion;
     let lod = &mut settings.lod;
     for (value, slot) in [
+        (args.tolerance_px, &mut lod.tolerance_px),
         (args.epsilon_px, &mut lod.epsilon_px),
         (args.tau_px, &mut lod.tau_px),
         (args.delta_h_px, &mut lod.delta_h_px),

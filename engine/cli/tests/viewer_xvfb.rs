@@ -244,7 +244,15 @@ fn viewer_switches_stages_lod_and_debug_views() {
     let path_file = dir.join("aerial.path");
     write_aerial_path(&path_file);
     let path_arg = path_file.to_str().expect("a UTF-8 temporary path");
-    let coarse = ["--lod", "--epsilon-px", "100000", "--tau-px", "100"];
+    let coarse = [
+        "--lod",
+        "--criterion",
+        "chang",
+        "--epsilon-px",
+        "100000",
+        "--tau-px",
+        "100",
+    ];
     let runs: [(&str, Vec<&str>); 10] = [
         ("all", vec![]),
         ("brute", vec!["--no-culling"]),

@@ -36,9 +36,17 @@ use glam::{Mat4, Vec3};
 
 use crate::camera::Camera;
 
-/// Which paper's error measure decides refinement.
+/// Which error measure decides refinement: citywalk's geometric error (the default) or one of
+/// the two papers'.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum LodCriterion {
+    /// citywalk's criterion (design, "Screen-space LOD"): refine while the node's error
+    /// ([`ClusterNode::lod_error_m`]: how far the cluster mesh departs from its buildings in
+    /// shape, `geometric_error_m`, and in colour, `colour_error_m`), projected at the nearest
+    /// point of its bounds, exceeds `tolerance_px`. A drawn cluster then differs from the full
+    /// scene only within about `tolerance_px` of an edge of the full frame (the bench measures
+    /// this as `bound_violations`). No landmarks: the error already counts taller buildings.
+    Geometric { tolerance_px: f32 },
     /// Chang et al. 2008 §8: negative-space box area in pixels against `epsilon_px`, landmark
     /// tolerance `tau_px`.
     Chang { epsilon_px: f32, tau_px: f32 },
@@ -47,6 +55,19 @@ pub enum LodCriterion {
 }
 
 impl LodCriterion {
+    /// The geometric criterion's tolerance at street level (px): the brief's walkthrough error.
+    pub const STREET_TOLERANCE_PX: f32 = 1.0;
+    /// The geometric criterion's tolerance above the roofs (px): nothing can come close to the
+    /// eye there.
+    pub const ROOFS_TOLERANCE_PX: f32 = 2.0;
+    /// The geometric criterion at street level.
+    pub const GEOMETRIC_STREET: LodCriterion = LodCriterion::Geometric {
+        tolerance_px: Self::STREET_TOLERANCE_PX,
+    };
+    /// The geometric criterion above the roofs.
+    pub const GEOMETRIC_ROOFS: LodCriterion = LodCriterion::Geometric {
+        tolerance_px: Self::ROOFS_TOLERANCE_PX,
+    };
     /// Chang et al. §8 for a walkthrough: ε = 1 px (a cluster is drawn only where its
     /// negative-space box covers at most one pixel) and τ = 1 px (a building rising more than
     /// one pixel above its cluster is drawn as a landmark). citywalk's choice: the brief asks
@@ -72,32 +93,51 @@ impl LodCriterion {
         delta_a_px: 200.0,
     };
 
-    /// Parses a criterion name of the command line: `auto` (`None`: the Chang preset by
-    /// altitude), `chang-walkthrough`, `chang-flyover`, `chang-paper`, `yang-paper`.
+    /// Parses a criterion name of the command line: `auto` (`None`: the geometric preset by
+    /// altitude, [`LodCriterion::for_altitude`]), `geometric-street`, `geometric-roofs`,
+    /// `chang-walkthrough`, `chang-flyover`, `chang-paper`, `yang-paper`.
     pub fn parse(name: &str) -> Result<Option<LodCriterion>, String> {
         Ok(Some(match name.trim() {
             "auto" => return Ok(None),
+            "geometric-street" => Self::GEOMETRIC_STREET,
+            "geometric-roofs" => Self::GEOMETRIC_ROOFS,
             "chang-walkthrough" => Self::CHANG_WALKTHROUGH,
             "chang-flyover" => Self::CHANG_FLYOVER,
             "chang-paper" => Self::CHANG_PAPER,
             "yang-paper" => Self::YANG_PAPER,
             other => {
                 return Err(format!(
-                    "unknown LOD criterion '{other}' (auto, chang-walkthrough, chang-flyover, \
-                     chang-paper, yang-paper)"
+                    "unknown LOD criterion '{other}' (auto, geometric-street, geometric-roofs, \
+                     chang-walkthrough, chang-flyover, chang-paper, yang-paper)"
                 ));
             }
         }))
     }
 
-    /// The Chang preset for a camera at `eye_z_m`: the flyover tolerance once the eye is above
-    /// the tallest building top `scene_top_m` (nothing can come close to the eye), else the
-    /// walkthrough tolerance.
-    pub fn chang_for_altitude(eye_z_m: f32, scene_top_m: f32) -> LodCriterion {
+    /// The default criterion for a camera at `eye_z_m`: the geometric criterion at 2 px once the
+    /// eye is above the tallest building top `scene_top_m` (nothing can come close to the eye),
+    /// else at 1 px.
+    pub fn for_altitude(eye_z_m: f32, scene_top_m: f32) -> LodCriterion {
+        LodCriterion::Geometric {
+            tolerance_px: Self::tolerance_for_altitude(eye_z_m, scene_top_m),
+        }
+    }
+
+    /// The tolerance (px) of [`LodCriterion::for_altitude`]: 2 px above the roofs, else 1 px.
+    pub fn tolerance_for_altitude(eye_z_m: f32, scene_top_m: f32) -> f32 {
         if eye_z_m > scene_top_m {
-            Self::CHANG_FLYOVER
+            Self::ROOFS_TOLERANCE_PX
         } else {
-            Self::CHANG_WALKTHROUGH
+            Self::STREET_TOLERANCE_PX
+        }
+    }
+
+    /// The pixel bound the criterion keeps: the geometric criterion's tolerance; `None` for
+    /// Chang's and Yang's, which bound no distance on screen.
+    pub fn bound_px(self) -> Option<f32> {
+        match self {
+            LodCriterion::Geometric { tolerance_px } => Some(tolerance_px),
+            LodCriterion::Chang { .. } | LodCriterion::Yang { .. } => None,
         }
     }
 }
@@ -218,15 +258,22 @@ pub fn chang_area_m2(node: &ClusterNode) -> f32 {
     Vec3::new(d * h, w * h, w * d).length()
 }
 
+/// Whether `node` has any error (refined whenever the eye is inside its bounds).
+pub fn has_error(node: &ClusterNode) -> bool {
+    node.delta_h_m > 0.0
+        || node.delta_a_m2 > 0.0
+        || node.neg_space_box_m.iter().any(|v| *v > 0.0)
+        || node.lod_error_m() > 0.0
+}
+
 /// Whether `node` (an inner node) must be refined at `px_per_m`.
 fn refine(criterion: LodCriterion, node: &ClusterNode, px_per_m: f32) -> bool {
     if !px_per_m.is_finite() {
         // The eye is inside the node's bounds: refine anything with an error.
-        return node.delta_h_m > 0.0
-            || node.delta_a_m2 > 0.0
-            || node.neg_space_box_m.iter().any(|v| *v > 0.0);
+        return has_error(node);
     }
     match criterion {
+        LodCriterion::Geometric { tolerance_px } => node.lod_error_m() * px_per_m > tolerance_px,
         LodCriterion::Chang { epsilon_px, .. } => neg_space_px(node, px_per_m) > epsilon_px,
         LodCriterion::Yang {
             delta_h_px,
@@ -378,6 +425,8 @@ mod tests {
             delta_h_m: 10.0,
             delta_a_m2: 100.0,
             neg_space_box_m: [10.0, 10.0, 10.0],
+            geometric_error_m: 4.0,
+            colour_error_m: 3.0,
             bounds_min: [0.0; 3],
             bounds_max: [1.0; 3],
             children: vec![1],
@@ -402,5 +451,35 @@ mod tests {
         assert!(!refine(yang, &node, 1.0));
         assert!(refine(yang, &node, 1.5));
         assert!(refine(yang, &node, f32::INFINITY));
+        // Geometric: the larger error, 4 m, against 1 px: refine above 0.25 px/m.
+        let geometric = LodCriterion::GEOMETRIC_STREET;
+        assert!(!refine(geometric, &node, 0.2));
+        assert!(refine(geometric, &node, 0.3));
+        // The colour error counts when it is the larger.
+        let colourful = ClusterNode {
+            colour_error_m: 8.0,
+            ..node.clone()
+        };
+        assert!(refine(geometric, &colourful, 0.2));
+    }
+
+    #[test]
+    fn default_criterion_is_geometric_by_altitude() {
+        assert_eq!(
+            LodCriterion::for_altitude(1.7, 30.0),
+            LodCriterion::GEOMETRIC_STREET
+        );
+        assert_eq!(
+            LodCriterion::for_altitude(31.0, 30.0),
+            LodCriterion::GEOMETRIC_ROOFS
+        );
+        assert_eq!(LodCriterion::parse("auto"), Ok(None));
+        assert_eq!(
+            LodCriterion::parse("geometric-roofs"),
+            Ok(Some(LodCriterion::GEOMETRIC_ROOFS))
+        );
+        assert_eq!(LodCriterion::GEOMETRIC_STREET.bound_px(), Some(1.0));
+        assert_eq!(LodCriterion::YANG_PAPER.bound_px(), None);
+        assert!(LodCriterion::parse("geometric").is_err());
     }
 }

@@ -15,7 +15,7 @@ use super::draw::{Drawn, FrameDrawer, ViewerScene};
 use super::input::{Command, InputTracker, KEY_HELP};
 use super::overlay::{Overlay, OverlayStats, StageCounts};
 use super::screenshot::{ScreenshotError, to_rgba_image};
-use super::settings::{CriterionKind, RenderSettings, SceneFeatures};
+use super::settings::{RenderSettings, SceneFeatures};
 use super::surface::{Acquired, WindowSurface};
 use super::{ViewerError, ViewerOptions};
 use citywalk_runtime::camera::Camera;
@@ -248,10 +248,7 @@ impl App {
             }
             Command::ToggleCriterion => {
                 let lod = &mut self.settings.lod;
-                lod.kind = match lod.kind {
-                    CriterionKind::Chang => CriterionKind::Yang,
-                    CriterionKind::Yang => CriterionKind::Chang,
-                };
+                lod.kind = lod.kind.next();
                 tracing::info!(criterion = lod.kind.name(), "LOD criterion");
             }
             Command::NextDebugView => {

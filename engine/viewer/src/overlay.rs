@@ -226,10 +226,18 @@ fn lod_controls(ui: &mut egui::Ui, features: SceneFeatures, settings: &mut Rende
     ui.add_enabled_ui(enabled, |ui| {
         ui.horizontal(|ui| {
             ui.label("criterion (K)");
+            ui.radio_value(&mut lod.kind, CriterionKind::Geometric, "geometric");
             ui.radio_value(&mut lod.kind, CriterionKind::Chang, "Chang");
             ui.radio_value(&mut lod.kind, CriterionKind::Yang, "Yang");
         });
         match lod.kind {
+            CriterionKind::Geometric => {
+                ui.add(slider(
+                    &mut lod.tolerance_px,
+                    LodSettings::TOLERANCE_RANGE_PX,
+                    "tolerance (px)",
+                ));
+            }
             CriterionKind::Chang => {
                 ui.add(slider(
                     &mut lod.epsilon_px,
@@ -605,10 +613,10 @@ mod tests {
                 "occluder pre-pass (V)",
                 "occluder gate of the early set (N)",
                 "LOD cut (L)",
+                "geometric",
                 "Chang",
                 "Yang",
-                "ε (px)",
-                "τ (px)",
+                "tolerance (px)",
                 "level ([ ])",
             ],
         );

@@ -6,9 +6,11 @@
 use citywalk_runtime::lod::LodCriterion;
 pub use citywalk_runtime::plan::{FramePlan, SceneFeatures};
 
-/// Which paper's criterion the LOD cut uses.
+/// Which criterion the LOD cut uses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum CriterionKind {
+    /// citywalk's geometric error against a pixel tolerance (the default).
+    Geometric,
     /// Chang et al. 2008 §8: ε and τ.
     Chang,
     /// Yang et al. 2011 §4: δh and δa.
@@ -18,6 +20,7 @@ pub enum CriterionKind {
 impl CriterionKind {
     pub fn name(self) -> &'static str {
         match self {
+            CriterionKind::Geometric => "geometric",
             CriterionKind::Chang => "chang",
             CriterionKind::Yang => "yang",
         }
@@ -25,16 +28,32 @@ impl CriterionKind {
 
     /// Inverse of [`CriterionKind::name`].
     pub fn parse(name: &str) -> Option<CriterionKind> {
-        [CriterionKind::Chang, CriterionKind::Yang]
-            .into_iter()
-            .find(|k| k.name() == name.trim())
+        [
+            CriterionKind::Geometric,
+            CriterionKind::Chang,
+            CriterionKind::Yang,
+        ]
+        .into_iter()
+        .find(|k| k.name() == name.trim())
+    }
+
+    /// The next criterion (the K key): geometric → Chang → Yang → geometric.
+    pub fn next(self) -> CriterionKind {
+        match self {
+            CriterionKind::Geometric => CriterionKind::Chang,
+            CriterionKind::Chang => CriterionKind::Yang,
+            CriterionKind::Yang => CriterionKind::Geometric,
+        }
     }
 }
 
-/// The LOD criterion and both papers' tolerances (the one not chosen keeps its values).
+/// The LOD criterion and every criterion's tolerances (those not chosen keep their values).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LodSettings {
     pub kind: CriterionKind,
+    /// Geometric: the largest projected error of a drawn cluster (px), its shape's and its
+    /// colour's ([`citywalk_runtime::lod::LodCriterion::Geometric`]).
+    pub tolerance_px: f32,
     /// Chang ε (px): the largest projected size of a drawn cluster's negative-space box
     /// ([`citywalk_runtime::lod`]).
     pub epsilon_px: f32,
@@ -47,9 +66,13 @@ pub struct LodSettings {
 }
 
 impl Default for LodSettings {
+    /// The geometric criterion at street level ([`LodCriterion::GEOMETRIC_STREET`]), chosen;
     /// Chang's walkthrough tolerances ([`LodCriterion::CHANG_WALKTHROUGH`]) and Yang's paper
-    /// values ([`LodCriterion::YANG_PAPER`]), Chang chosen.
+    /// values ([`LodCriterion::YANG_PAPER`]).
     fn default() -> Self {
+        let LodCriterion::Geometric { tolerance_px } = LodCriterion::GEOMETRIC_STREET else {
+            unreachable!("GEOMETRIC_STREET is a geometric criterion")
+        };
         let LodCriterion::Chang { epsilon_px, tau_px } = LodCriterion::CHANG_WALKTHROUGH else {
             unreachable!("CHANG_WALKTHROUGH is a Chang criterion")
         };
@@ -61,7 +84,8 @@ impl Default for LodSettings {
             unreachable!("YANG_PAPER is a Yang criterion")
         };
         LodSettings {
-            kind: CriterionKind::Chang,
+            kind: CriterionKind::Geometric,
+            tolerance_px,
             epsilon_px,
             tau_px,
             delta_h_px,
@@ -71,7 +95,8 @@ impl Default for LodSettings {
 }
 
 impl LodSettings {
-    /// Slider ranges: ε (px), τ (px), δh (px), δa (px²).
+    /// Slider ranges: the geometric tolerance (px), ε (px), τ (px), δh (px), δa (px²).
+    pub const TOLERANCE_RANGE_PX: std::ops::RangeInclusive<f32> = 0.25..=100.0;
     pub const EPSILON_RANGE_PX: std::ops::RangeInclusive<f32> = 0.25..=100_000.0;
     pub const TAU_RANGE_PX: std::ops::RangeInclusive<f32> = 0.25..=100.0;
     pub const DELTA_H_RANGE_PX: std::ops::RangeInclusive<f32> = 1.0..=400.0;
@@ -80,6 +105,9 @@ impl LodSettings {
     /// The criterion the cut uses.
     pub fn criterion(&self) -> LodCriterion {
         match self.kind {
+            CriterionKind::Geometric => LodCriterion::Geometric {
+                tolerance_px: self.tolerance_px,
+            },
             CriterionKind::Chang => LodCriterion::Chang {
                 epsilon_px: self.epsilon_px,
                 tau_px: self.tau_px,
@@ -187,13 +215,19 @@ mod tests {
     #[test]
     fn defaults_are_the_papers_and_criteria_follow_the_sliders() {
         let lod = LodSettings::default();
-        assert_eq!(lod.criterion(), LodCriterion::CHANG_WALKTHROUGH);
+        assert_eq!(lod.criterion(), LodCriterion::GEOMETRIC_STREET);
+        let chang = LodSettings {
+            kind: CriterionKind::Chang,
+            ..lod
+        };
+        assert_eq!(chang.criterion(), LodCriterion::CHANG_WALKTHROUGH);
         let yang = LodSettings {
             kind: CriterionKind::Yang,
             ..lod
         };
         assert_eq!(yang.criterion(), LodCriterion::YANG_PAPER);
         let moved = LodSettings {
+            kind: CriterionKind::Chang,
             epsilon_px: 7.5,
             tau_px: 3.0,
             ..lod
@@ -209,6 +243,20 @@ mod tests {
         assert!(LodSettings::DELTA_A_RANGE_PX2.contains(&lod.delta_a_px2));
         assert_eq!(CriterionKind::parse("yang"), Some(CriterionKind::Yang));
         assert_eq!(CriterionKind::parse("fast"), None);
+        assert_eq!(
+            CriterionKind::parse("geometric"),
+            Some(CriterionKind::Geometric)
+        );
+        let mut k = CriterionKind::Geometric;
+        for want in [
+            CriterionKind::Chang,
+            CriterionKind::Yang,
+            CriterionKind::Geometric,
+        ] {
+            k = k.next();
+            assert_eq!(k, want);
+        }
+        assert!(LodSettings::TOLERANCE_RANGE_PX.contains(&lod.tolerance_px));
     }
 
     #[test]

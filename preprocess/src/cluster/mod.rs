@@ -9,9 +9,11 @@
 //!    re-paired by weight ([`rebalance`]);
 //! 3. hulls merged bottom-up along the merge order ([`merge`]) and simplified ([`simplify`]);
 //! 4. depth reduction and balancing ([`depth`]);
-//! 5. node data: heights, errors (made monotone), bounds, landmarks, meshes.
+//! 5. node data: heights, errors (made monotone; the geometric and colour errors in [`error`]),
+//!    bounds, landmarks, meshes.
 
 pub mod depth;
+pub mod error;
 pub mod geom;
 pub mod leaves;
 pub mod linkage;
@@ -208,6 +210,8 @@ pub fn assemble_nodes(
             delta_h_m: 0.0,
             delta_a_m2: 0.0,
             neg_space_box_m: [0.0; 3],
+            geometric_error_m: 0.0,
+            colour_error_m: 0.0,
             bounds_min: [0.0; 3],
             bounds_max: [0.0; 3],
             children: std::mem::take(&mut children[id]),
@@ -228,6 +232,7 @@ pub fn assemble_nodes(
         &mut nodes,
         params,
     );
+    error::fill_errors(city, verts, &building_order, &mut nodes);
 
     (nodes, building_order)
 }

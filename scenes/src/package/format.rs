@@ -41,7 +41,9 @@ pub const MAGIC: [u8; 4] = *b"CWK\0";
 ///   decoding the occluder set; the cluster tree section no longer repeats the cluster meshes
 ///   the GPU scene holds (a full decode restores them from there); the buildings' parts and
 ///   tags moved to a section of their own ([`SectionKind::BuildingDetails`]).
-pub const FORMAT_VERSION: u32 = 5;
+/// - 6: every cluster tree node has a geometric and a colour error
+///   (`ClusterNode::geometric_error_m`, `colour_error_m`), the default LOD criterion's.
+pub const FORMAT_VERSION: u32 = 6;
 /// Sections start at multiples of this (a cache line, and enough for any scalar type).
 pub const SECTION_ALIGN: u64 = 64;
 /// The most sections a package may have.

@@ -285,6 +285,8 @@ mod tests {
             delta_h_m: 0.0,
             delta_a_m2: 0.0,
             neg_space_box_m: [0.0; 3],
+            geometric_error_m: 0.0,
+            colour_error_m: 0.0,
             bounds_min: [0.0; 3],
             bounds_max: [0.0; 3],
             children,

@@ -7,11 +7,13 @@
 //! `shaders/wgsl/hzb_cull.wgsl`) compute, with the same operations in the same order as
 //! [`crate::lod::LodTree::cut`]'s, so the three agree up to the GPU's rounding.
 
-use citywalk_shaders::constants::{NO_PARENT, TREE_CRITERION_CHANG, TREE_CRITERION_YANG};
+use citywalk_shaders::constants::{
+    NO_PARENT, TREE_CRITERION_CHANG, TREE_CRITERION_GEOMETRIC, TREE_CRITERION_YANG,
+};
 use citywalk_shaders::{TreeCullParams, TreeLandmark, TreeNode};
 use glam::Vec3;
 
-use crate::lod::{LodCriterion, LodTree, LodView, chang_area_m2, distance_to_box};
+use crate::lod::{LodCriterion, LodTree, LodView, chang_area_m2, distance_to_box, has_error};
 
 /// The flat arrays of a cluster tree.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -78,12 +80,9 @@ impl TreeArrays {
                 chang_area_m2: chang_area_m2(node),
                 delta_h_m: node.delta_h_m,
                 delta_a_m2: node.delta_a_m2 as f32,
-                has_error: u32::from(
-                    node.delta_h_m > 0.0
-                        || node.delta_a_m2 > 0.0
-                        || node.neg_space_box_m.iter().any(|v| *v > 0.0),
-                ),
-                _pad: [0; 2],
+                has_error: u32::from(has_error(node)),
+                lod_error_m: node.lod_error_m(),
+                _pad: 0,
             });
         }
         out
@@ -94,6 +93,7 @@ impl TreeArrays {
 /// queue and frame fields).
 pub fn tree_params(view: &LodView, criterion: LodCriterion, building_count: u32) -> TreeCullParams {
     let (kind, a, b) = match criterion {
+        LodCriterion::Geometric { tolerance_px } => (TREE_CRITERION_GEOMETRIC, tolerance_px, 0.0),
         LodCriterion::Chang { epsilon_px, tau_px } => (TREE_CRITERION_CHANG, epsilon_px, tau_px),
         LodCriterion::Yang {
             delta_h_px,
@@ -131,6 +131,9 @@ pub fn refines(node: &TreeNode, params: &TreeCullParams) -> bool {
     if ppm <= 0.0 {
         return node.has_error != 0;
     }
+    if params.criterion == TREE_CRITERION_GEOMETRIC {
+        return node.lod_error_m * ppm > params.tolerance_a;
+    }
     if params.criterion == TREE_CRITERION_CHANG {
         return node.chang_area_m2 * ppm * ppm > params.tolerance_a;
     }
@@ -158,6 +161,8 @@ mod tests {
             } else {
                 [5.0, 5.0, 10.0]
             },
+            geometric_error_m: if children.is_empty() { 0.0 } else { 12.0 },
+            colour_error_m: if children.is_empty() { 0.0 } else { 5.0 },
             bounds_min: [x, 0.0, 0.0],
             bounds_max: [x + 10.0, 10.0, 40.0],
             children,
@@ -205,5 +210,46 @@ mod tests {
         );
         assert_eq!(arrays.nodes[0].has_error, 1);
         assert_eq!(arrays.nodes[1].has_error, 0);
+        assert_eq!(
+            (arrays.nodes[0].lod_error_m, arrays.nodes[1].lod_error_m),
+            (12.0, 0.0)
+        );
+    }
+
+    #[test]
+    fn geometric_refinement_matches_the_cpu_cut() {
+        // The root's 12 m error, seen from 100 m to 20 km away at 1 px: the flat test and the
+        // CPU cut refine alike (refine while 12 m · px/m > 1 px, up to about 5.3 km here).
+        let tree = LodTree::new(ClusterTree {
+            nodes: vec![
+                node(vec![1, 2], (0, 2), 0, 0.0),
+                node(vec![], (0, 1), 1, 0.0),
+                node(vec![], (1, 2), 1, 20.0),
+            ],
+            root: 0,
+            building_order: vec![BuildingId(0), BuildingId(1)],
+            vertices: vec![],
+            params: ClusterParams::default(),
+            stats: ClusterStats::default(),
+        });
+        let arrays = TreeArrays::build(&tree, 2);
+        let mut refined = [false; 2];
+        for d in [100.0, 1000.0, 5000.0, 20_000.0] {
+            let view = LodView {
+                eye_m: Vec3::new(5.0, -d, 20.0),
+                fov_y_rad: 1.0,
+                height_px: 481,
+                frustum: None,
+            };
+            let params = tree_params(&view, LodCriterion::GEOMETRIC_STREET, 2);
+            let gpu = refines(&arrays.nodes[0], &params);
+            let cpu = tree
+                .cut(&view, LodCriterion::GEOMETRIC_STREET, None)
+                .clusters
+                .is_empty();
+            assert_eq!(gpu, cpu, "at {d} m");
+            refined[usize::from(gpu)] = true;
+        }
+        assert_eq!(refined, [true, true], "both outcomes occur");
     }
 }

@@ -34,8 +34,8 @@ pub struct LodScene {
     /// Number of buildings; cluster node `n` has draw id `building_count + n`.
     pub building_count: u32,
     pub tree: LodTree,
-    /// The criterion of [`LodScene::default_criterion`]; `None` picks the Chang walkthrough or
-    /// flyover preset by the camera's altitude.
+    /// The criterion of [`LodScene::default_criterion`]; `None` picks the geometric criterion
+    /// at 1 px or 2 px by the camera's altitude ([`LodCriterion::for_altitude`]).
     pub criterion: Option<LodCriterion>,
     /// Per draw id, on the GPU only, the record the occlusion cull of the combined frame tests
     /// ([`crate::frame::CullingRenderer::render_lod`]): a building's own record; a cluster's
@@ -186,12 +186,22 @@ impl LodScene {
         frame.cut.covered_buildings(&self.tree.tree)
     }
 
-    /// What the benchmark's `lod` mode uses: [`LodScene::criterion`] if set, else the Chang
-    /// preset for `camera` ([`LodCriterion::chang_for_altitude`] against the tallest building).
+    /// What the benchmark's `lod` mode uses: [`LodScene::criterion`] if set, else the geometric
+    /// preset for `camera` ([`LodCriterion::for_altitude`] against the tallest building).
     pub fn default_criterion(&self, camera: &Camera) -> LodCriterion {
-        self.criterion.unwrap_or_else(|| {
-            LodCriterion::chang_for_altitude(camera.position.z, self.tree.top_m())
-        })
+        self.criterion
+            .unwrap_or_else(|| LodCriterion::for_altitude(camera.position.z, self.tree.top_m()))
+    }
+
+    /// The pixel tolerance a frame from `camera` keeps: that of [`LodScene::default_criterion`]
+    /// when it is geometric, else the geometric preset's for the camera's altitude (Chang's and
+    /// Yang's criteria bound no distance on screen; the bench measures them against it).
+    pub fn bound_px(&self, camera: &Camera) -> f32 {
+        self.default_criterion(camera)
+            .bound_px()
+            .unwrap_or_else(|| {
+                LodCriterion::tolerance_for_altitude(camera.position.z, self.tree.top_m())
+            })
     }
 
     /// The draw ids of `cut`: its buildings, then its clusters offset by the building count.
