@@ -30,11 +30,13 @@ use rstar::primitives::{GeomWithData, Line, Rectangle};
 use super::geom::{Pt, Side, locate, ring_bounds};
 
 /// Grid samples of one hull at most, so a node costs O(1) distance queries whatever its size.
-const MAX_GRID_SAMPLES: f64 = 1024.0;
+/// 256 rather than 1,024: the slack (√2 + ½)·s of a 30 m cluster grows from 1.8 to 3.6 m, and
+/// the tree stage of a generated 100k city takes 7.6 s instead of 14.1 s (3.6 s without errors).
+const MAX_GRID_SAMPLES: f64 = 256.0;
 /// Finest sample spacing (m): below it the sampling slack is under the pixel at street level.
 const MIN_SPACING_M: f64 = 0.25;
 /// Samples along the hull's boundary at most (the spacing grows for longer boundaries).
-const MAX_BOUNDARY_SAMPLES: f64 = 1024.0;
+const MAX_BOUNDARY_SAMPLES: f64 = 256.0;
 
 /// The buildings' footprints indexed for distance queries. Every entry carries the building's
 /// position in the tree's `building_order`, so "a building of this node" is a range test.
@@ -121,7 +123,19 @@ pub fn plan_error_m(fp: &Footprints<'_>, verts: &[Pt], ring: &[u32], range: (u32
         .max((box_area / MAX_GRID_SAMPLES).sqrt())
         .max(perimeter / MAX_BOUNDARY_SAMPLES);
     let mut worst = 0.0f64;
-    let mut sample = |p: Pt| worst = worst.max(fp.distance_m(p, range));
+    // The distance is 1-Lipschitz: a sample within `worst - d` of the last one measured (at
+    // distance `d`) cannot raise `worst`, and is skipped without a query.
+    let mut last: Option<(Pt, f64)> = None;
+    let mut sample = |p: Pt| {
+        if let Some((q, d)) = last
+            && d + (p[0] - q[0]).hypot(p[1] - q[1]) <= worst
+        {
+            return;
+        }
+        let d = fp.distance_m(p, range);
+        worst = worst.max(d);
+        last = Some((p, d));
+    };
     for i in 0..ring.len() {
         let (a, b) = (
             verts[ring[i] as usize],
@@ -268,7 +282,7 @@ mod tests {
         let order = vec![BuildingId(0), BuildingId(1)];
         let fp = Footprints::new(&city, &order);
         let verts = vec![[0.0, 0.0], [26.0, 0.0], [26.0, 10.0], [0.0, 10.0]];
-        // The sampling slack is (√2 + ½)·s, s = √(260 m² / 1024) ≈ 0.5 m here.
+        // The sampling slack is (√2 + ½)·s, s = √(260 m² / MAX_GRID_SAMPLES) ≈ 1 m here.
         let slack = |box_area_m2: f64| {
             (std::f64::consts::SQRT_2 + 0.5)
                 * MIN_SPACING_M.max((box_area_m2 / MAX_GRID_SAMPLES).sqrt())
