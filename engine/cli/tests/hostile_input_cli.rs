@@ -318,3 +318,51 @@ fn issue14_small_repeated_and_far_apart_inputs_are_reported() {
             .any(|w| w.message.contains("150 km from"))
     );
 }
+
+/// Issue 14 (occluders on any city): every building left without an occluder is named with
+/// its source id and its reason in `inspect occluders`' plain text, not only counted (`--json`
+/// and `--per-building` had them); the leak line says in how many buildings.
+#[test]
+fn issue14_inspect_occluders_names_every_building_without_an_occluder() {
+    let dir = temp_dir("issue14-no-occluder");
+    // Metres east / north of a point in Den Haag, as longitude and latitude.
+    let square = |x: f64, y: f64, w: f64, h: f64| {
+        let (dx, dy) = (1.0 / 68_700.0, 1.0 / 111_200.0);
+        let corners = [(x, y), (x + w, y), (x + w, y + h), (x, y + h), (x, y)];
+        let ring: Vec<String> = corners
+            .iter()
+            .map(|(px, py)| format!("[{},{}]", 4.3 + px * dx, 52.0 + py * dy))
+            .collect();
+        format!("[[{}]]", ring.join(","))
+    };
+    let feature = |id: &str, height: f64, polygon: String| {
+        format!(
+            r#"{{"type":"Feature","properties":{{"id":"{id}","height":{height}}},"geometry":{{"type":"Polygon","coordinates":{polygon}}}}}"#
+        )
+    };
+    let features = [
+        feature("big", 20.0, square(0.0, 0.0, 20.0, 20.0)),
+        feature("tiny", 10.0, square(40.0, 0.0, 0.4, 0.4)),
+        feature("low", 0.6, square(60.0, 0.0, 10.0, 10.0)),
+    ];
+    let input = dir.join("city.geojson");
+    std::fs::write(
+        &input,
+        format!(
+            r#"{{"type":"FeatureCollection","features":[{}]}}"#,
+            features.join(",")
+        ),
+    )
+    .unwrap();
+    let out = citywalk(&["inspect", "occluders", path_str(&input)]);
+    let all = text(&out);
+    assert!(out.status.success(), "{all}");
+    assert!(all.contains("buildings: 3 (1 with occluders)"), "{all}");
+    assert!(
+        all.contains("no occluder: tiny: part tiny is smaller than 1 m²")
+            && all.contains("no occluder: low: part low is 0.6 m tall, below 1.5 m"),
+        "{all}"
+    );
+    assert!(!all.contains("no occluder: big"), "{all}");
+    assert!(all.contains("in 0 buildings"), "{all}");
+}

@@ -157,6 +157,28 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Buildings without occluders listed in the plain-text report before `--per-building` is asked.
+const WITHOUT_OCCLUDERS_LISTED: usize = 20;
+
+/// Every building left without an occluder, by source id with its reason (the first
+/// [`WITHOUT_OCCLUDERS_LISTED`], then a count): nothing is dropped without saying why.
+fn print_without_occluders(rows: &[BuildingQuality]) {
+    let without: Vec<&BuildingQuality> = rows.iter().filter(|r| r.occluders == 0).collect();
+    for r in without.iter().take(WITHOUT_OCCLUDERS_LISTED) {
+        println!(
+            "  no occluder: {}: {}",
+            r.source_id,
+            r.reason_if_none.as_deref().unwrap_or("no reason recorded")
+        );
+    }
+    if without.len() > WITHOUT_OCCLUDERS_LISTED {
+        println!(
+            "  ... and {} more without an occluder (--per-building lists them all)",
+            without.len() - WITHOUT_OCCLUDERS_LISTED
+        );
+    }
+}
+
 fn print_text(report: &Report<'_>, rows: &[BuildingQuality], per_building: bool) {
     let s = &report.summary;
     if per_building {
@@ -191,6 +213,9 @@ fn print_text(report: &Report<'_>, rows: &[BuildingQuality], per_building: bool)
         "buildings: {} ({} with occluders), occluders: {}",
         s.buildings, s.buildings_with_occluders, s.occluders
     );
+    if !per_building {
+        print_without_occluders(rows);
+    }
     println!(
         "polygons (planar faces): {} → {} ({:.2}× fewer), mean polygon area gain {:.2}×",
         s.source_polygons, s.occluder_polygons, s.polygon_reduction, s.mean_polygon_area_gain
@@ -231,8 +256,9 @@ fn print_text(report: &Report<'_>, rows: &[BuildingQuality], per_building: bool)
         println!("  {label} {:>6} {}", n, "#".repeat(n * 50 / most));
     }
     println!(
-        "leak (facade pixels outside the building): {:.4} %",
-        s.leak_fraction * 100.0
+        "leak (facade pixels outside the building): {:.4} %, in {} buildings",
+        s.leak_fraction * 100.0,
+        s.buildings_with_leaks
     );
     println!(
         "throughput: {:.0} buildings/s ({:.3} s)",
