@@ -839,3 +839,49 @@ fn issue14_small_gltf_tileset_and_sidecar_json_with_bom_load() {
         );
     }
 }
+
+/// Issue 14 case 5: `glb/2.glb` copied without its batch-table sidecar loaded every building
+/// twice, once per batch feature (pg2b3dm writes each as two features with the same triangles,
+/// which the sidecar's `blockid` names as one). Features with exactly the same triangles are
+/// one building, kept once, and each copy dropped is a warning naming both.
+#[test]
+fn issue14_case5_features_with_the_same_triangles_are_one_building() {
+    let sidecar = std::fs::read_to_string(format!("{AMSTERDAM}/glb/2.batch.json")).unwrap();
+    let sidecar: serde_json::Value = serde_json::from_str(&sidecar).unwrap();
+    let blockids = sidecar["batch_table"]["blockid"].as_array().unwrap();
+    let unique: BTreeSet<&str> = blockids.iter().map(|v| v.as_str().unwrap()).collect();
+    assert!(
+        unique.len() < blockids.len(),
+        "the sample repeats its buildings"
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let lone = dir.path().join("2.glb");
+    std::fs::copy(format!("{AMSTERDAM}/glb/2.glb"), &lone).unwrap();
+    let city = load_city(&lone, &LoadOptions::default()).unwrap();
+    let r = &city.report;
+    assert_eq!(r.buildings_found, unique.len(), "{r}");
+    assert!(r.is_balanced(), "{r}");
+    let copies: Vec<_> = r
+        .warnings
+        .iter()
+        .filter(|w| w.message.contains("the same triangles as building"))
+        .collect();
+    assert_eq!(copies.len(), blockids.len() - unique.len(), "{r}");
+    assert!(copies.iter().all(|w| w.source_id.starts_with("2#")));
+    // With its sidecar the file loads the same buildings, by their blockids, without a warning.
+    let with_sidecar = load_city(
+        Path::new(&format!("{AMSTERDAM}/glb/2.glb")),
+        &LoadOptions::default(),
+    )
+    .unwrap();
+    assert_eq!(with_sidecar.report.buildings_found, unique.len());
+    assert!(
+        !with_sidecar
+            .report
+            .warnings
+            .iter()
+            .any(|w| w.message.contains("the same triangles")),
+        "{}",
+        with_sidecar.report
+    );
+}

@@ -273,7 +273,9 @@ fn load_single(
     let frame = placement
         .as_ref()
         .map_or_else(Frame::local, |p| p.frame.clone());
-    let buildings = buildings_from_features(path, features, &batch, placement.as_ref());
+    let mut warnings = warnings;
+    let buildings =
+        buildings_from_features(path, features, &batch, placement.as_ref(), &mut warnings);
     let report = LoadReport {
         files: vec![path.to_path_buf()],
         parts_found: buildings.len(),
@@ -323,6 +325,7 @@ fn load_tileset(path: &Path, json: &Value) -> Result<City, LoadError> {
             features,
             &batch,
             Some(&placement),
+            &mut report.warnings,
         ));
         report.files.push(content.path.clone());
     }
@@ -658,6 +661,7 @@ fn buildings_from_features(
     features: Vec<Feature>,
     batch: &BatchInfo,
     placement: Option<&Placement>,
+    warnings: &mut Vec<LoadWarning>,
 ) -> Vec<MeshBuilding> {
     let stem = path
         .file_stem()
@@ -684,6 +688,7 @@ fn buildings_from_features(
             triangles.extend(f.triangles);
         }
     }
+    let order = without_geometry_copies(path, order, warnings);
     let file_name = path
         .file_name()
         .map(|s| s.to_string_lossy().into_owned())
@@ -717,6 +722,56 @@ fn buildings_from_features(
             }
         })
         .collect()
+}
+
+/// The buildings of `order` (source id, batch ids, triangles) without those whose triangles are
+/// exactly an earlier building's: two features with the same geometry are one building written
+/// twice (pg2b3dm writes every Amsterdam building as two batch features; without the batch table
+/// that names both by one `blockid`, each would be a building of its own, drawn twice in one
+/// place). Each copy dropped is a warning naming it and the building it repeats.
+fn without_geometry_copies(
+    path: &Path,
+    order: Vec<(String, Vec<u32>, Vec<[DVec3; 3]>)>,
+    warnings: &mut Vec<LoadWarning>,
+) -> Vec<(String, Vec<u32>, Vec<[DVec3; 3]>)> {
+    // A building's geometry as a set: its triangles, each by the bits of its corners turned to
+    // start at the smallest, sorted, repeats removed.
+    let geometry = |triangles: &[[DVec3; 3]]| -> Vec<[[u64; 3]; 3]> {
+        let mut out: Vec<[[u64; 3]; 3]> = triangles
+            .iter()
+            .map(|t| {
+                let c = t.map(|p| p.to_array().map(f64::to_bits));
+                let first = (0..3).min_by_key(|&i| c[i]).unwrap_or(0);
+                [c[first], c[(first + 1) % 3], c[(first + 2) % 3]]
+            })
+            .collect();
+        out.sort_unstable();
+        out.dedup();
+        out
+    };
+    let mut first_with: HashMap<Vec<[[u64; 3]; 3]>, String> = HashMap::new();
+    let mut kept = Vec::with_capacity(order.len());
+    for (source_id, batch_ids, triangles) in order {
+        let key = geometry(&triangles);
+        if key.is_empty() {
+            kept.push((source_id, batch_ids, triangles));
+            continue;
+        }
+        match first_with.get(&key) {
+            Some(original) => warnings.push(LoadWarning {
+                file: path.to_path_buf(),
+                source_id: source_id.clone(),
+                message: format!(
+                    "the same triangles as building {original}: one building, kept once"
+                ),
+            }),
+            None => {
+                first_with.insert(key, source_id.clone());
+                kept.push((source_id, batch_ids, triangles));
+            }
+        }
+    }
+    kept
 }
 
 /// The triangles in the local frame as an indexed mesh (vertices shared by exact position),
