@@ -12,7 +12,7 @@
 //!   every building (BAG `blockid`) is written as two batch features with identical geometry,
 //!   so merging gives one building per real building; exact duplicate triangles are dropped.
 //!   Without ids (no batch table), features with exactly the same triangles are one building
-//!   written twice: kept once, each copy a warning ([`without_geometry_copies`]).
+//!   written twice: kept once, each copy a warning.
 //!   Each building has one part, its footprint derived from the mesh
 //!   ([`crate::mesh_footprint`]), base and top the mesh's z extent.
 //! * Placement: a tileset is used when the input is one, or when a `tileset.json` beside the
