@@ -61,12 +61,22 @@ enum Outcome {
 }
 
 fn run_viewer(scene: &Path, out: &Path, extra: &[&str]) -> Outcome {
+    run_viewer_sized(scene, out, (WIDTH, HEIGHT), extra)
+}
+
+/// [`run_viewer`] with a window of `width × height` pixels.
+fn run_viewer_sized(
+    scene: &Path,
+    out: &Path,
+    (width, height): (u32, u32),
+    extra: &[&str],
+) -> Outcome {
     let mut child = Command::new("xvfb-run")
         .args(["-a", "-s", "-screen 0 1280x1024x24"])
         .arg(env!("CARGO_BIN_EXE_citywalk"))
         .arg("view")
         .arg(scene)
-        .args(["--size", &format!("{WIDTH}x{HEIGHT}")])
+        .args(["--size", &format!("{width}x{height}")])
         .arg("--screenshot")
         .arg(out)
         .args(["--frames", "5"])
@@ -168,6 +178,28 @@ fn commonest_colour_share(image: &image::RgbaImage) -> f64 {
         .max()
         .unwrap_or(0);
     commonest as f64 / colours.len().max(1) as f64
+}
+
+/// Issue 14 (GPU faults, tiny viewports): windows of 1×1, 3×1 and 1×5 pixels draw through every
+/// stage (the pyramid's levels, the cull's tiles and the overlay all shrink to nothing) and give
+/// a screenshot of their size, without a panic or a validation error.
+#[test]
+fn viewer_draws_windows_of_one_pixel() {
+    let Some((dir, scene)) = scratch_scene("viewer-tiny") else {
+        return;
+    };
+    for (w, h) in [(1, 1), (3, 1), (1, 5)] {
+        let out = dir.join(format!("tiny-{w}x{h}.png"));
+        match run_viewer_sized(&scene, &out, (w, h), &["--fly"]) {
+            Outcome::NoAdapter(log) => {
+                unavailable(&format!("no GPU adapter can present to a window:\n{log}"));
+                return;
+            }
+            Outcome::Screenshot(image) => assert_eq!(image.dimensions(), (w, h)),
+        }
+    }
+    // Best effort: a leftover temporary directory is harmless.
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
