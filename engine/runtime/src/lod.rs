@@ -287,6 +287,23 @@ fn refine(criterion: LodCriterion, node: &ClusterNode, px_per_m: f32) -> bool {
     }
 }
 
+/// The urban blocks a frame may show ([`crate::runner::visible_blocks`], the B-Quadtree's
+/// frustum cull): their ids, ascending, so that a frame costs what it sees, not one flag per
+/// block of the city. A block id from `block_count` on (which no valid package has) counts as
+/// visible: a damaged id never culls.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct VisibleBlocks {
+    pub ids: Vec<u32>,
+    pub block_count: u32,
+}
+
+impl VisibleBlocks {
+    /// Whether the cut may show block `block`.
+    pub fn contains(&self, block: u32) -> bool {
+        block >= self.block_count || self.ids.binary_search(&block).is_ok()
+    }
+}
+
 /// A cluster tree prepared for cuts: the leaf of every building (for landmark heights).
 #[derive(Debug, Clone)]
 pub struct LodTree {
@@ -323,13 +340,13 @@ impl LodTree {
         self.tree.nodes.get(leaf as usize).map(|n| n.h_max_m)
     }
 
-    /// The cut for `view` under `criterion`. `visible_blocks[block]`, when given, culls every
-    /// node of an urban block the caller found invisible (e.g. by the B-Quadtree).
+    /// The cut for `view` under `criterion`. `visible_blocks`, when given, culls every node of
+    /// an urban block it does not hold (e.g. the B-Quadtree found it outside the frustum).
     pub fn cut(
         &self,
         view: &LodView,
         criterion: LodCriterion,
-        visible_blocks: Option<&[bool]>,
+        visible_blocks: Option<&VisibleBlocks>,
     ) -> LodCut {
         let tree = &self.tree;
         let mut cut = LodCut::default();
@@ -339,7 +356,7 @@ impl LodTree {
                 continue;
             };
             if let (Some(visible), Some(block)) = (visible_blocks, node.block)
-                && !visible.get(block as usize).copied().unwrap_or(true)
+                && !visible.contains(block)
             {
                 continue;
             }
@@ -391,6 +408,18 @@ impl LodTree {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn visible_blocks_hold_their_ids_and_every_id_past_the_count() {
+        let visible = VisibleBlocks {
+            ids: vec![2, 5, 9],
+            block_count: 10,
+        };
+        assert!(visible.contains(2) && visible.contains(5) && visible.contains(9));
+        assert!(!visible.contains(0) && !visible.contains(6));
+        // A block id no package has is never culled.
+        assert!(visible.contains(10) && visible.contains(u32::MAX));
+    }
 
     #[test]
     fn distance_to_box_is_zero_inside_and_euclidean_outside() {

@@ -34,7 +34,7 @@ use crate::gpu::GpuContext;
 use crate::gpu_timer::{GpuTimer, GpuTimes};
 use crate::hzb::HzbPyramid;
 use crate::lod::scene::{LodFrame, LodScene};
-use crate::lod::{LodCriterion, LodView};
+use crate::lod::{LodCriterion, LodView, VisibleBlocks};
 use crate::plan::{FramePlan, SceneFeatures};
 use crate::render::selected::SelectedRenderer;
 use crate::render::targets::OffscreenTarget;
@@ -467,24 +467,24 @@ pub fn buildings_of_visible_blocks(
 }
 
 /// The urban blocks the B-Quadtree finds in the frustum of `camera` on a
-/// `width_px`×`height_px` viewport, one flag per block (Pina et al. 2013 §4): the
-/// `visible_blocks` argument of [`LodScene::select`].
+/// `width_px`×`height_px` viewport (Pina et al. 2013 §4), of `block_count`: the
+/// `visible_blocks` argument of [`LodScene::select`], made in the time of the blocks in view.
 pub fn visible_blocks(
     quadtree: &BQuadtree,
     block_count: usize,
     camera: &Camera,
     width_px: u32,
     height_px: u32,
-) -> Vec<bool> {
+) -> VisibleBlocks {
     let aspect = width_px.max(1) as f32 / height_px.max(1) as f32;
     let frustum = Frustum::from_view_proj(camera.view_proj(aspect));
-    let mut visible = vec![false; block_count];
-    for block in quadtree.cull(&frustum) {
-        if let Some(v) = visible.get_mut(block as usize) {
-            *v = true;
-        }
+    let mut ids = quadtree.cull(&frustum);
+    ids.sort_unstable();
+    ids.dedup();
+    VisibleBlocks {
+        ids,
+        block_count: u32::try_from(block_count).unwrap_or(u32::MAX),
     }
-    visible
 }
 
 /// The LOD cut of `plan` (resolved): after B-Quadtree culling of the urban blocks when
@@ -512,5 +512,5 @@ pub fn lod_cut(
     let visible = blocks
         .filter(|_| plan.quadtree)
         .map(|(b, tree)| visible_blocks(tree, b.blocks.len(), camera, width, height));
-    lod.select(camera, width, height, criterion, visible.as_deref())
+    lod.select(camera, width, height, criterion, visible.as_ref())
 }

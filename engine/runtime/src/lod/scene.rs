@@ -21,7 +21,7 @@ use crate::camera::Camera;
 use crate::gpu::GpuContext;
 use crate::hzb::tree_cull::TreeBuffers;
 use crate::lod::gpu_tree::TreeArrays;
-use crate::lod::{LodCriterion, LodCut, LodTree, LodView};
+use crate::lod::{LodCriterion, LodCut, LodTree, LodView, VisibleBlocks};
 use crate::scene_gpu::SceneGpu;
 use crate::upload::{UploadError, array_buffer};
 
@@ -167,7 +167,7 @@ impl LodScene {
         width_px: u32,
         height_px: u32,
         criterion: LodCriterion,
-        visible_blocks: Option<&[bool]>,
+        visible_blocks: Option<&VisibleBlocks>,
     ) -> LodFrame {
         let view = LodView::new(camera, width_px, height_px);
         let cut = self.tree.cut(&view, criterion, visible_blocks);
