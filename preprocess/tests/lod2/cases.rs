@@ -64,46 +64,29 @@ impl Plan {
         )
     }
 
+    /// The wall from plan corner `a` to `b` up to the eaves, wound outward when `a → b` runs
+    /// counter-clockwise round the plan.
+    fn wall(&self, a: [f64; 2], b: [f64; 2]) -> Surface {
+        let e = self.eaves_m;
+        let ring = vec![
+            [a[0], a[1], 0.0],
+            [b[0], b[1], 0.0],
+            [b[0], b[1], e],
+            [a[0], a[1], e],
+        ];
+        (Semantic::Wall, ring)
+    }
+
     /// The long walls (south, north) up to the eaves.
     pub fn long_walls(&self) -> [Surface; 2] {
-        let Plan {
-            x0,
-            x1,
-            y0,
-            y1,
-            eaves_m: e,
-        } = *self;
-        [
-            (
-                Semantic::Wall,
-                vec![[x0, y0, 0.0], [x1, y0, 0.0], [x1, y0, e], [x0, y0, e]],
-            ),
-            (
-                Semantic::Wall,
-                vec![[x1, y1, 0.0], [x0, y1, 0.0], [x0, y1, e], [x1, y1, e]],
-            ),
-        ]
+        let Plan { x0, x1, y0, y1, .. } = *self;
+        [self.wall([x0, y0], [x1, y0]), self.wall([x1, y1], [x0, y1])]
     }
 
     /// The short walls (east, west) up to the eaves, for hipped and flat roofs.
     pub fn end_walls(&self) -> [Surface; 2] {
-        let Plan {
-            x0,
-            x1,
-            y0,
-            y1,
-            eaves_m: e,
-        } = *self;
-        [
-            (
-                Semantic::Wall,
-                vec![[x1, y0, 0.0], [x1, y1, 0.0], [x1, y1, e], [x1, y0, e]],
-            ),
-            (
-                Semantic::Wall,
-                vec![[x0, y1, 0.0], [x0, y0, 0.0], [x0, y0, e], [x0, y1, e]],
-            ),
-        ]
+        let Plan { x0, x1, y0, y1, .. } = *self;
+        [self.wall([x1, y0], [x1, y1]), self.wall([x0, y1], [x0, y0])]
     }
 
     /// The gable end at `x` (east when `east`), a pentagon up to the ridge at `ridge_m`.
