@@ -205,7 +205,7 @@ fn render_mode(
         (Mode::Auto, _) => renderers
             .auto
             .get_or_insert_with(|| AutoPlanner::new(refs.features(), refs.lod.is_some()))
-            .plan(),
+            .plan_for(camera),
         (_, Some(plan)) => plan,
         (_, None) => return render_selection(gpu, renderers, scene, mode, camera, visible, target),
     };

@@ -206,8 +206,8 @@ impl<'a> Frames<'a> {
 
     /// One frame from `camera`, waited for, and its image.
     fn draw(&mut self, camera: &Camera) -> anyhow::Result<(image::RgbaImage, FrameReport)> {
-        let plan = match (&self.planner, self.mode.plan()) {
-            (Some(planner), _) => planner.plan(),
+        let plan = match (&mut self.planner, self.mode.plan()) {
+            (Some(planner), _) => planner.plan_for(camera),
             (None, Some(plan)) => plan,
             (None, None) => FramePlan::NONE,
         };

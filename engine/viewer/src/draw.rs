@@ -157,7 +157,7 @@ impl FrameDrawer {
             slot => &mut slot.insert((lod, AutoPlanner::new(features, lod))).1,
         };
         let plan = if settings.auto {
-            planner.plan()
+            planner.plan_for(camera)
         } else {
             settings.plan(features)
         };
