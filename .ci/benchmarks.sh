@@ -108,6 +108,12 @@ bench_args=(bench generated-10k.cwk generated-100k.cwk chelsea.cwk porto.cwk den
 echo "citywalk ${bench_args[*]}" > "$out/bench-command.txt"
 (cd "$out" && "$cw" "${bench_args[@]}")
 
+echo "== the 1M city (issue 13: walk and street at 640x360, ready time and resident memory)" >&2
+bench_1m_args=(bench generated-1m.cwk --out bench-1m --frames "${FRAMES_1M:-8}" --size 640x360
+  --paths walk,street --modes brute,all,auto,oracle --png-every 0)
+echo "citywalk ${bench_1m_args[*]}" > "$out/bench-1m-command.txt"
+(cd "$out" && "$cw" "${bench_1m_args[@]}")
+
 echo "== demo (the README's main command; issue 7: under two minutes)" >&2
 demo_start=$(date +%s%N)
 "$cw" demo --scene "$root/scenes/data/chelsea.osm.pbf" --out "$out/demo" > "$out/demo.txt"

@@ -270,6 +270,21 @@ def bench_tables(bench):
 
 bench_tables(bench)
 
+bench_1m = out / "bench-1m/bench.json"
+if bench_1m.exists():
+    big = json.loads(bench_1m.read_text())
+    print("\n## The generated 1M city (`citywalk bench`)\n")
+    command = out / "bench-1m-command.txt"
+    if command.exists():
+        print("Run in `out/benchmarks/`:\n")
+        print("```sh\n" + command.read_text().strip() + "\n```\n")
+    for s in big["scenes"]:
+        print(f"Package `{s['scene']}`: {s['buildings']:,} buildings, ready to draw in "
+              f"{s['ready_s']:.1f} s, {s['resident_mib']:,.0f} MiB resident then "
+              f"({s['gpu_allocated_mib']:,.0f} MiB of it allocated through Vulkan); the whole "
+              f"run peaked at {big['peak_resident_mib']:,.0f} MiB resident.\n")
+    bench_tables(big)
+
 # The hand-written sections (the 1M city, memory, one-off comparisons), kept across regenerations.
 notes = Path(__file__).with_name("benchmarks_notes.md")
 if notes.exists():
