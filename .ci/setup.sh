@@ -8,12 +8,15 @@ SUDO=""
 if [ "$(id -u)" -ne 0 ]; then
   if command -v sudo >/dev/null 2>&1; then SUDO="sudo"; else
     echo "setup: not root and no sudo; install these packages yourself:" \
-      "mesa-vulkan-drivers libvulkan1 libegl1 libegl-mesa0 libgl1-mesa-dri xvfb xauth fonts-dejavu-core" >&2
+      "mesa-vulkan-drivers libvulkan1 libegl1 libegl-mesa0 libgl1-mesa-dri xvfb xauth fonts-dejavu-core nodejs npm" >&2
   fi
 fi
 
 packages=(mesa-vulkan-drivers libvulkan1 libegl1 libegl-mesa0 libgl1-mesa-dri xvfb xauth
   fonts-dejavu-core)
+# Node.js runs the ecosystem's own checks of the 3D Tiles export (.ci/export-check); a machine
+# with node from elsewhere keeps it.
+command -v node >/dev/null 2>&1 || packages+=(nodejs npm)
 missing=()
 for p in "${packages[@]}"; do
   dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")
@@ -26,4 +29,14 @@ fi
 
 if command -v rustup >/dev/null 2>&1; then
   rustup component add rustfmt clippy >/dev/null 2>&1 || true
+fi
+
+# The Khronos glTF validator and loaders.gl, pinned by .ci/export-check/package-lock.json, for
+# the export tests (tests/tests/export_3dtiles.rs). Installed again when the lock file changes.
+check="$(dirname "$0")/export-check"
+if command -v npm >/dev/null 2>&1 \
+  && { [ ! -d "$check/node_modules" ] || [ "$check/package-lock.json" -nt "$check/node_modules" ]; }; then
+  echo "setup: npm ci in $check" >&2
+  npm ci --prefix "$check" --no-audit --no-fund --loglevel=error >/dev/null
+  touch "$check/node_modules"
 fi

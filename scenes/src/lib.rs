@@ -9,6 +9,7 @@ pub mod camera_path;
 pub mod city;
 pub mod cluster_tree;
 pub mod cull_parts;
+pub mod export;
 pub mod extrude;
 pub mod frame;
 pub mod frustum;

@@ -7,6 +7,7 @@ mod bench;
 mod cli_args;
 mod demo;
 mod error_message;
+mod export;
 mod generate;
 mod input_args;
 mod inspect;
@@ -41,6 +42,8 @@ enum Command {
     View(view::Args),
     /// The occlusion benchmark: scenes x camera paths x culling modes, checked by the oracle.
     Bench(bench::Args),
+    /// Export a scene as a 3D Tiles 1.1 tileset (the cluster tree as HLOD) or one GLB.
+    Export(export::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -61,6 +64,7 @@ fn main() -> std::process::ExitCode {
         Command::View(args) => view::run(args),
         Command::Bench(args) => bench::run(args),
         Command::Demo(args) => demo::run(args),
+        Command::Export(args) => export::run(args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -11,6 +11,8 @@
 //!   **Features sharing an id are merged into one building**: in the pg2b3dm Amsterdam sample
 //!   every building (BAG `blockid`) is written as two batch features with identical geometry,
 //!   so merging gives one building per real building; exact duplicate triangles are dropped.
+//!   3D Tiles 1.1 content without `_BATCHID` has a feature per `EXT_mesh_features` feature id,
+//!   named by its `EXT_structural_metadata` property table ([`features`]).
 //!   Without ids (no batch table), features with exactly the same triangles are one building
 //!   written twice: kept once, each copy a warning.
 //!   Each building has one part, its footprint derived from the mesh
@@ -51,6 +53,7 @@ use crate::report::{LoadError, LoadReport, LoadWarning};
 
 mod accessor;
 mod b3dm;
+mod features;
 mod glb;
 mod tileset;
 mod uri;
@@ -343,6 +346,8 @@ struct Feature {
     batch_id: Option<u32>,
     /// Name for a node instance (node or mesh name, or `node/N`).
     name: String,
+    /// The source id a 3D Tiles 1.1 property table gives the feature ([`features`]).
+    source_id: Option<String>,
     triangles: Vec<[DVec3; 3]>,
 }
 
@@ -364,6 +369,7 @@ fn read_features(path: &Path, bytes: &[u8], batch: &BatchInfo) -> Result<Vec<Fea
     let mut walker = Walker {
         buffers: &buffers,
         batched: HashMap::new(),
+        featured: HashMap::new(),
         instances: Vec::new(),
         visited: 0,
     };
@@ -373,17 +379,44 @@ fn read_features(path: &Path, bytes: &[u8], batch: &BatchInfo) -> Result<Vec<Fea
             .map_err(|r| malformed(path, r))?;
     }
     let Walker {
-        batched, instances, ..
+        batched,
+        featured,
+        instances,
+        ..
     } = walker;
     let mut features: Vec<Feature> = batched
         .into_iter()
         .map(|(id, triangles)| Feature {
             batch_id: Some(id),
             name: String::new(),
+            source_id: None,
             triangles,
         })
         .collect();
     features.sort_by_key(|f| f.batch_id);
+    // 3D Tiles 1.1 features, named by their property tables.
+    let root_metadata = doc
+        .as_json()
+        .extensions
+        .as_ref()
+        .and_then(|e| e.others.get("EXT_structural_metadata"));
+    let names = features::table_names(root_metadata, doc, &buffers);
+    let mut identified: Vec<_> = featured.into_iter().collect();
+    identified.sort_by_key(|(key, _)| *key);
+    features.extend(identified.into_iter().map(|((table, id), triangles)| {
+        let name = names
+            .get(table)
+            .and_then(Option::as_ref)
+            .and_then(|n| n.get(id as usize))
+            .cloned()
+            .unwrap_or_else(|| format!("{table}#{id}"));
+        Feature {
+            batch_id: None,
+            name: String::new(),
+            source_id: Some(name),
+            triangles,
+        }
+    }));
     features.extend(instances);
     // Shift by the b3dm RTC centre (in content z-up coordinates).
     if batch.rtc_center != DVec3::ZERO {
@@ -506,6 +539,8 @@ struct Walker<'a> {
     buffers: &'a [buffer::Data],
     /// Triangles by batch id.
     batched: HashMap<u32, Vec<[DVec3; 3]>>,
+    /// Triangles by `EXT_mesh_features` property table and feature id.
+    featured: HashMap<(usize, u32), Vec<[DVec3; 3]>>,
     /// Features of meshes without `_BATCHID`, one per node instance.
     instances: Vec<Feature>,
     visited: usize,
@@ -536,6 +571,7 @@ impl Walker<'_> {
             let mut instance = Feature {
                 batch_id: None,
                 name,
+                source_id: None,
                 triangles: Vec::new(),
             };
             for primitive in mesh.primitives() {
@@ -589,6 +625,39 @@ impl Walker<'_> {
             }
             None => None,
         };
+        // Without `_BATCHID`, the 3D Tiles 1.1 feature ids, if any: (table, id per vertex).
+        let feature_ids = match (
+            &batch_ids,
+            features::primitive_feature_ids(primitive.extension_value("EXT_mesh_features")),
+        ) {
+            (None, Some((attribute, table))) => {
+                match primitive.get(&Semantic::Extras(format!("FEATURE_ID_{attribute}"))) {
+                    Some(a) => {
+                        let ids = accessor::read_f64(&a, self.buffers, Dimensions::Scalar)?;
+                        if ids.len() != points.len() {
+                            return Err(format!(
+                                "_FEATURE_ID_{attribute} has {} values for {} positions",
+                                ids.len(),
+                                points.len()
+                            ));
+                        }
+                        let ids: Vec<u32> = ids
+                            .iter()
+                            .map(|&v| {
+                                if v.is_finite() && v >= 0.0 {
+                                    v as u32
+                                } else {
+                                    u32::MAX
+                                }
+                            })
+                            .collect();
+                        Some((table, ids))
+                    }
+                    None => None,
+                }
+            }
+            _ => None,
+        };
         let indices: Vec<u32> = match primitive.indices() {
             Some(a) => accessor::read_u32(&a, self.buffers)?,
             None => (0..points.len() as u32).collect(),
@@ -607,9 +676,13 @@ impl Walker<'_> {
                 continue;
             };
             let tri = if flip { [pa, pc, pb] } else { [pa, pb, pc] };
-            match batch_ids.as_ref().and_then(|ids| ids.get(a)) {
-                Some(&id) => self.batched.entry(id).or_default().push(tri),
-                None => instance.triangles.push(tri),
+            if let Some(&id) = batch_ids.as_ref().and_then(|ids| ids.get(a)) {
+                self.batched.entry(id).or_default().push(tri);
+            } else if let Some((table, ids)) = &feature_ids {
+                let id = ids.get(a).copied().unwrap_or(u32::MAX);
+                self.featured.entry((*table, id)).or_default().push(tri);
+            } else {
+                instance.triangles.push(tri);
             }
         }
         Ok(())
@@ -674,12 +747,13 @@ fn buildings_from_features(
     let mut order: Vec<(String, Vec<u32>, Vec<[DVec3; 3]>)> = Vec::new();
     let mut by_key: HashMap<String, usize> = HashMap::new();
     for f in features {
-        let key = match f.batch_id {
-            Some(b) => ids
+        let key = match (f.source_id, f.batch_id) {
+            (Some(source_id), _) => source_id,
+            (None, Some(b)) => ids
                 .and_then(|col| col.get(b as usize))
                 .and_then(value_string)
                 .unwrap_or_else(|| format!("{stem}#{b}")),
-            None => format!("{stem}/{}", f.name),
+            (None, None) => format!("{stem}/{}", f.name),
         };
         let slot = *by_key.entry(key.clone()).or_insert_with(|| {
             order.push((key, Vec::new(), Vec::new()));
