@@ -2,17 +2,18 @@
 //!
 //! A tile holds a *frontier* of tree nodes: a set of nodes none of which is below another,
 //! together standing for the buildings under the tile. The root tile starts from the tree's
-//! root; a child tile starts from the children of one of its parent's frontier nodes. Each tile
+//! root; a child tile starts from the children of some of its parent's frontier clusters and
+//! some of its parent's buildings. Each tile
 //! refines its frontier greedily, the node of largest error first (as the runtime's LOD cut
 //! does, Chang et al. 2008 §8), while its triangles stay within a budget, so a tile is one
 //! content of sensible size rather than one node. Nodes whose cluster mesh is empty are always
 //! refined: they show none of their buildings.
 //!
 //! Refinement replaces a tile by all its children, so everything of its frontier must be
-//! covered by them: a cluster node by the tile starting from its children, the frontier's
-//! buildings (leaves) by one tile of those buildings alone. A tile's geometric error is the
-//! largest error of its frontier's clusters (0 when it holds buildings only); the tree's errors
-//! are monotone, so a child's is never above its parent's, as 3D Tiles requires.
+//! covered by them: the children start from the children of its clusters and from its
+//! buildings (leaves), grouped in leaf order into tiles near the budget. A tile's geometric
+//! error is the largest error of its frontier's clusters (0 when it holds buildings only); the
+//! tree's errors are monotone, so a child's is never above its parent's, as 3D Tiles requires.
 
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
@@ -137,6 +138,58 @@ impl Frontier<'_, '_> {
     }
 }
 
+/// A child tile starts from at most this fraction of the budget ([`child_groups`]).
+const GROUP_FRACTION: u64 = 4;
+
+/// What the children of a tile with frontier `clusters` and `leaves` start from: the children of
+/// the clusters and the leaves themselves, in leaf order (neighbours in the tree are
+/// neighbours in the city), cut into groups of at most a [`GROUP_FRACTION`] of `max_triangles`
+/// where one node's children allow. A child then has room to refine within the budget, as a
+/// quadtree's child covers a quarter of its parent; one child per cluster instead would make
+/// the deepest tiles a few hundred triangles each, and groups as large as the budget would make
+/// every level nearly the whole city again.
+fn child_groups(
+    input: &HlodInput<'_>,
+    clusters: &[Refinable],
+    leaves: &[u32],
+    max_triangles: u64,
+) -> Vec<Vec<u32>> {
+    let nodes = &input.tree.nodes;
+    // (first building in leaf order, the nodes to start from, their triangles).
+    let mut items: Vec<(u32, Vec<u32>, u64)> = clusters
+        .iter()
+        .map(|c| {
+            let node = &nodes[c.node as usize];
+            let triangles = node
+                .children
+                .iter()
+                .map(|&k| (input.triangles)(input.draw(k)))
+                .sum();
+            (node.buildings.0, node.children.clone(), triangles)
+        })
+        .collect();
+    items.extend(leaves.iter().map(|&leaf| {
+        let triangles = (input.triangles)(input.draw(leaf));
+        (nodes[leaf as usize].buildings.0, vec![leaf], triangles)
+    }));
+    items.sort_by_key(|(first, ..)| *first);
+    let mut groups: Vec<Vec<u32>> = Vec::new();
+    let mut current: Vec<u32> = Vec::new();
+    let mut current_triangles = 0;
+    for (_, start, triangles) in items {
+        if !current.is_empty() && current_triangles + triangles > max_triangles / GROUP_FRACTION {
+            groups.push(std::mem::take(&mut current));
+            current_triangles = 0;
+        }
+        current.extend(start);
+        current_triangles += triangles;
+    }
+    if !current.is_empty() {
+        groups.push(current);
+    }
+    groups
+}
+
 fn tile_from(input: &HlodInput<'_>, start: Vec<u32>, max_triangles: u64) -> HlodTile {
     let mut frontier = Frontier {
         input,
@@ -176,24 +229,14 @@ fn tile_from(input: &HlodInput<'_>, start: Vec<u32>, max_triangles: u64) -> Hlod
     let geometric_error_m = clusters.iter().map(|c| c.error_m).fold(0.0, f32::max);
     let mut draws: Vec<u32> = leaves.iter().map(|&n| input.draw(n)).collect();
     draws.extend(clusters.iter().map(|c| input.draw(c.node)));
-    let mut children: Vec<HlodTile> = clusters
-        .iter()
-        .map(|c| {
-            let start = input.tree.nodes[c.node as usize].children.clone();
-            tile_from(input, start, max_triangles)
-        })
-        .collect();
-    // The frontier's buildings stay when the tile refines: a tile of their own.
-    if !children.is_empty() && !leaves.is_empty() {
-        children.insert(
-            0,
-            HlodTile {
-                draws: leaves.iter().map(|&n| input.draw(n)).collect(),
-                geometric_error_m: 0.0,
-                children: Vec::new(),
-            },
-        );
-    }
+    let children = if clusters.is_empty() {
+        Vec::new()
+    } else {
+        child_groups(input, &clusters, &leaves, max_triangles)
+            .into_iter()
+            .map(|start| tile_from(input, start, max_triangles))
+            .collect()
+    };
     HlodTile {
         draws,
         geometric_error_m,
