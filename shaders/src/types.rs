@@ -15,7 +15,8 @@ pub struct ViewUniforms {
     pub sun_direction: [f32; 4],
     /// Linear RGB sky colour (a unused).
     pub sky_colour: [f32; 4],
-    /// x: fog density per metre, y: viewport width px, z: viewport height px, w: unused.
+    /// x: fog density per metre, y: viewport width px, z: viewport height px, w: the highlighted
+    /// draw id + 1 (0: none; exact as f32 up to 2^24).
     pub params: [f32; 4],
 }
 

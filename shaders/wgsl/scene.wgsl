@@ -65,6 +65,11 @@ fn fs_main(in: VertexOutput) -> @location(0) vec4<f32> {
     } else {
         albedo = facade_colour(in.building_id);
     }
+    // A picked building or cluster mesh: tinted amber (params.w: its draw id + 1, 0 for none).
+    let highlight = u32(view.params.w);
+    if highlight != 0u && in.building_id == highlight - 1u {
+        albedo = mix(albedo, vec3<f32>(1.0, 0.45, 0.05), 0.6);
+    }
     let sun = max(dot(n, view.sun_direction.xyz), 0.0);
     // Sky light: surfaces facing up see more of the sky.
     let sky = AMBIENT * (0.75 + 0.25 * n.z);

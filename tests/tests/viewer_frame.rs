@@ -204,3 +204,87 @@ fn every_stage_combination_and_debug_view_renders_and_reports_its_counts() {
         }
     }
 }
+
+/// Picking in the viewer's frame (`FrameDrawer::pick`): a click lands on the building the frame
+/// shows under the cursor, not the one hidden behind it, nor anything in the sky; the picked
+/// building is tinted in the next frame and nothing else changes.
+#[test]
+fn a_click_picks_the_building_under_the_cursor_and_tints_it() {
+    let Some(gpu) = gpu_or_skip("viewer_frame pick") else {
+        return;
+    };
+    // Two buildings on the view axis (east), the far one taller, and one off to the side.
+    let city = citywalk_tests::city_builder::boxes(&[
+        (20.0, -5.0, 30.0, 5.0, 10.0),
+        (50.0, -5.0, 60.0, 5.0, 25.0),
+        (20.0, 40.0, 30.0, 50.0, 10.0),
+    ]);
+    let scene = ViewerScene {
+        city,
+        cluster_tree: None,
+        blocks: None,
+        // A raw input: the viewer meshes it and keeps the arrays for picking.
+        gpu_scene: None,
+    };
+    let features = scene.features();
+    let format = BruteRenderer::PNG_FORMAT;
+    let mut drawer = FrameDrawer::new(&gpu, format, scene).expect("the scene fits the GPU");
+    drawer.wait_for_reports = true;
+    let target = OffscreenTarget::new(&gpu, SIZE.0, SIZE.1, format).expect("target");
+    let camera = Camera::new(Vec3::new(0.0, 0.0, 5.0), 0.0, 0.0);
+    let settings = RenderSettings {
+        stages: FramePlan::NONE,
+        auto: false,
+        ..RenderSettings::default()
+    };
+    let frame = |drawer: &mut FrameDrawer| -> Vec<u8> {
+        drawer
+            .draw(
+                &gpu,
+                &target.colour_view,
+                &target.depth,
+                SIZE,
+                &camera,
+                &settings,
+                features,
+            )
+            .expect("frame");
+        target.read_colour(&gpu).expect("read the frame")
+    };
+    let before = frame(&mut drawer);
+    let (w, h) = (SIZE.0 as f32, SIZE.1 as f32);
+    let centre = drawer
+        .pick(&camera, SIZE, (w / 2.0, h / 2.0))
+        .expect("a hit");
+    assert_eq!(centre.draw, 0);
+    assert!((centre.distance_m - 20.0).abs() < 0.5, "{centre:?}");
+    // Above the near building's roof: the taller one behind it.
+    let above = drawer
+        .pick(&camera, SIZE, (w / 2.0, h * 0.2))
+        .expect("a hit");
+    assert_eq!(above.draw, 1);
+    // The sky.
+    assert_eq!(drawer.pick(&camera, SIZE, (w / 2.0, 1.0)), None);
+    let (bounds, covered) = drawer.draw_facts(0);
+    assert_eq!(bounds.1[2], 10.0);
+    assert!(covered.is_empty());
+    assert_eq!(
+        drawer.city().buildings.len(),
+        3,
+        "a raw input keeps its tags for the panel"
+    );
+
+    drawer.set_highlight(Some(centre.draw));
+    let tinted = frame(&mut drawer);
+    let changed = differing_share(&before, &tinted);
+    assert!(changed > 0.02, "the picked building is tinted ({changed})");
+    // The pixel at the centre turned amber: more red than blue.
+    let at = ((SIZE.1 / 2 * SIZE.0 + SIZE.0 / 2) * 4) as usize;
+    assert!(
+        tinted[at] > tinted[at + 2] + 40,
+        "{:?}",
+        &tinted[at..at + 4]
+    );
+    drawer.set_highlight(None);
+    assert_eq!(differing_share(&before, &frame(&mut drawer)), 0.0);
+}

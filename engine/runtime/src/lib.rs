@@ -16,6 +16,7 @@ pub mod gpu_timer;
 pub mod hzb;
 pub mod lod;
 pub mod oracle;
+pub mod pick;
 pub mod plan;
 pub mod render;
 pub mod runner;

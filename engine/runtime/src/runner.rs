@@ -146,6 +146,14 @@ impl FrameRunner {
         }
     }
 
+    /// Tints the draw `draw` (a picked building or cluster mesh) in every frame from now on;
+    /// `None` tints nothing.
+    pub fn set_highlight(&mut self, draw: Option<u32>) {
+        self.brute.style.highlight = draw;
+        self.selected.scene_pass.style.highlight = draw;
+        self.culling.style.highlight = draw;
+    }
+
     /// The HZB frame's renderer (its pyramid and style, for debug views).
     pub fn culling(&self) -> &CullingRenderer {
         &self.culling

@@ -14,6 +14,7 @@ use winit::window::{CursorGrabMode, Window, WindowId};
 use super::draw::{Drawn, FrameDrawer, ViewerScene};
 use super::input::{Command, InputTracker, KEY_HELP};
 use super::overlay::{Overlay, OverlayStats, StageCounts};
+use super::picked::{PickFacts, Picked, SourceIds, describe};
 use super::screenshot::{ScreenshotError, to_rgba_image};
 use super::settings::{RenderSettings, SceneFeatures};
 use super::surface::{Acquired, WindowSurface};
@@ -55,6 +56,14 @@ pub(super) struct App {
     frame_ms: f32,
     /// What the next frame is drawn with (the overlay and the keys edit it).
     settings: RenderSettings,
+    /// The buildings' source ids, kept for the pick panel after the buildings are freed.
+    source_ids: SourceIds,
+    /// The cursor in the window (physical pixels), for picking.
+    cursor: Option<(f32, f32)>,
+    /// The camera and size of the last frame drawn: a pick is cast through what the user sees.
+    last_view: Option<(Camera, (u32, u32))>,
+    /// The building or cluster mesh picked last (left click), tinted in the frames.
+    picked: Option<Picked>,
 }
 
 /// Everything that exists only while there is a window.
@@ -87,6 +96,7 @@ impl App {
             start = %rig.camera().to_arg_string(),
             "viewer ready; {KEY_HELP}"
         );
+        let source_ids = SourceIds::of(&scene.city);
         scene.release_buildings();
         let player = (options.play.as_ref()).map(|p| PathPlayer::new(p.path.clone(), p.end));
         if let Some(p) = &options.play {
@@ -112,6 +122,10 @@ impl App {
             frames_drawn: 0,
             screenshot_taken: false,
             error: None,
+            source_ids,
+            cursor: None,
+            last_view: None,
+            picked: None,
         }
     }
 
@@ -130,6 +144,40 @@ impl App {
             }),
             _ => Ok(()),
         }
+    }
+
+    /// Picks the drawn building or cluster mesh under the cursor in the last frame, describes
+    /// it in the panel and tints it; a click on the sky or the ground clears the pick.
+    fn pick_under_cursor(&mut self) {
+        let (Some(gfx), Some(cursor), Some((camera, size))) =
+            (&mut self.gfx, self.cursor, self.last_view)
+        else {
+            return;
+        };
+        let pick = gfx.drawer.pick(&camera, size, cursor);
+        self.picked = pick.map(|p| {
+            let (bounds, covered) = gfx.drawer.draw_facts(p.draw);
+            describe(&PickFacts {
+                draw: p.draw,
+                distance_m: p.distance_m,
+                building_count: gfx.drawer.building_count(),
+                bounds,
+                covered: &covered,
+                source_ids: &self.source_ids,
+                city: gfx.drawer.city(),
+            })
+        });
+        if let Some(p) = &self.picked {
+            let summary: Vec<String> = p
+                .rows
+                .iter()
+                .take(3)
+                .map(|(k, v)| format!("{k} {v}"))
+                .collect();
+            tracing::info!("picked {}", summary.join(", "));
+        }
+        gfx.drawer
+            .set_highlight(self.picked.as_ref().map(|p| p.draw));
     }
 
     fn fail(&mut self, event_loop: &ActiveEventLoop, error: ViewerError) {
@@ -337,6 +385,7 @@ impl App {
             features: self.features,
             recording_poses: self.recorder.as_ref().map(PathRecorder::len),
             playback: self.player.as_ref().map(PathPlayer::progress),
+            picked: self.picked.as_ref().map(|p| p.rows.clone()),
         }
     }
 
@@ -378,6 +427,7 @@ impl App {
             &settings,
             features,
         )?;
+        self.last_view = Some((camera, size));
         let stats = self.overlay_stats(&camera, scene_counts, drawn.counts);
         let Some(gfx) = &mut self.gfx else {
             return Ok(());
@@ -579,6 +629,15 @@ impl ApplicationHandler for App {
                 ..
             } => self.set_mouse_look(state == ElementState::Pressed, self.look.toggled),
             WindowEvent::MouseWheel { delta, .. } => self.input.scroll(delta),
+            WindowEvent::CursorMoved { position, .. } => {
+                self.cursor = Some((position.x as f32, position.y as f32));
+            }
+            WindowEvent::CursorLeft { .. } => self.cursor = None,
+            WindowEvent::MouseInput {
+                state: ElementState::Pressed,
+                button: MouseButton::Left,
+                ..
+            } => self.pick_under_cursor(),
             WindowEvent::RedrawRequested => {
                 if let Err(e) = self.redraw(event_loop) {
                     self.fail(event_loop, e);

@@ -13,6 +13,7 @@ use citywalk_runtime::camera::Camera;
 use citywalk_runtime::drawable::DrawableScene;
 use citywalk_runtime::frame::{FrameError, Visibility};
 use citywalk_runtime::gpu::GpuContext;
+use citywalk_runtime::pick::{Pick, PickGeometry, Picker, pixel_ray};
 use citywalk_runtime::plan::SceneFeatures;
 use citywalk_runtime::render::DepthTarget;
 use citywalk_runtime::render::debug::pyramid::GreyRange;
@@ -93,6 +94,14 @@ pub struct FrameDrawer {
     depth_pyramid: DepthPyramid,
     pyramid_view: PyramidView,
     occluder_overlay: OccluderOverlay,
+    /// The drawn geometry on the CPU, for picking: a package's mapping (no resident copy), or
+    /// the arrays built from a raw input.
+    geometry: GpuScene,
+    /// The BVH over the draws' bounds, built at the first pick.
+    picker: Option<Picker>,
+    /// The city as the viewer keeps it: a raw input's buildings with their tags, for the pick
+    /// panel; a package's buildings are freed ([`ViewerScene::release_buildings`]).
+    city: citywalk_scenes::City,
 }
 
 impl FrameDrawer {
@@ -103,18 +112,13 @@ impl FrameDrawer {
         format: wgpu::TextureFormat,
         scene: ViewerScene,
     ) -> Result<FrameDrawer, UploadError> {
-        let (drawable, occluder_overlay_meshes) = match &scene.gpu_scene {
-            Some(package) => {
-                let drawable =
-                    DrawableScene::upload_package(gpu, package, scene.cluster_tree, scene.blocks)?;
-                let overlay = drawable.occluders.as_ref().map(OccluderOverlayMeshes::of);
-                (drawable, overlay)
-            }
-            None => (
-                DrawableScene::upload_city(gpu, &scene.city, scene.cluster_tree, scene.blocks)?,
-                None,
-            ),
-        };
+        // A raw input is meshed here, as preprocessing does for a package (no occluders).
+        let geometry = scene
+            .gpu_scene
+            .unwrap_or_else(|| GpuScene::build(&scene.city, scene.cluster_tree.as_ref(), None));
+        let drawable =
+            DrawableScene::upload_package(gpu, &geometry, scene.cluster_tree, scene.blocks)?;
+        let occluder_overlay_meshes = drawable.occluders.as_ref().map(OccluderOverlayMeshes::of);
         Ok(FrameDrawer {
             runner: FrameRunner::new(gpu, format),
             drawable,
@@ -127,7 +131,67 @@ impl FrameDrawer {
             depth_pyramid: DepthPyramid::new(gpu),
             pyramid_view: PyramidView::new(gpu, format),
             occluder_overlay: OccluderOverlay::new(gpu, format),
+            geometry,
+            picker: None,
+            city: scene.city,
         })
+    }
+
+    /// The drawn building or cluster mesh under pixel `pixel` of a `size` view from `camera`,
+    /// among what the newest frame report says was drawn (every building before the first
+    /// report); the BVH is built at the first pick (about a second at a million buildings).
+    pub fn pick(&mut self, camera: &Camera, size: (u32, u32), pixel: (f32, f32)) -> Option<Pick> {
+        let view = self.geometry.view();
+        let picker = self.picker.get_or_insert_with(|| Picker::new(view.records));
+        let building_count = view.building_count;
+        let mut drawn: Vec<u32> = self
+            .last_report
+            .as_ref()
+            .map(|r| r.ids.clone())
+            .unwrap_or_default();
+        drawn.sort_unstable();
+        let is_drawn = |d: u32| {
+            if drawn.is_empty() {
+                d < building_count
+            } else {
+                drawn.binary_search(&d).is_ok()
+            }
+        };
+        let geometry = PickGeometry {
+            records: view.records,
+            vertices: view.vertices,
+            indices: view.indices,
+        };
+        picker.pick(pixel_ray(camera, size, pixel), geometry, &is_drawn)
+    }
+
+    /// Bounds of draw `draw` and, for a cluster mesh, the buildings it stands for.
+    pub fn draw_facts(&self, draw: u32) -> (([f32; 3], [f32; 3]), Vec<u32>) {
+        let view = self.geometry.view();
+        let bounds = view
+            .records
+            .get(draw as usize)
+            .map_or(([0.0; 3], [0.0; 3]), |r| (r.bounds_min_m, r.bounds_max_m));
+        let covered = match &self.drawable.lod {
+            Some(lod) if draw >= lod.building_count => lod.covered_by(draw).collect(),
+            _ => Vec::new(),
+        };
+        (bounds, covered)
+    }
+
+    /// The city as the viewer keeps it (see the field).
+    pub fn city(&self) -> &citywalk_scenes::City {
+        &self.city
+    }
+
+    /// Draws in the scene below this are buildings, the others cluster meshes.
+    pub fn building_count(&self) -> u32 {
+        self.geometry.view().building_count
+    }
+
+    /// Tints `draw` (a pick) in the frames that follow; `None` clears it.
+    pub fn set_highlight(&mut self, draw: Option<u32>) {
+        self.runner.set_highlight(draw);
     }
 
     /// Buildings and their triangles in the scene.

@@ -13,6 +13,7 @@ mod app;
 pub mod draw;
 pub mod input;
 pub mod overlay;
+pub mod picked;
 pub mod screenshot;
 pub mod settings;
 mod surface;

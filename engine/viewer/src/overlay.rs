@@ -39,6 +39,8 @@ pub struct OverlayStats {
     pub recording_poses: Option<usize>,
     /// (pose shown, pose count) while playing a path.
     pub playback: Option<(usize, usize)>,
+    /// The panel rows of the building or cluster mesh picked with a left click.
+    pub picked: Option<Vec<(String, String)>>,
 }
 
 /// Counts of one frame, per culling stage; `None` for a stage that did not run.
@@ -99,6 +101,8 @@ pub fn panel(
 ) {
     stats_grid(ui, stats);
     ui.separator();
+    picked_grid(ui, stats.picked.as_deref());
+    ui.separator();
     ui.horizontal(|ui| {
         if stats.playback.is_none() {
             let other = if stats.mode == "walk" { "fly" } else { "walk" };
@@ -118,6 +122,23 @@ pub fn panel(
     ui.separator();
     debug_controls(ui, settings);
     ui.label("H hides this panel");
+}
+
+fn picked_grid(ui: &mut egui::Ui, picked: Option<&[(String, String)]>) {
+    let Some(rows) = picked else {
+        ui.label("left click a building to inspect it");
+        return;
+    };
+    egui::Grid::new("citywalk picked")
+        .num_columns(2)
+        .striped(true)
+        .show(ui, |ui| {
+            for (name, value) in rows {
+                ui.label(name);
+                ui.monospace(value);
+                ui.end_row();
+            }
+        });
 }
 
 fn stats_grid(ui: &mut egui::Ui, stats: &OverlayStats) {
@@ -520,6 +541,7 @@ mod tests {
             features: SceneFeatures::default(),
             recording_poses: Some(42),
             playback: None,
+            picked: Some(vec![("source id".into(), "way/123".into())]),
         };
         let plain = RenderSettings::default();
         let shown = texts(&stats, &plain);
@@ -535,6 +557,7 @@ mod tests {
                 "brute force",
                 "3.50 ms",
                 "stop recording (42 poses) (R)",
+                "way/123",
                 "fly (F)",
                 "frustum (B)",
                 "HZB occlusion culling (C)",

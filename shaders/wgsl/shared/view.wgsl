@@ -9,6 +9,7 @@ struct View {
     sun_direction: vec4<f32>,
     // Linear RGB of the sky; distance fog fades towards it (a = unused).
     sky_colour: vec4<f32>,
-    // x: fog density per metre, y: viewport width px, z: viewport height px, w: unused.
+    // x: fog density per metre, y: viewport width px, z: viewport height px, w: the highlighted
+    // draw id + 1 (0: none).
     params: vec4<f32>,
 }

@@ -16,6 +16,9 @@ pub struct SceneStyle {
     /// Fog density per metre: the colour is mixed `1 − exp(−density · distance)` towards the
     /// sky. Zero disables fog.
     pub fog_density_per_m: f32,
+    /// A draw tinted to stand out (a building or cluster mesh the user picked): its vertices'
+    /// id, the draw id.
+    pub highlight: Option<u32>,
 }
 
 impl Default for SceneStyle {
@@ -24,6 +27,7 @@ impl Default for SceneStyle {
             sky_colour: [0.30, 0.50, 0.82],
             sun_direction: Vec3::new(-0.35, -0.62, 0.70),
             fog_density_per_m: 1.0 / 20_000.0,
+            highlight: None,
         }
     }
 }
@@ -63,7 +67,8 @@ pub fn view_uniforms(
             style.fog_density_per_m,
             width_px as f32,
             height_px as f32,
-            0.0,
+            // Exact as f32 up to 2^24 draws; 0: none.
+            style.highlight.map_or(0.0, |id| (id + 1) as f32),
         ],
     }
 }
