@@ -19,6 +19,7 @@ use citywalk_runtime::lod::LodCriterion;
 use citywalk_runtime::scene_gpu::{SceneGeometry, SceneGpu};
 use citywalk_scenes::LoadOptions;
 use citywalk_scenes::camera_path::{CameraPath, GeneratedPath};
+use citywalk_scenes::city_sphere::CitySphere;
 use citywalk_scenes::package::PackageParts;
 
 use crate::scene_input::{SceneInputs, load_scene, load_scene_to_draw};
@@ -217,6 +218,7 @@ pub fn run_benchmark_with(
             gpu_scene,
         } = package.into_parts();
         let name = scene_name(scene_path);
+        let sphere = CitySphere::of(&city);
         let mut paths: Vec<CameraPath> = path_kinds
             .iter()
             .map(|kind| kind.generate(&city, frames))
@@ -239,6 +241,7 @@ pub fn run_benchmark_with(
         let scene = BenchScene {
             name: name.clone(),
             drawable,
+            sphere,
         };
         let load = SceneLoad {
             scene: name.clone(),
