@@ -13,8 +13,9 @@ use crate::city::City;
 pub struct CitySphere {
     /// The centre of the bounding box (mid-height), what an overview looks at.
     pub centre: Vec3,
-    /// The bounding box's diagonal (metres): a camera farther than this from the centre sees
-    /// every building at least half a diameter away.
+    /// The bounding box's diagonal (metres), at least the city's diameter (the largest distance
+    /// between two of its points; √2 times it for a round city): a camera farther than this
+    /// from the centre sees every building at least half a diameter away.
     pub diameter_m: f32,
 }
 
