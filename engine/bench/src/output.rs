@@ -315,8 +315,8 @@ pub fn frames_csv(records: &[FrameRecord]) -> String {
     let phases = gpu_phase_names(records);
     let mut out = String::from(
         "scene,path,mode,frame,visible,drawn,clusters,false_culls,culled_fraction,triangles,\
-         triangle_share,distance_diameters,draw_calls,select_ms,frame_ms,cpu_ms,pixel_error_grey,pixel_error_colour,bound_px,differing_px,\
-         beyond_bound_px,gpu_ms",
+         triangle_share,distance_diameters,draw_calls,select_ms,frame_ms,cpu_ms,pixel_error_grey,\
+         pixel_error_colour,bound_px,differing_px,beyond_bound_px,gpu_ms",
     );
     for phase in &phases {
         let _ = write!(out, ",gpu_{phase}_ms");
