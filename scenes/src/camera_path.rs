@@ -1,6 +1,7 @@
 //! Camera paths: a documented text format, and default paths generated for any city — a street
-//! walk along its streets, a flyover, and Chang et al.'s "fly over, then dive in" from the sky
-//! to street level — so the same cameras can be replayed by citywalk and by other engines.
+//! walk along its streets, a flyover, Chang et al.'s "fly over, then dive in" from the sky to
+//! street level, and their far-to-near-to-far overview ([`overview`]) — so the same cameras can
+//! be replayed by citywalk and by other engines.
 //!
 //! # File format (`.path`, UTF-8 text, version 1)
 //!
@@ -27,6 +28,10 @@ use rstar::{AABB, RTree, RTreeObject};
 use serde::{Deserialize, Serialize};
 
 use crate::city::City;
+
+mod overview;
+
+pub use overview::overview;
 
 /// Eye height of a pedestrian (metres).
 pub const EYE_HEIGHT_M: f32 = 1.7;
@@ -189,14 +194,80 @@ impl CameraPath {
     }
 }
 
-/// The default paths of a city, in the order street, walk, flyover, dive.
+/// The paths generated for any city, by the names the command line gives them (`bench
+/// --paths`, `view --play`, `render --path`): the one list of them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum GeneratedPath {
+    /// [`street_walk`].
+    Street,
+    /// [`walkthrough`].
+    Walk,
+    /// [`flyover`].
+    Flyover,
+    /// [`dive`].
+    Dive,
+    /// [`overview`].
+    Overview,
+}
+
+impl GeneratedPath {
+    /// Every generated path, in the order help texts list them.
+    pub const ALL: [GeneratedPath; 5] = [
+        GeneratedPath::Street,
+        GeneratedPath::Walk,
+        GeneratedPath::Flyover,
+        GeneratedPath::Dive,
+        GeneratedPath::Overview,
+    ];
+    /// The paths the benchmark measures unless told otherwise ([`default_paths`]); the overview
+    /// is measured on request, for its far views.
+    pub const DEFAULT: [GeneratedPath; 4] = [
+        GeneratedPath::Street,
+        GeneratedPath::Walk,
+        GeneratedPath::Flyover,
+        GeneratedPath::Dive,
+    ];
+
+    /// The name on the command line, and the generated path's [`CameraPath::name`].
+    pub fn name(self) -> &'static str {
+        match self {
+            GeneratedPath::Street => "street",
+            GeneratedPath::Walk => "walk",
+            GeneratedPath::Flyover => "flyover",
+            GeneratedPath::Dive => "dive",
+            GeneratedPath::Overview => "overview",
+        }
+    }
+
+    /// The generated path called `name`, if any.
+    pub fn named(name: &str) -> Option<GeneratedPath> {
+        Self::ALL.into_iter().find(|g| g.name() == name)
+    }
+
+    /// `paths`' names, comma-separated (for help and error messages).
+    pub fn list(paths: &[GeneratedPath]) -> String {
+        paths.iter().map(|g| g.name()).collect::<Vec<_>>().join(",")
+    }
+
+    /// The path for `city`, `frames` poses long.
+    pub fn generate(self, city: &City, frames: usize) -> CameraPath {
+        match self {
+            GeneratedPath::Street => street_walk(city, frames),
+            GeneratedPath::Walk => walkthrough(city, frames),
+            GeneratedPath::Flyover => flyover(city, frames),
+            GeneratedPath::Dive => dive(city, frames),
+            GeneratedPath::Overview => overview(city, frames),
+        }
+    }
+}
+
+/// The default paths of a city ([`GeneratedPath::DEFAULT`]), in the order street, walk,
+/// flyover, dive.
 pub fn default_paths(city: &City, frames: usize) -> Vec<CameraPath> {
-    vec![
-        street_walk(city, frames),
-        walkthrough(city, frames),
-        flyover(city, frames),
-        dive(city, frames),
-    ]
+    GeneratedPath::DEFAULT
+        .iter()
+        .map(|g| g.generate(city, frames))
+        .collect()
 }
 
 /// Where most of the city is: the 5th to 95th percentile of building centres on each axis, and
@@ -366,7 +437,7 @@ impl Obstacles {
 /// (the median base of the buildings around, for mesh cities on sloping terrain), looking along
 /// the walk.
 pub fn street_walk(city: &City, frames: usize) -> CameraPath {
-    along_street(city, "street", |length| {
+    along_street(city, GeneratedPath::Street.name(), |length| {
         (0..frames).map(|i| spread(i, frames) * length).collect()
     })
 }
@@ -393,7 +464,7 @@ pub const WALKTHROUGH_STEP_M: f64 = 3.0;
 /// apart in a large city, each frame nearly a cold start for the two-phase cull, which carries
 /// last frame's visible set), this is the walk a user makes in the viewer.
 pub fn walkthrough(city: &City, frames: usize) -> CameraPath {
-    along_street(city, "walk", |length| {
+    along_street(city, GeneratedPath::Walk.name(), |length| {
         let span = WALKTHROUGH_STEP_M * frames.saturating_sub(1) as f64;
         let start = ((length - span) * 0.5).max(0.0);
         (0..frames)
@@ -458,7 +529,7 @@ pub fn flyover(city: &City, frames: usize) -> CameraPath {
         })
         .collect();
     CameraPath {
-        name: "flyover".into(),
+        name: GeneratedPath::Flyover.name().into(),
         fov_y_deg: DEFAULT_FOV_Y_DEG,
         poses,
     }
@@ -502,7 +573,7 @@ pub fn dive(city: &City, frames: usize) -> CameraPath {
         })
         .collect();
     CameraPath {
-        name: "dive".into(),
+        name: GeneratedPath::Dive.name().into(),
         fov_y_deg: DEFAULT_FOV_Y_DEG,
         poses,
     }
@@ -711,7 +782,7 @@ mod tests {
         }
     }
 
-    fn city(with_streets: bool) -> City {
+    pub(crate) fn city(with_streets: bool) -> City {
         let buildings = vec![
             block(0, -50.0, 5.0, -5.0, 50.0, 20.0),
             block(1, 5.0, 5.0, 50.0, 50.0, 30.0),
@@ -822,7 +893,8 @@ mod tests {
     fn issue14_small_generated_paths_have_exactly_the_frames_asked_for() {
         let c = city(true);
         for frames in [0, 1, 2, 7] {
-            for path in default_paths(&c, frames) {
+            for g in GeneratedPath::ALL {
+                let path = g.generate(&c, frames);
                 assert_eq!(path.poses.len(), frames, "{} with {frames}", path.name);
             }
         }
@@ -830,6 +902,22 @@ mod tests {
         assert_eq!(street_walk(&c, 1).poses[0], street_walk(&c, 5).poses[0]);
         assert_eq!(flyover(&c, 1).poses[0], flyover(&c, 5).poses[0]);
         assert_eq!(dive(&c, 1).poses[0], dive(&c, 5).poses[0]);
+    }
+
+    #[test]
+    fn generated_paths_are_named_as_the_command_line_names_them() {
+        let c = city(true);
+        for g in GeneratedPath::ALL {
+            assert_eq!(g.generate(&c, 2).name, g.name());
+            assert_eq!(GeneratedPath::named(g.name()), Some(g));
+        }
+        assert_eq!(GeneratedPath::named("street.path"), None);
+        assert_eq!(
+            GeneratedPath::list(&GeneratedPath::DEFAULT),
+            "street,walk,flyover,dive"
+        );
+        let names: Vec<String> = default_paths(&c, 2).into_iter().map(|p| p.name).collect();
+        assert_eq!(names, ["street", "walk", "flyover", "dive"]);
     }
 
     #[test]

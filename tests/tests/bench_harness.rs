@@ -16,6 +16,7 @@ use citywalk_runtime::scene_gpu::{SceneGeometry, SceneGpu};
 use citywalk_scenes::City;
 use citywalk_scenes::blocks::UrbanBlocks;
 use citywalk_scenes::camera_path::{CameraPath, CameraPose};
+use citywalk_scenes::city_sphere::CitySphere;
 use citywalk_scenes::quadtree::BQuadtree;
 use citywalk_tests::city_builder::boxes;
 use citywalk_tests::gpu::gpu_or_skip;
@@ -62,6 +63,7 @@ fn bench_scene(gpu: &GpuContext, city: &City) -> BenchScene {
             Some((UrbanBlocks::default(), BQuadtree::default())),
         )
         .expect("the scene fits the GPU"),
+        sphere: CitySphere::of(city),
     }
 }
 

@@ -15,6 +15,7 @@ use citywalk_runtime::oracle::Oracle;
 use citywalk_runtime::scene_gpu::SceneGpu;
 use citywalk_scenes::City;
 use citywalk_scenes::camera_path;
+use citywalk_scenes::city_sphere::CitySphere;
 use citywalk_scenes::cluster_tree::ClusterTree;
 use citywalk_scenes::frustum::Containment;
 use citywalk_scenes::generate::{GenerateParams, generate_city};
@@ -395,6 +396,7 @@ fn bench_lod_mode_has_no_false_culls() {
         let scene = BenchScene {
             name: "generated".into(),
             drawable,
+            sphere: CitySphere::of(city),
         };
         for path in [
             camera_path::street_walk(city, 3),

@@ -14,6 +14,7 @@ use citywalk_runtime::drawable::DrawableScene;
 use citywalk_runtime::gpu::GpuContext;
 use citywalk_runtime::lod::LodCriterion;
 use citywalk_scenes::camera_path::{self, CameraPath};
+use citywalk_scenes::city_sphere::CitySphere;
 use citywalk_scenes::generate::{GenerateParams, generate_city};
 use citywalk_scenes::{City, LoadOptions, load_cities};
 use citywalk_tests::gpu::gpu_or_skip;
@@ -33,12 +34,14 @@ fn scene(gpu: &GpuContext, name: &str, city: City, criterion: Option<LodCriterio
     let package = preprocess(city, &PreprocessParams::default(), &NoProgress).expect("preprocess");
     let tree = package.cluster_tree.clone().expect("cluster tree");
     let blocks = (package.blocks.clone(), package.quadtree.clone());
-    let mut drawable = DrawableScene::upload_city(gpu, &package.city(), Some(tree), Some(blocks))
+    let city = package.city();
+    let mut drawable = DrawableScene::upload_city(gpu, &city, Some(tree), Some(blocks))
         .expect("the scene fits the GPU");
     drawable.lod.as_mut().expect("a LOD scene").criterion = criterion;
     BenchScene {
         name: name.into(),
         drawable,
+        sphere: CitySphere::of(&city),
     }
 }
 

@@ -28,6 +28,7 @@ use citywalk_runtime::runner::visible_blocks;
 use citywalk_runtime::scene_gpu::SceneGpu;
 use citywalk_scenes::City;
 use citywalk_scenes::camera_path::{flyover, street_walk};
+use citywalk_scenes::city_sphere::CitySphere;
 use citywalk_scenes::generate::{GenerateParams, generate_city};
 use citywalk_scenes::package::ScenePackage;
 use citywalk_scenes::{BuildingId, LoadOptions, load_cities};
@@ -772,6 +773,7 @@ fn bench_scene(
     BenchScene {
         name: name.into(),
         drawable,
+        sphere: CitySphere::of(city),
     }
 }
 

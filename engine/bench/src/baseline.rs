@@ -192,6 +192,8 @@ impl DecimatedBaseline {
                     1.0 - drawn as f64 / total as f64
                 },
                 triangles,
+                triangle_share: crate::far::triangle_share(scene, triangles),
+                distance_diameters: crate::far::distance_in_diameters(scene, &camera),
                 draw_calls: total as u32 + 1,
                 select_ms: 0.0,
                 frame_ms,
@@ -279,6 +281,8 @@ mod tests {
             false_culls: 0,
             culled_fraction: 0.0,
             triangles,
+            triangle_share: 0.0,
+            distance_diameters: 0.0,
             draw_calls: 2,
             select_ms: 0.0,
             frame_ms: 1.0,

@@ -35,6 +35,16 @@ pub struct BoundCheck {
     pub beyond: u64,
 }
 
+/// The pixels of several frames together.
+impl std::iter::Sum for BoundCheck {
+    fn sum<I: Iterator<Item = BoundCheck>>(frames: I) -> BoundCheck {
+        frames.fold(BoundCheck::default(), |a, b| BoundCheck {
+            differing: a.differing + b.differing,
+            beyond: a.beyond + b.beyond,
+        })
+    }
+}
+
 impl BoundCheck {
     /// `beyond / differing`, 0 when nothing differs.
     pub fn share(self) -> f64 {

@@ -4,6 +4,7 @@
 pub mod baseline;
 pub mod bound;
 pub mod decimate;
+pub mod far;
 pub mod mode;
 pub mod output;
 pub mod pixel_error;

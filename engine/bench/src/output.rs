@@ -8,6 +8,7 @@ use std::path::Path;
 use serde::Serialize;
 
 use crate::bound::BoundCheck;
+use crate::far::FarShare;
 use crate::mode::Mode;
 use crate::run::{BenchError, DRAW_PHASES, FrameRecord};
 
@@ -37,6 +38,7 @@ pub const ENTRY_KEYS: &[&str] = &[
     "pixel_error_mean",
     "bound_violations",
     "bound_violations_max",
+    "far_triangle_share",
     "gpu_ms_median",
     "gpu_phase_ms_median",
 ];
@@ -93,6 +95,10 @@ pub struct ModeSummary {
     pub bound_violations: f64,
     /// The largest share of one frame.
     pub bound_violations_max: f64,
+    /// The far views ([`crate::far`]): frames farther than the city's diameter from its centre,
+    /// the share of the full-detail triangles drawn there and the LOD bound; `null` when the
+    /// path has none.
+    pub far_triangle_share: Option<FarShare>,
 }
 
 /// The adapter a run used.
@@ -264,15 +270,13 @@ pub fn summarise(records: &[FrameRecord]) -> Vec<ModeSummary> {
                 bound_violations: rows
                     .iter()
                     .map(|r| r.bound_check())
-                    .fold(BoundCheck::default(), |a, b| BoundCheck {
-                        differing: a.differing + b.differing,
-                        beyond: a.beyond + b.beyond,
-                    })
+                    .sum::<BoundCheck>()
                     .share(),
                 bound_violations_max: rows
                     .iter()
                     .map(|r| r.bound_check().share())
                     .fold(0.0, f64::max),
+                far_triangle_share: FarShare::of(rows.iter().copied()),
                 scene,
                 path,
                 mode,
@@ -310,9 +314,9 @@ pub fn summarise(records: &[FrameRecord]) -> Vec<ModeSummary> {
 pub fn frames_csv(records: &[FrameRecord]) -> String {
     let phases = gpu_phase_names(records);
     let mut out = String::from(
-        "scene,path,mode,frame,visible,drawn,clusters,false_culls,culled_fraction,triangles,draw_calls,\
-         select_ms,frame_ms,cpu_ms,pixel_error_grey,pixel_error_colour,bound_px,differing_px,\
-         beyond_bound_px,gpu_ms",
+        "scene,path,mode,frame,visible,drawn,clusters,false_culls,culled_fraction,triangles,\
+         triangle_share,distance_diameters,draw_calls,select_ms,frame_ms,cpu_ms,pixel_error_grey,\
+         pixel_error_colour,bound_px,differing_px,beyond_bound_px,gpu_ms",
     );
     for phase in &phases {
         let _ = write!(out, ",gpu_{phase}_ms");
@@ -322,7 +326,7 @@ pub fn frames_csv(records: &[FrameRecord]) -> String {
     for r in records {
         let _ = write!(
             out,
-            "{},{},{},{},{},{},{},{},{:.6},{},{},{:.4},{:.4},{:.4},{:.6},{:.6},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{:.6},{},{:.6},{:.4},{},{:.4},{:.4},{:.4},{:.6},{:.6},{},{},{},{}",
             csv_field(&r.scene),
             csv_field(&r.path),
             csv_field(&r.mode),
@@ -333,6 +337,8 @@ pub fn frames_csv(records: &[FrameRecord]) -> String {
             r.false_culls,
             r.culled_fraction,
             r.triangles,
+            r.triangle_share,
+            r.distance_diameters,
             r.draw_calls,
             r.select_ms,
             r.frame_ms,
@@ -454,6 +460,7 @@ pub fn summary_markdown(report: &BenchReport) -> String {
              median frame time ÷ the oracle's, same scene and path.\n",
         );
     }
+    crate::far::far_table(&mut out, report);
     gpu_phase_table(&mut out, report);
     if report
         .entries
@@ -547,11 +554,11 @@ pub fn write_outputs(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     /// A 64×48 report of `entries` on a made-up adapter.
-    fn report_of(entries: Vec<ModeSummary>) -> BenchReport {
+    pub(crate) fn report_of(entries: Vec<ModeSummary>) -> BenchReport {
         BenchReport {
             adapter: AdapterSummary {
                 name: "a".into(),
@@ -565,7 +572,7 @@ mod tests {
         }
     }
 
-    fn record(mode: &str, frame: usize, ms: f64, false_culls: usize) -> FrameRecord {
+    pub(crate) fn record(mode: &str, frame: usize, ms: f64, false_culls: usize) -> FrameRecord {
         FrameRecord {
             scene: "s".into(),
             path: "street".into(),
@@ -577,6 +584,8 @@ mod tests {
             false_culls,
             culled_fraction: 0.5,
             triangles: 100,
+            triangle_share: 0.5,
+            distance_diameters: 0.5,
             draw_calls: 21,
             select_ms: 0.1,
             frame_ms: ms,

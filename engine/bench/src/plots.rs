@@ -299,6 +299,8 @@ mod tests {
                     false_culls: 0,
                     culled_fraction: 0.2 * m as f64 + 0.01 * f,
                     triangles: 1000 - 200 * m as u64 + frame as u64,
+                    triangle_share: 1.0 - 0.2 * m as f64,
+                    distance_diameters: 0.1,
                     draw_calls: 21,
                     select_ms: 0.1,
                     frame_ms: 5.0 + m as f64 + (f * 0.7).sin(),

@@ -5,6 +5,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use citywalk_scenes::camera_path::CameraPath;
+use citywalk_scenes::city_sphere::CitySphere;
 
 use crate::bound::EdgeDistance;
 use crate::mode::Mode;
@@ -31,6 +32,9 @@ pub struct BenchScene {
     /// The buildings, and the cluster tree's LOD scene (`lod` mode), blocks and quadtree
     /// (`quadtree` mode) and virtual occluders (`occluders` mode) where the scene has them.
     pub drawable: DrawableScene,
+    /// The city's sphere ([`CitySphere::of`] its buildings), the one the generated paths are
+    /// built around: the unit of the far views ([`crate::far`]).
+    pub sphere: CitySphere,
 }
 
 /// What to measure.
@@ -62,6 +66,11 @@ pub struct FrameRecord {
     /// Share of the scene's buildings not drawn.
     pub culled_fraction: f64,
     pub triangles: u64,
+    /// `triangles` ÷ the scene's triangles at full detail ([`crate::far::triangle_share`]).
+    pub triangle_share: f64,
+    /// The camera's distance from the centre of the scene's buildings, in diameters of their
+    /// bounding box ([`crate::far::distance_in_diameters`]); beyond 1 the frame is a far view.
+    pub distance_diameters: f64,
     pub draw_calls: u32,
     /// CPU time of the culling selection (ms).
     pub select_ms: f64,
@@ -382,6 +391,7 @@ pub fn run_path(
         let reference_rgba = reference.read_colour(gpu)?;
         let edges = EdgeDistance::of_frame(&reference_rgba, &ids.pixels, w, h);
         let bound_px = bound_px(scene, &camera);
+        let distance_diameters = crate::far::distance_in_diameters(scene, &camera);
         for &mode in &config.modes {
             let out = render_mode(gpu, renderers, scene, mode, &camera, &visible_ids, &target)?;
             let rgba = target.read_colour(gpu)?;
@@ -429,6 +439,8 @@ pub fn run_path(
                     1.0 - out.drawn.len() as f64 / total as f64
                 },
                 triangles: out.triangles,
+                triangle_share: crate::far::triangle_share(scene, out.triangles),
+                distance_diameters,
                 draw_calls: out.draw_calls,
                 select_ms: out.select_ms,
                 frame_ms: out.frame_ms,

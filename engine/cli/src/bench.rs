@@ -18,10 +18,10 @@ use citywalk_runtime::gpu::GpuContext;
 use citywalk_runtime::lod::LodCriterion;
 use citywalk_runtime::scene_gpu::{SceneGeometry, SceneGpu};
 use citywalk_scenes::LoadOptions;
-use citywalk_scenes::camera_path::{self, CameraPath};
+use citywalk_scenes::camera_path::{CameraPath, GeneratedPath};
+use citywalk_scenes::city_sphere::CitySphere;
 use citywalk_scenes::package::PackageParts;
 
-use crate::path_arg::GENERATED;
 use crate::scene_input::{SceneInputs, load_scene, load_scene_to_draw};
 
 /// Arguments of `citywalk bench`.
@@ -40,7 +40,8 @@ pub struct Args {
     pub list_modes: bool,
     /// Camera paths generated per scene: street (the whole street route, frames spread over
     /// it), walk (an interactive walkthrough: 3 m per frame from the route's middle), flyover,
-    /// dive.
+    /// dive, overview (from three city diameters away in, once round the city, and away: its
+    /// far views are reported apart).
     #[arg(long, default_value = "street,walk,flyover,dive")]
     pub paths: String,
     /// Path files to replay in addition to (or, with --paths "", instead of) generated ones.
@@ -103,7 +104,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "no camera path to measure: --paths {:?} names none and no --path-file is given \
              (paths: {})",
             args.paths,
-            GENERATED.join(", ")
+            GeneratedPath::list(&GeneratedPath::ALL)
         );
     }
     let replayed: Vec<CameraPath> = args
@@ -150,15 +151,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 }
 
 /// The generated path kinds, in order.
-pub fn parse_path_kinds(list: &str) -> anyhow::Result<Vec<String>> {
-    let mut kinds = Vec::new();
-    for word in list.split(',').map(str::trim).filter(|w| !w.is_empty()) {
-        if !GENERATED.contains(&word) {
-            anyhow::bail!("unknown path '{word}' (paths: {})", GENERATED.join(", "));
-        }
-        kinds.push(word.to_string());
-    }
-    Ok(kinds)
+pub fn parse_path_kinds(list: &str) -> anyhow::Result<Vec<GeneratedPath>> {
+    list.split(',')
+        .map(str::trim)
+        .filter(|w| !w.is_empty())
+        .map(|word| {
+            GeneratedPath::named(word).with_context(|| {
+                format!(
+                    "unknown path '{word}' (paths: {})",
+                    GeneratedPath::list(&GeneratedPath::ALL)
+                )
+            })
+        })
+        .collect()
 }
 
 /// Runs the benchmark over `scenes` (raw inputs read with the default options) and writes every
@@ -166,7 +171,7 @@ pub fn parse_path_kinds(list: &str) -> anyhow::Result<Vec<String>> {
 pub fn run_benchmark(
     scenes: &[PathBuf],
     out: &Path,
-    path_kinds: &[String],
+    path_kinds: &[GeneratedPath],
     replayed: &[CameraPath],
     frames: usize,
     config: &BenchConfig,
@@ -183,7 +188,7 @@ pub fn run_benchmark(
 pub fn run_benchmark_with(
     scenes: SceneInputs<'_>,
     out: &Path,
-    path_kinds: &[String],
+    path_kinds: &[GeneratedPath],
     replayed: &[CameraPath],
     frames: usize,
     config: &BenchConfig,
@@ -213,14 +218,10 @@ pub fn run_benchmark_with(
             gpu_scene,
         } = package.into_parts();
         let name = scene_name(scene_path);
+        let sphere = CitySphere::of(&city);
         let mut paths: Vec<CameraPath> = path_kinds
             .iter()
-            .map(|kind| match kind.as_str() {
-                "street" => camera_path::street_walk(&city, frames),
-                "walk" => camera_path::walkthrough(&city, frames),
-                "flyover" => camera_path::flyover(&city, frames),
-                _ => camera_path::dive(&city, frames),
-            })
+            .map(|kind| kind.generate(&city, frames))
             .collect();
         paths.extend(replayed.iter().cloned());
         // The frames draw from the GPU; only the decimated baseline meshes the city again (a
@@ -240,6 +241,7 @@ pub fn run_benchmark_with(
         let scene = BenchScene {
             name: name.clone(),
             drawable,
+            sphere,
         };
         let load = SceneLoad {
             scene: name.clone(),

@@ -11,6 +11,7 @@ use std::time::Instant;
 use anyhow::Context;
 use citywalk_bench::{BenchConfig, Mode};
 use citywalk_preprocess::pipeline::{NoProgress, PreprocessParams, preprocess};
+use citywalk_scenes::camera_path::GeneratedPath;
 use citywalk_scenes::package::WriteOptions;
 use citywalk_scenes::{LoadOptions, load_cities};
 
@@ -84,7 +85,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         frames_dir: Some(args.out.clone()),
         png_every: (args.frames / 3).max(1),
     };
-    let kinds = ["street".to_string(), "flyover".to_string()];
+    let kinds = [GeneratedPath::Street, GeneratedPath::Flyover];
     let report = crate::bench::run_benchmark(
         std::slice::from_ref(&package_path),
         &args.out,

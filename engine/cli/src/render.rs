@@ -19,6 +19,7 @@ use citywalk_runtime::render::BruteRenderer;
 use citywalk_runtime::render::targets::OffscreenTarget;
 use citywalk_runtime::runner::{Completion, FrameReport, FrameRunner, FrameTarget};
 use citywalk_scenes::City;
+use citywalk_scenes::camera_path::GeneratedPath;
 
 use crate::path_arg::PathSource;
 
@@ -37,8 +38,8 @@ pub struct Args {
     #[arg(long, allow_hyphen_values = true, conflicts_with = "path")]
     pub camera: Option<String>,
     /// Render every pose of a camera path to OUTPUT/frame_0000.png, ...: a `.path` file, or
-    /// `street`, `flyover` or `dive` (generated for the scene with `--frames` poses and written
-    /// to OUTPUT/path.path).
+    /// `street`, `walk`, `flyover`, `dive` or `overview` (generated for the scene with `--frames`
+    /// poses and written to OUTPUT/path.path).
     #[arg(long)]
     pub path: Option<PathBuf>,
     /// Poses of a generated `--path` (default 60).
@@ -245,8 +246,8 @@ impl<'a> Frames<'a> {
         let source = PathSource::of(path_arg);
         if let (PathSource::File(file), Some(_)) = (&source, frames) {
             anyhow::bail!(
-                "--frames sets the length of a generated path (street, walk, flyover, dive), not of \
-                 the path file {}",
+                "--frames sets the length of a generated path ({}), not of the path file {}",
+                GeneratedPath::list(&GeneratedPath::ALL),
                 file.display()
             );
         }

@@ -14,7 +14,7 @@ use citywalk_viewer::{
 
 use crate::path_arg::PathSource;
 
-/// Poses of a default path generated for `--play street|flyover|dive` (10 s at 60 fps).
+/// Poses of a path generated for `--play` (10 s at 60 fps).
 const GENERATED_PLAY_POSES: usize = 600;
 
 /// Arguments of `citywalk view`.
@@ -36,8 +36,9 @@ pub struct Args {
     /// Number of frames to render before the screenshot.
     #[arg(long, requires = "screenshot", value_parser = clap::value_parser!(u32).range(1..))]
     pub frames: Option<u32>,
-    /// Play a camera path, one pose per frame: a `.path` file, or `street`, `flyover` or `dive`
-    /// (generated for the scene, 600 poses). At its end the camera switches to fly mode there.
+    /// Play a camera path, one pose per frame: a `.path` file, or `street`, `walk`, `flyover`,
+    /// `dive` or `overview` (generated for the scene, 600 poses). At its end the camera switches
+    /// to fly mode there.
     #[arg(long)]
     pub play: Option<PathBuf>,
     /// Loop the path given with `--play` instead of stopping at its end.

@@ -213,3 +213,58 @@ fn issue14_small_bench_frames_1_measures_one_frame() {
         assert_eq!(poses, 1, "{file}");
     }
 }
+
+/// Issue 15: `--paths overview` flies in from three city diameters, circles and flies away; the
+/// far frames' share of the full-detail triangles reaches bench.json and summary.md, brute force
+/// drawing all of them.
+#[test]
+fn issue15_overview_reports_its_far_views() {
+    if !gpu_available("bench_cli overview") {
+        return;
+    }
+    let dir = temp_dir("bench-cli-overview");
+    let scene = dir.join("tiny.geojson");
+    write_scene(&scene);
+    let out = dir.join("out");
+    let run = Command::new(env!("CARGO_BIN_EXE_citywalk"))
+        .arg("bench")
+        .arg(&scene)
+        .arg("--out")
+        .arg(&out)
+        .args(["--paths", "overview", "--frames", "8", "--size", "96x64"])
+        .args(["--modes", "brute,lod"])
+        .output()
+        .expect("run citywalk bench");
+    let log = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "citywalk bench failed:\n{log}");
+    let csv = std::fs::read_to_string(out.join("frames.csv")).expect("frames.csv");
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().expect("header").split(',').collect();
+    let column = |name: &str| header.iter().position(|h| *h == name).expect(name);
+    let distances: Vec<f64> = lines
+        .map(|l| l.split(',').collect::<Vec<&str>>())
+        .filter(|row| row[column("mode")] == "brute")
+        .map(|row| row[column("distance_diameters")].parse().expect("distance"))
+        .collect();
+    assert_eq!(distances.len(), 8, "{csv}");
+    assert!(distances[0] > 2.9 && distances[7] > 2.9, "{distances:?}");
+    assert!(distances[3] < 1.0, "the circle is near: {distances:?}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("bench.json")).expect("json"))
+            .expect("bench.json parses");
+    let entries = json["entries"].as_array().expect("entries");
+    let far = |mode: &str| {
+        let e = entries.iter().find(|e| e["mode"] == mode).expect(mode);
+        e["far_triangle_share"].clone()
+    };
+    let far_frames = distances.iter().filter(|&&d| d > 1.0).count() as u64;
+    assert_eq!(far("brute")["frames"], far_frames, "{json}");
+    assert_eq!(far("brute")["mean"], 1.0, "{json}");
+    let lod = far("lod");
+    let (mean, max) = (lod["mean"].as_f64().unwrap(), lod["max"].as_f64().unwrap());
+    assert!(0.0 < mean && mean <= max && max <= 1.0, "{lod}");
+    let summary = std::fs::read_to_string(out.join("summary.md")).expect("summary.md");
+    assert!(summary.contains("Far views"), "{summary}");
+    assert!(out.join("tiny-overview.path").exists());
+    std::fs::remove_dir_all(&dir).expect("clean up");
+}
