@@ -167,6 +167,12 @@ fn run_viewer(script: impl FnMut(&mut App, &ActiveEventLoop, u32) -> Next) -> Ap
     driver.app
 }
 
+/// The window's surface size and its GPU, while there is a window.
+fn surface_size(app: &App) -> Option<(u32, u32)> {
+    let gfx = app.gfx.as_ref()?;
+    Some((gfx.surface.config.width, gfx.surface.config.height))
+}
+
 /// The device is destroyed between two frames of the running viewer (wgpu's `Device::destroy`:
 /// the loss a driver reset or an unplugged GPU gives, with the reason "destroyed"): the viewer
 /// stops with `ViewerError::DeviceLost`, whose message names the loss and its reason; no panic,
@@ -204,4 +210,106 @@ fn a_device_lost_while_the_viewer_runs_stops_it_with_the_reason() {
         "{text}"
     );
     eprintln!("the viewer stopped with: {text}");
+}
+
+/// Where the resize test is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Phase {
+    /// Drawing at the start size.
+    Start,
+    /// Asked for 1×1; the frames drawn since the surface became 1×1.
+    Tiny(u32),
+    /// Asked for the start size again; the frames drawn since the surface has it.
+    Back(u32),
+}
+
+/// Frames drawn at each size before the next resize.
+const FRAMES_PER_SIZE: u32 = 3;
+/// Frames drawn at one size waiting for a report of it, at most.
+const MAX_FRAMES_AT_A_SIZE: u32 = 60;
+
+/// While the viewer runs and draws HZB-culled frames, its window is resized to 1×1, draws
+/// there, and back to its size, and draws again. The X server resizes the window and the
+/// surface follows through the viewer's own handlers: the resize event, or the acquire that
+/// finds the surface suboptimal before that event has come (which reconfigured the surface
+/// while holding its texture: a wgpu validation error, a panic). The culling frame builds a
+/// pyramid of the 1×1 target (one level, 1×1) and then of the full one, and its reports keep
+/// arriving through the report ring; no error, no panic.
+#[test]
+fn the_viewer_resized_to_one_pixel_and_back_keeps_drawing() {
+    const TEST: &str = "the_viewer_resized_to_one_pixel_and_back_keeps_drawing";
+    if !in_xvfb_child(TEST) {
+        return;
+    }
+    let mut phase = Phase::Start;
+    let mut tiny_pyramids = 0;
+    // The report newest when a resize was asked for; a report unequal to it (its times differ
+    // if nothing else does) came from a frame drawn since, through the report ring.
+    let mut before_resize: Option<citywalk_runtime::runner::FrameReport> = None;
+    let (mut fresh_tiny, mut fresh_back) = (0, 0);
+    let app = run_viewer(|app, _, drawn| {
+        let size = surface_size(app);
+        let gfx = app.gfx.as_ref().expect("a window");
+        let (pyramid, report) = gfx.drawer.last_frame();
+        let pyramid_size = pyramid.map(|p| (p.size(), p.level_count()));
+        let fresh = report.is_some() && report.cloned() != before_resize;
+        phase = match phase {
+            Phase::Start if drawn >= FRAMES_PER_SIZE => {
+                assert_eq!(size, Some(SIZE));
+                before_resize = report.cloned();
+                // Best effort: the X server answers with a resize event, waited for below.
+                let _ = gfx
+                    .surface
+                    .window
+                    .request_inner_size(PhysicalSize::new(1, 1));
+                Phase::Tiny(0)
+            }
+            Phase::Tiny(n) if size == Some((1, 1)) => {
+                tiny_pyramids += usize::from(pyramid_size == Some(((1, 1), 1)));
+                fresh_tiny += usize::from(fresh);
+                if n + 1 >= FRAMES_PER_SIZE && fresh_tiny > 0 || n >= MAX_FRAMES_AT_A_SIZE {
+                    before_resize = report.cloned();
+                    let (w, h) = SIZE;
+                    let _ = gfx
+                        .surface
+                        .window
+                        .request_inner_size(PhysicalSize::new(w, h));
+                    Phase::Back(0)
+                } else {
+                    Phase::Tiny(n + 1)
+                }
+            }
+            Phase::Back(n) if size == Some(SIZE) && pyramid_size.is_some_and(|p| p.0 == SIZE) => {
+                fresh_back += usize::from(fresh && report.is_some_and(|r| r.buildings_drawn > 0));
+                if n + 1 >= FRAMES_PER_SIZE && fresh_back > 0 || n >= MAX_FRAMES_AT_A_SIZE {
+                    return Next::Exit;
+                }
+                Phase::Back(n + 1)
+            }
+            other => other,
+        };
+        Next::Continue
+    });
+    if let Some(e) = &app.error {
+        panic!("the viewer failed: {e}");
+    }
+    assert!(
+        matches!(phase, Phase::Back(n) if n + 1 >= FRAMES_PER_SIZE),
+        "the resizes did not complete within {MAX_FRAMES} frames ({} drawn, {phase:?})",
+        app.frames_drawn
+    );
+    assert!(
+        tiny_pyramids >= 1,
+        "no 1×1 frame had a 1×1 one-level pyramid"
+    );
+    assert!(fresh_tiny > 0, "no report of a 1×1 frame arrived");
+    assert!(
+        fresh_back > 0,
+        "no report of a frame with buildings drawn arrived after the resizes"
+    );
+    eprintln!(
+        "resized to 1×1 and back: {} frames, {tiny_pyramids} with the 1×1 pyramid, {fresh_tiny} \
+         reports at 1×1 and {fresh_back} after",
+        app.frames_drawn
+    );
 }
