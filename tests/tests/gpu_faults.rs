@@ -1,5 +1,7 @@
 //! GPU faults (issue 14): a device lost between frames stops every frame plan with an error
-//! naming the loss and its reason, neither panicking nor hanging.
+//! naming the loss and its reason, neither panicking nor hanging; a scene too large for the
+//! GPU's limits is refused, through the calls `render`, `view` and `bench` make, with an error
+//! naming the limit and the size asked.
 
 use std::sync::mpsc;
 use std::time::Duration;
@@ -150,4 +152,70 @@ fn a_device_lost_between_frames_stops_every_plan_with_its_reason() {
             "a readback on a lost device"
         );
     });
+}
+
+/// A scene package opened as `render`, `view` and `bench` open it (written to a file, read
+/// back with `ScenePackage::read_as` for drawing, uploaded with
+/// `DrawableScene::upload_package`) on a GPU whose buffers may hold 64 KiB: refused with an
+/// `UploadError::OverLimit` naming the array, the size it asks and the limit (the GPU's
+/// budget for one buffer), before anything is allocated; the device still works, and the same
+/// package draws on the adapter's own device.
+#[test]
+fn a_package_past_the_gpus_buffer_limit_is_refused_naming_limit_and_size() {
+    use citywalk_runtime::upload::UploadError;
+    use citywalk_scenes::package::{Decode, WriteOptions};
+
+    let Some(gpu) = gpu_or_skip("a_package_past_the_gpus_buffer_limit") else {
+        return;
+    };
+    const LIMIT: u64 = 64 << 10;
+    let mut limits = gpu.adapter.limits();
+    limits.max_buffer_size = LIMIT;
+    limits.max_storage_buffer_binding_size = LIMIT;
+    let small = GpuContext::headless_with_limits(limits).expect("a device with lower limits");
+    assert_eq!(small.device.limits().max_buffer_size, LIMIT);
+
+    let dir = std::env::temp_dir().join(format!("citywalk-gpu-faults-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("a temporary directory");
+    let file = dir.join("city.cwk");
+    small_package(400)
+        .write(&file, WriteOptions::default())
+        .expect("write the package");
+    let package = ScenePackage::read_as(&file, Decode::Runtime).expect("read the package");
+    let upload = |gpu: &GpuContext| {
+        DrawableScene::upload_package(
+            gpu,
+            &package.gpu_scene,
+            package.cluster_tree.clone(),
+            Some((package.blocks.clone(), package.quadtree.clone())),
+        )
+    };
+    let error = upload(&small).expect_err("over the buffer limit");
+    let text = error.to_string();
+    match &error {
+        UploadError::OverLimit {
+            what,
+            bytes,
+            limit_name,
+            limit,
+        } => {
+            assert!(*bytes > LIMIT && *limit == LIMIT, "{text}");
+            assert!(
+                text.contains(what.as_str())
+                    && text.contains(&format!("{bytes} bytes"))
+                    && text.contains(&format!("{limit_name} of {LIMIT} bytes (64.0 KiB)"))
+                    && text.contains("too large for this adapter"),
+                "{text}"
+            );
+        }
+        other => panic!("not refused by the limit: {other:?}"),
+    }
+    eprintln!("refused: {text}");
+    assert!(
+        small.alive().is_ok(),
+        "a refused upload leaves the device working"
+    );
+    upload(&gpu).expect("within the adapter's limits");
+    // Best effort: a leftover temporary directory is harmless.
+    let _ = std::fs::remove_dir_all(&dir);
 }
