@@ -246,7 +246,12 @@ fn glb_container(json: &str, bin: &[u8]) -> Vec<u8> {
 }
 
 fn make_b3dm(batch_table: &str, glb: &[u8]) -> Vec<u8> {
-    let mut ft = r#"{"BATCH_LENGTH":3}"#.as_bytes().to_vec();
+    make_b3dm_with(r#"{"BATCH_LENGTH":3}"#, batch_table, glb)
+}
+
+/// A b3dm of `feature_table` and `batch_table` (JSON) around `glb`.
+fn make_b3dm_with(feature_table: &str, batch_table: &str, glb: &[u8]) -> Vec<u8> {
+    let mut ft = feature_table.as_bytes().to_vec();
     while !(28 + ft.len()).is_multiple_of(8) {
         ft.push(b' ');
     }
@@ -884,4 +889,125 @@ fn issue14_case5_features_with_the_same_triangles_are_one_building() {
         "{}",
         with_sidecar.report
     );
+}
+
+/// Issue 14 case 10: a `.b3dm` copied out of its tileset folder rejected a building as "absurd
+/// height 1124.7 m .. 1204.6 m": without its tileset, pg2b3dm's content is ECEF offsets from a
+/// lost root translation, whose z axis leans 37.6° from up at Amsterdam, so every height was
+/// judged in a tilted frame. Every sample tile, copied alone, loads the buildings it loads beside
+/// `tileset.json`, with the same heights and footprint areas (levelled by its walls, in a
+/// local frame), and a warning that names the file and says it is not georeferenced.
+#[test]
+fn issue14_case10_a_lone_tile_loads_as_beside_its_tileset() {
+    let dir = tempfile::tempdir().unwrap();
+    for i in 1..=10 {
+        let placed_path = PathBuf::from(format!("{AMSTERDAM}/tiles/{i}.b3dm"));
+        let placed = load_city(&placed_path, &LoadOptions::default()).unwrap();
+        assert_eq!(placed.frame.crs, Crs::Ecef, "tile {i} beside its tileset");
+        let lone_path = dir.path().join(format!("{i}.b3dm"));
+        std::fs::copy(&placed_path, &lone_path).unwrap();
+        let lone = load_city(&lone_path, &LoadOptions::default()).unwrap();
+        let (r, p) = (&lone.report, &placed.report);
+        assert!(
+            r.rejected.is_empty(),
+            "tile {i} alone: {r}: {:?}",
+            r.rejected
+        );
+        assert_eq!(
+            (r.buildings_found, r.buildings_loaded),
+            (p.buildings_found, p.buildings_loaded),
+            "tile {i}"
+        );
+        assert_eq!(lone.frame.crs, Crs::Local);
+        let warning = r
+            .warnings
+            .iter()
+            .map(ToString::to_string)
+            .find(|w| w.contains("not georeferenced"))
+            .unwrap_or_else(|| panic!("tile {i}: no warning in {:?}", r.warnings));
+        assert!(
+            warning.contains(&format!("{i}.b3dm")) && warning.contains("levelled"),
+            "{warning}"
+        );
+        for b in &placed.buildings {
+            let twin = (lone.buildings.iter())
+                .find(|l| l.source_id == b.source_id)
+                .unwrap_or_else(|| panic!("tile {i}: {} not loaded alone", b.source_id));
+            // ENU at the tileset's centre and the tile's own floors differ by the earth's
+            // curvature over at most 2.5 km (0.02°): centimetres on these buildings.
+            assert!(
+                (twin.height_m() - b.height_m()).abs() < 0.1,
+                "tile {i} {}: {} m alone, {} m placed",
+                b.source_id,
+                twin.height_m(),
+                b.height_m()
+            );
+            let (a, a_placed) = (twin.footprint_area_m2(), b.footprint_area_m2());
+            assert!(
+                (a - a_placed).abs() <= 0.01 * a_placed + 0.5,
+                "tile {i} {}: footprint {a} m² alone, {a_placed} m² placed",
+                b.source_id
+            );
+        }
+        lone.check_invariants().unwrap();
+    }
+}
+
+/// A lone b3dm whose `RTC_CENTER` lies on the earth is georeferenced by it (its tileset's
+/// transforms were the identity): placed east-north-up there, as its tileset would place it,
+/// without a warning; one whose `RTC_CENTER` is a small offset is not, and says so.
+#[test]
+fn issue14_case10_a_lone_tile_with_an_ecef_rtc_centre_is_placed_by_it() {
+    let glb = make_glb(&[([0.0, 0.0, 0.0], [10.0, 8.0, 12.0], 0)], true, "");
+    let centre = citywalk_scenes::frame::geodetic_to_ecef(4.9, 52.37, 40.0);
+    let feature_table = format!(
+        r#"{{"BATCH_LENGTH":1,"RTC_CENTER":[{},{},{}]}}"#,
+        centre.x, centre.y, centre.z
+    );
+    let tile = make_b3dm_with(&feature_table, r#"{"id":["house"]}"#, &glb);
+    let city = gltf_loader::load_bytes(Path::new("geo.b3dm"), &tile).unwrap();
+    assert_eq!(city.frame.crs, Crs::Ecef);
+    assert!(
+        (city.frame.origin[0] - 4.9).abs() < 1e-6 && (city.frame.origin[1] - 52.37).abs() < 1e-6,
+        "{:?}",
+        city.frame.origin
+    );
+    assert!(
+        city.report.warnings.is_empty(),
+        "{:?}",
+        city.report.warnings
+    );
+    assert_eq!(city.buildings.len(), 1);
+    // The content's axes are ECEF's, as its tileset would have them: the box's height is its
+    // extent along the earth's up there.
+    let (lon, lat) = (4.9f64.to_radians(), 52.37f64.to_radians());
+    let up = [lat.cos() * lon.cos(), lat.cos() * lon.sin(), lat.sin()];
+    let expected = 10.0 * up[0].abs() + 8.0 * up[1].abs() + 12.0 * up[2].abs();
+    let height = f64::from(city.buildings[0].height_m());
+    assert!(
+        (height - expected).abs() < 1e-3,
+        "{height} m, not {expected} m"
+    );
+
+    let offset = make_b3dm_with(
+        r#"{"BATCH_LENGTH":1,"RTC_CENTER":[100,200,0]}"#,
+        r#"{"id":["house"]}"#,
+        &glb,
+    );
+    let city = gltf_loader::load_bytes(Path::new("offset.b3dm"), &offset).unwrap();
+    assert_eq!(city.frame.crs, Crs::Local);
+    let warnings: Vec<String> = city
+        .report
+        .warnings
+        .iter()
+        .map(ToString::to_string)
+        .collect();
+    assert!(
+        warnings.len() == 1
+            && warnings[0].contains("offset.b3dm")
+            && warnings[0].contains("not georeferenced")
+            && !warnings[0].contains("levelled"),
+        "{warnings:?}"
+    );
+    assert!((city.buildings[0].height_m() - 12.0).abs() < 1e-4);
 }

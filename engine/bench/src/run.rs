@@ -112,7 +112,7 @@ impl FrameRecord {
 #[derive(Debug, thiserror::Error)]
 pub enum BenchError {
     #[error("reading a frame back from the GPU failed: {0}")]
-    Readback(#[from] ReadbackError),
+    Readback(ReadbackError),
     #[error("mode '{0}' is not implemented yet")]
     ModeNotAvailable(Mode),
     #[error("modes 'lod' and 'all' need the scene's cluster tree, and scene '{0}' has none")]
@@ -122,11 +122,32 @@ pub enum BenchError {
     )]
     NoOccluders(String),
     #[error("rendering a culled frame failed: {0}")]
-    Frame(#[from] citywalk_runtime::frame::FrameError),
+    Frame(citywalk_runtime::frame::FrameError),
     #[error("writing {path}: {reason}")]
     Write { path: PathBuf, reason: String },
     #[error("{0}; the benchmark stops")]
-    DeviceLost(String),
+    DeviceLost(#[from] citywalk_runtime::gpu::DeviceLost),
+}
+
+/// A frame or readback that failed because the device went is the device's loss, said once.
+impl From<citywalk_runtime::frame::FrameError> for BenchError {
+    fn from(error: citywalk_runtime::frame::FrameError) -> Self {
+        use citywalk_runtime::frame::FrameError;
+        match error {
+            FrameError::DeviceLost(lost)
+            | FrameError::Readback(ReadbackError::DeviceLost(lost)) => BenchError::DeviceLost(lost),
+            other => BenchError::Frame(other),
+        }
+    }
+}
+
+impl From<ReadbackError> for BenchError {
+    fn from(error: ReadbackError) -> Self {
+        match error {
+            ReadbackError::DeviceLost(lost) => BenchError::DeviceLost(lost),
+            other => BenchError::Readback(other),
+        }
+    }
 }
 
 /// The renderers a run reuses across frames.
@@ -365,9 +386,7 @@ pub fn run_path(
         }
     }
     for i in 0..path.poses.len() {
-        if let Some(why) = gpu.lost() {
-            return Err(BenchError::DeviceLost(why));
-        }
+        gpu.alive()?;
         let camera = pose_camera(path, i);
         // Outside every mode's timing: `oracle` draws this set, but finding it is not its work.
         let ids = renderers

@@ -171,6 +171,8 @@ pub enum FrameError {
     NoReport(u64),
     #[error("the scene has no records of its own on the GPU (a LOD scene): cull it as a LOD cut")]
     NoRecords,
+    #[error(transparent)]
+    DeviceLost(#[from] crate::gpu::DeviceLost),
 }
 
 /// What the frame does besides the two HiZ phases.

@@ -28,6 +28,15 @@ pub enum GpuError {
     },
 }
 
+/// The device is lost: a driver reset, a removed GPU, memory pressure, or `Device::destroy`.
+/// Every later call on it fails; the reason is wgpu's.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+#[error("the GPU device was lost ({reason})")]
+pub struct DeviceLost {
+    /// Why, as wgpu reported it: `destroyed: ...` for `Device::destroy`.
+    pub reason: String,
+}
+
 /// The optional features citywalk uses when the adapter has them.
 pub const WANTED_FEATURES: wgpu::Features = wgpu::Features::TIMESTAMP_QUERY
     .union(wgpu::Features::INDIRECT_FIRST_INSTANCE)
@@ -46,7 +55,7 @@ pub struct GpuContext {
     /// further by [`GpuContext::headless_with_features`]).
     pub features: wgpu::Features,
     /// Why the device was lost, once it is ([`GpuContext::lost`]).
-    lost: Arc<Mutex<Option<String>>>,
+    lost: Arc<Mutex<Option<DeviceLost>>>,
 }
 
 /// The instance descriptor from the environment, without wgpu's validation of indirect calls
@@ -226,13 +235,22 @@ impl GpuContext {
     }
 
     /// Why the device was lost (a driver reset, a removed GPU, `destroy`), or `None` while it
-    /// works. Once lost, every later call on it fails: a frame loop checks this and stops with
-    /// the reason instead of drawing.
-    pub fn lost(&self) -> Option<String> {
+    /// works, as far as wgpu has reported. Once lost, every later call on it fails.
+    pub fn lost(&self) -> Option<DeviceLost> {
         self.lost
             .lock()
             .unwrap_or_else(std::sync::PoisonError::into_inner)
             .clone()
+    }
+
+    /// `Err` naming the loss once the device is lost: a frame loop checks this before each
+    /// frame and stops with the reason instead of drawing. Polls the device first, without
+    /// waiting: wgpu reports a device destroyed by `Device::destroy` only from a poll that finds
+    /// its queue empty, and calls made before that report fail silently.
+    pub fn alive(&self) -> Result<(), DeviceLost> {
+        // A failed poll means the loss itself, which the callback records.
+        let _ = self.device.poll(wgpu::PollType::Poll);
+        self.lost().map_or(Ok(()), Err)
     }
 
     /// Memory the device's allocator holds for buffers and textures (MiB; `None` where the
@@ -255,18 +273,20 @@ impl GpuContext {
 /// lost device (which wgpu reports as uncaptured errors) from panicking: those are expected
 /// and the loss is reported once. Any other uncaptured error is a bug and panics, as wgpu's
 /// default handler does.
-fn watch_for_loss(device: &wgpu::Device) -> Arc<Mutex<Option<String>>> {
-    let lost = Arc::new(Mutex::new(None::<String>));
+fn watch_for_loss(device: &wgpu::Device) -> Arc<Mutex<Option<DeviceLost>>> {
+    let lost = Arc::new(Mutex::new(None::<DeviceLost>));
     let record = Arc::clone(&lost);
     device.set_device_lost_callback(move |reason, message| {
-        let why = match reason {
-            wgpu::DeviceLostReason::Destroyed => format!("the device was destroyed ({message})"),
-            wgpu::DeviceLostReason::Unknown => format!("the GPU device was lost: {message}"),
+        let reason = match reason {
+            wgpu::DeviceLostReason::Destroyed if message.is_empty() => "destroyed".to_string(),
+            wgpu::DeviceLostReason::Destroyed => format!("destroyed: {message}"),
+            wgpu::DeviceLostReason::Unknown => message,
         };
-        tracing::error!("{why}");
+        let lost = DeviceLost { reason };
+        tracing::error!("{lost}");
         *record
             .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner) = Some(why);
+            .unwrap_or_else(std::sync::PoisonError::into_inner) = Some(lost);
     });
     let seen = Arc::clone(&lost);
     device.on_uncaptured_error(Arc::new(move |error: wgpu::Error| {
@@ -313,10 +333,14 @@ mod tests {
             return;
         };
         assert_eq!(gpu.lost(), None);
+        assert_eq!(gpu.alive(), Ok(()));
         gpu.device.destroy();
-        gpu.wait_idle();
-        let why = gpu.lost().expect("the loss is recorded");
-        assert!(why.contains("destroyed"), "{why}");
+        // `alive` polls: the loss is seen without waiting for the queue.
+        let why = gpu.alive().expect_err("the loss is recorded").to_string();
+        assert!(
+            why.contains("GPU device was lost") && why.contains("destroyed"),
+            "{why}"
+        );
         // Calls on the lost device fail without panicking.
         let buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("after the loss"),

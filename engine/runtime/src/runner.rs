@@ -171,8 +171,31 @@ impl FrameRunner {
     /// benchmark's oracle check; a LOD cut's set is as large as what its clusters stand for).
     /// Returns `None` only for an HZB frame under [`Completion::Poll`] whose report is not
     /// ready (the newest ready one of an earlier frame is returned instead when there is one).
+    /// A lost device runs no frame: the frame is [`FrameError::DeviceLost`] with wgpu's reason,
+    /// also when the device went during it (whatever call failed first).
     #[expect(clippy::too_many_arguments, reason = "one frame, all inputs explicit")]
     pub fn run(
+        &mut self,
+        gpu: &GpuContext,
+        scene: SceneRefs<'_>,
+        plan: FramePlan,
+        criterion: Option<LodCriterion>,
+        visibility: &mut Visibility,
+        camera: &Camera,
+        target: FrameTarget<'_>,
+        wait: (Completion, bool),
+    ) -> Result<Option<FrameReport>, FrameError> {
+        gpu.alive()?;
+        let frame = self.run_frame(
+            gpu, scene, plan, criterion, visibility, camera, target, wait,
+        );
+        gpu.alive()?;
+        frame
+    }
+
+    /// [`FrameRunner::run`] on a device that was working when it began.
+    #[expect(clippy::too_many_arguments, reason = "one frame, all inputs explicit")]
+    fn run_frame(
         &mut self,
         gpu: &GpuContext,
         scene: SceneRefs<'_>,

@@ -16,10 +16,10 @@ use crate::gpu::GpuContext;
 #[derive(Debug, thiserror::Error)]
 pub enum UploadError {
     #[error(
-        "the scene's {what} take {bytes} bytes ({mib:.0} MiB), over this GPU's {limit_name} \
-         of {limit} bytes ({limit_mib:.0} MiB): the city is too large for this adapter",
-        mib = *bytes as f64 / MIB,
-        limit_mib = *limit as f64 / MIB
+        "the scene's {what} take {bytes} bytes ({}), over this GPU's {limit_name} of {limit} \
+         bytes ({}): the city is too large for this adapter",
+        binary_size(*bytes),
+        binary_size(*limit)
     )]
     OverLimit {
         what: String,
@@ -30,8 +30,8 @@ pub enum UploadError {
         limit: u64,
     },
     #[error(
-        "out of GPU memory for the scene's {what} ({bytes} bytes, {mib:.0} MiB): {message}",
-        mib = *bytes as f64 / MIB
+        "out of GPU memory for the scene's {what} ({bytes} bytes, {}): {message}",
+        binary_size(*bytes)
     )]
     OutOfMemory {
         what: String,
@@ -40,7 +40,18 @@ pub enum UploadError {
     },
 }
 
-const MIB: f64 = 1024.0 * 1024.0;
+/// `bytes` in the largest binary unit that keeps a whole number before the point:
+/// `146.6 KiB`, `353.0 MiB`, `1.6 GiB`.
+fn binary_size(bytes: u64) -> String {
+    let mut value = bytes as f64;
+    for unit in ["B", "KiB", "MiB"] {
+        if value < 1024.0 {
+            return format!("{value:.1} {unit}");
+        }
+        value /= 1024.0;
+    }
+    format!("{value:.1} GiB")
+}
 
 /// Bytes copied per submission: large enough that the waits cost little (about 50 at a
 /// million buildings), small enough that the staging is a rounding error.
@@ -219,8 +230,8 @@ mod tests {
         let text = error.to_string();
         assert!(
             text.contains("scene vertices")
-                && text.contains("1048580 bytes")
-                && text.contains("max_buffer_size of 1048576 bytes"),
+                && text.contains("1048580 bytes (1.0 MiB)")
+                && text.contains("max_buffer_size of 1048576 bytes (1.0 MiB)"),
             "{text}"
         );
         // A storage array is bound whole by the passes: the binding limit applies.
@@ -230,8 +241,16 @@ mod tests {
         let text = error.to_string();
         assert!(
             text.contains("lod cull records")
-                && text.contains("max_storage_buffer_binding_size of 65536 bytes"),
+                && text.contains("max_storage_buffer_binding_size of 65536 bytes (64.0 KiB)"),
             "{text}"
         );
+    }
+
+    #[test]
+    fn sizes_in_binary_units() {
+        assert_eq!(binary_size(0), "0.0 B");
+        assert_eq!(binary_size(150_080), "146.6 KiB");
+        assert_eq!(binary_size(353 << 20), "353.0 MiB");
+        assert_eq!(binary_size(3 << 30), "3.0 GiB");
     }
 }

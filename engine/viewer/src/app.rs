@@ -180,7 +180,16 @@ impl App {
             .set_highlight(self.picked.as_ref().map(|p| p.draw));
     }
 
+    /// Stops with `error`; an error while the device is lost is that loss (the call that failed
+    /// first is only its symptom).
     fn fail(&mut self, event_loop: &ActiveEventLoop, error: ViewerError) {
+        let error = match self.gfx.as_ref().map(|gfx| &gfx.surface.gpu) {
+            Some(gpu) if !matches!(error, ViewerError::DeviceLost(_)) => {
+                gpu.wait_idle();
+                gpu.alive().map_or_else(ViewerError::DeviceLost, |()| error)
+            }
+            _ => error,
+        };
         tracing::error!("{error}");
         self.error.get_or_insert(error);
         event_loop.exit();
@@ -400,9 +409,7 @@ impl App {
             return Ok(());
         };
         // A lost device draws nothing more: stop with its reason (not a panic at the next call).
-        if let Some(why) = gfx.surface.gpu.lost() {
-            return Err(ViewerError::DeviceLost(why));
-        }
+        gfx.surface.gpu.alive()?;
         let Acquired::Frame(frame) = gfx.surface.acquire()? else {
             return Ok(());
         };
@@ -661,3 +668,6 @@ impl ApplicationHandler for App {
         }
     }
 }
+
+#[cfg(test)]
+mod tests;

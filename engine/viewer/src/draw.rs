@@ -194,6 +194,17 @@ impl FrameDrawer {
         self.runner.set_highlight(draw);
     }
 
+    /// The pyramid of the last HZB frame and the newest report read (for the window tests).
+    #[cfg(test)]
+    pub(crate) fn last_frame(
+        &self,
+    ) -> (
+        Option<&citywalk_runtime::hzb::HzbPyramid>,
+        Option<&FrameReport>,
+    ) {
+        (self.runner.pyramid(), self.last_report.as_ref())
+    }
+
     /// Buildings and their triangles in the scene.
     pub fn scene_counts(&self) -> (usize, usize) {
         (

@@ -81,7 +81,7 @@ pub enum ViewerError {
     #[error(transparent)]
     Upload(#[from] citywalk_runtime::upload::UploadError),
     #[error("{0}; the viewer stops (restart it to reopen the scene)")]
-    DeviceLost(String),
+    DeviceLost(#[from] citywalk_runtime::gpu::DeviceLost),
     #[error("screenshot: {0}")]
     Screenshot(#[from] screenshot::ScreenshotError),
     #[error("writing screenshot {path}: {source}")]
@@ -93,9 +93,22 @@ pub enum ViewerError {
     #[error(transparent)]
     Record(#[from] RecordError),
     #[error("culled frame: {0}")]
-    Frame(#[from] citywalk_runtime::frame::FrameError),
+    Frame(citywalk_runtime::frame::FrameError),
     #[error("the window closed after {drawn} of {wanted} frames; no screenshot was taken")]
     ScreenshotNotTaken { drawn: u32, wanted: u32 },
+}
+
+/// A frame that failed because the device went is the device's loss, said once.
+impl From<citywalk_runtime::frame::FrameError> for ViewerError {
+    fn from(error: citywalk_runtime::frame::FrameError) -> Self {
+        match error {
+            citywalk_runtime::frame::FrameError::DeviceLost(lost)
+            | citywalk_runtime::frame::FrameError::Readback(
+                citywalk_runtime::render::targets::ReadbackError::DeviceLost(lost),
+            ) => ViewerError::DeviceLost(lost),
+            other => ViewerError::Frame(other),
+        }
+    }
 }
 
 /// Opens the window and runs until it is closed (or the screenshot is written). A scene

@@ -122,11 +122,15 @@ impl WindowSurface {
         match self.surface.get_current_texture() {
             wgpu::CurrentSurfaceTexture::Success(frame) => Ok(Acquired::Frame(frame)),
             wgpu::CurrentSurfaceTexture::Suboptimal(frame) => {
-                // Draw this one; the next acquire gets a surface matching the window.
-                if (size.width, size.height) != (self.config.width, self.config.height) {
-                    self.resize(size.width, size.height);
+                if (size.width, size.height) == (self.config.width, self.config.height) {
+                    return Ok(Acquired::Frame(frame));
                 }
-                Ok(Acquired::Frame(frame))
+                // The window changed size before its resize event came: reconfigure for the
+                // next frame. The surface must not be configured while one of its textures is
+                // held (a wgpu validation error): this one is given back first.
+                drop(frame);
+                self.resize(size.width, size.height);
+                Ok(Acquired::Skip)
             }
             wgpu::CurrentSurfaceTexture::Timeout | wgpu::CurrentSurfaceTexture::Occluded => {
                 Ok(Acquired::Skip)

@@ -25,7 +25,11 @@
 //!   [`crate::load_cities`] merges them without a shift. Heights are then ellipsoidal (WGS84).
 //!   A tileset whose centre is not on the earth (no root transform to ECEF) keeps its own
 //!   metres ([`Frame::local`]).
-//!   Without a tileset the glTF's own metres are the local frame ([`Frame::local`]).
+//!   Without a tileset, a b3dm `RTC_CENTER` on the earth places the content in ECEF likewise;
+//!   otherwise the glTF's own metres are the local frame ([`Frame::local`]), a b3dm's with a
+//!   warning that it is not georeferenced, and content whose walls lean (a tile written in
+//!   ECEF axes, copied out of its tileset folder) levelled by its walls ([`level`]), with a
+//!   warning.
 //!   In every case the origin is then raised to the lowest building base, so the city stands
 //!   on the ground plane z = 0 (the origin's height keeps the shift).
 //!
@@ -55,6 +59,7 @@ mod accessor;
 mod b3dm;
 mod features;
 mod glb;
+mod level;
 mod tileset;
 mod uri;
 
@@ -99,16 +104,17 @@ fn malformed(path: &Path, reason: impl Into<String>) -> LoadError {
     }
 }
 
-/// Where content goes: content z-up coordinates → ECEF, and the frame.
+/// Where content goes: content z-up coordinates → the frame's source coordinates (ECEF for a
+/// tileset on the earth), and the frame.
 #[derive(Debug, Clone)]
 struct Placement {
-    to_ecef: DMat4,
+    to_source: DMat4,
     frame: Frame,
 }
 
 impl Placement {
     fn local(&self, p: DVec3) -> DVec3 {
-        self.frame.to_local(self.to_ecef.transform_point3(p))
+        self.frame.to_local(self.to_source.transform_point3(p))
     }
 }
 
@@ -150,7 +156,7 @@ fn load_any(path: &Path, bytes: &[u8], search: bool) -> Result<City, LoadError> 
         };
         let tile = b3dm::parse(bytes).map_err(|r| malformed(path, r))?;
         let batch = BatchInfo::from_tables(&tile.feature_table, tile.batch_table);
-        return load_single(path, tile.glb, batch, placement);
+        return load_single(path, tile.glb, batch, Content::B3dm, placement);
     }
     if !bytes.starts_with(b"glTF") {
         // JSON: a tileset, or a .gltf.
@@ -165,7 +171,7 @@ fn load_any(path: &Path, bytes: &[u8], search: bool) -> Result<City, LoadError> 
     } else {
         ((None, Vec::new()), BatchInfo::default())
     };
-    load_single(path, bytes, batch, placement)
+    load_single(path, bytes, batch, Content::Gltf, placement)
 }
 
 /// A tileset beside `path` or one folder up that lists a content named like `path`.
@@ -210,7 +216,7 @@ fn find_placement(path: &Path) -> Result<(Option<Placement>, Vec<LoadWarning>), 
             Some(content) => {
                 return Ok((
                     Some(Placement {
-                        to_ecef: content.to_ecef,
+                        to_source: content.to_ecef,
                         frame: tileset_frame(set.centre_ecef),
                     }),
                     warnings,
@@ -267,18 +273,24 @@ fn find_sidecar(path: &Path) -> Result<BatchInfo, LoadError> {
     })
 }
 
-/// One glTF (standalone, or the content of one b3dm) to a city.
+/// One glTF (standalone, or the content of one b3dm) to a city. Without a tileset's placement,
+/// see [`own_placement`].
 fn load_single(
     path: &Path,
     glb: &[u8],
     batch: BatchInfo,
+    content: Content,
     (placement, warnings): (Option<Placement>, Vec<LoadWarning>),
 ) -> Result<City, LoadError> {
     let features = read_features(path, glb, &batch)?;
+    let mut warnings = warnings;
+    let placement = match placement {
+        Some(p) => Some(p),
+        None => own_placement(path, &features, &batch, content, &mut warnings),
+    };
     let frame = placement
         .as_ref()
         .map_or_else(Frame::local, |p| p.frame.clone());
-    let mut warnings = warnings;
     let buildings =
         buildings_from_features(path, features, &batch, placement.as_ref(), &mut warnings);
     let report = LoadReport {
@@ -288,6 +300,64 @@ fn load_single(
         ..LoadReport::default()
     };
     assemble(path, FORMAT, frame, buildings, report)
+}
+
+/// What a file read alone holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Content {
+    /// A 3D Tiles tile, made to be placed by a tileset.
+    B3dm,
+    /// A glTF, whose metres are its own.
+    Gltf,
+}
+
+/// Where a glTF or b3dm that no tileset places goes. An `RTC_CENTER` on the earth is ECEF (the
+/// tileset's transforms were the identity): the content is placed as its tileset would place
+/// it, east-north-up at that centre. Otherwise nothing says where it is: for a b3dm, made to be
+/// placed by a tileset, that is a warning naming the file. Content whose walls lean (written as
+/// ECEF offsets from its tileset's root, see [`level`]) is levelled, with a warning saying by
+/// how much, so that heights are judged upright: a silently tilted city is wrong everywhere.
+fn own_placement(
+    path: &Path,
+    features: &[Feature],
+    batch: &BatchInfo,
+    content: Content,
+    warnings: &mut Vec<LoadWarning>,
+) -> Option<Placement> {
+    if EARTH_RADIUS_RANGE_M.contains(&batch.rtc_center.length()) {
+        return Some(Placement {
+            to_source: DMat4::IDENTITY,
+            frame: Frame::ecef(batch.rtc_center),
+        });
+    }
+    let upright = level::uprightness(features.iter().flat_map(|f| &f.triangles));
+    let leaning = upright.filter(level::Uprightness::leans);
+    let unplaced = match content {
+        Content::B3dm => {
+            "not georeferenced: no tileset.json beside it or one folder up lists it and its \
+             RTC_CENTER is not on the earth, so it is loaded in its own metres"
+        }
+        Content::Gltf if leaning.is_some() => "not georeferenced",
+        Content::Gltf => return None,
+    };
+    let message = match &leaning {
+        Some(u) => format!(
+            "{unplaced}; its walls lean {:.1}° from its z axis (content written in ECEF axes, \
+             whose tileset is missing?), so it is levelled to stand on them (its coordinates are \
+             no longer the file's)",
+            u.tilt_deg
+        ),
+        None => unplaced.to_string(),
+    };
+    warnings.push(LoadWarning {
+        file: path.to_path_buf(),
+        source_id: String::new(),
+        message,
+    });
+    leaning.map(|u| Placement {
+        to_source: u.levelling(),
+        frame: Frame::local(),
+    })
 }
 
 /// Every b3dm (or glTF) content of a tileset, in the tileset's ECEF frame.
@@ -302,7 +372,7 @@ fn load_tileset(path: &Path, json: &Value) -> Result<City, LoadError> {
     for content in &set.contents {
         let lower = content.uri.to_ascii_lowercase();
         let placement = Placement {
-            to_ecef: content.to_ecef,
+            to_source: content.to_ecef,
             frame: frame.clone(),
         };
         let bytes =

@@ -56,9 +56,14 @@ fn gltf_and_tileset_seeds_reach_the_assets() {
     let city = gltf::load_bytes(&gltf_path, &corpus("gltf", "amsterdam_4.gltf"))
         .expect("the .gltf seed loads its buffer 4.bin");
     // Tile 4's 4 batch features are its 2 buildings written twice (no batch table names them):
-    // the copies with the same triangles are dropped, each with a warning.
+    // the copies with the same triangles are dropped, each with a warning. Without its
+    // tileset, the content (in ECEF axes) is levelled by its walls, with a third warning.
     assert_eq!(city.buildings.len(), 2);
-    assert_eq!(city.report.warnings.len(), 2, "{}", city.report);
+    assert_eq!(city.report.warnings.len(), 3, "{}", city.report);
+    let levelled = (city.report.warnings.iter())
+        .filter(|w| w.message.contains("not georeferenced") && w.message.contains("levelled"))
+        .count();
+    assert_eq!(levelled, 1, "{:?}", city.report.warnings);
     let tileset_path = assets.join("tileset.json");
     let city = gltf::load_bytes(&tileset_path, &corpus("tileset", "amsterdam_4_6.json"))
         .expect("the tileset seed loads tiles/4.b3dm and tiles/6.b3dm");

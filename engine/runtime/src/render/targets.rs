@@ -14,6 +14,8 @@ pub enum ReadbackError {
     MappedRange(String),
     #[error("the device failed while waiting for the readback: {0}")]
     Poll(#[from] wgpu::PollError),
+    #[error(transparent)]
+    DeviceLost(#[from] crate::gpu::DeviceLost),
 }
 
 /// Checks a viewport size against the device's texture limit.
@@ -185,14 +187,25 @@ pub fn map_read_prefix(
     buffer: &wgpu::Buffer,
     len: u64,
 ) -> Result<Vec<u8>, ReadbackError> {
+    gpu.alive()?;
     let slice = buffer.slice(..len);
     let (tx, rx) = std::sync::mpsc::channel();
     slice.map_async(wgpu::MapMode::Read, move |r| {
         let _ = tx.send(r);
     });
-    gpu.device.poll(wgpu::PollType::wait_indefinitely())?;
-    rx.recv()
-        .map_err(|e| ReadbackError::MappedRange(e.to_string()))??;
+    let mapped = gpu
+        .device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(ReadbackError::from)
+        .and_then(|_| {
+            rx.recv()
+                .map_err(|e| ReadbackError::MappedRange(e.to_string()))?
+                .map_err(ReadbackError::from)
+        });
+    // A mapping that failed because the device went says so.
+    if let Err(e) = mapped {
+        return Err(gpu.lost().map_or(e, ReadbackError::from));
+    }
     let mapped = slice
         .get_mapped_range()
         .map_err(|e| ReadbackError::MappedRange(e.to_string()))?;
