@@ -968,11 +968,15 @@ fn bench_modes_run_a_street_walk_with_no_false_cull() {
             );
         }
     }
-    let auto: Vec<_> = records.iter().filter(|r| r.mode == "auto").collect();
+    // `auto` tried every plan of its ladder at the first pose before timing, and runs the one
+    // it measured cheapest (on a small city and a software adapter that may be brute force,
+    // so whether its timed frames cull depends on the machine's timings).
+    let planner = renderers.auto_planner().expect("auto ran");
+    assert!(planner.candidates().len() > 2);
     assert!(
-        auto.iter().any(|r| r.culled_fraction > 0.0),
-        "auto never left brute force in {} frames",
-        auto.len()
+        planner.costs_ms().iter().all(Option::is_some),
+        "auto measured every plan: {:?}",
+        planner.costs_ms()
     );
     // Without occluders a scene refuses the occluders mode rather than silently skipping it.
     let mut bare = scene;

@@ -186,6 +186,11 @@ impl BenchRenderers {
     pub fn reset_visibility(&mut self) {
         self.visibility.clear();
     }
+
+    /// The `auto` mode's planner of the last path run, with the costs it measured.
+    pub fn auto_planner(&self) -> Option<&AutoPlanner> {
+        self.auto.as_ref()
+    }
 }
 
 /// The camera of a path pose.
