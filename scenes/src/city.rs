@@ -126,7 +126,18 @@ pub struct Building {
     pub tags: BTreeMap<String, String>,
 }
 
+/// Tag keys whose value is a building's number of storeys above ground (OSM, CityJSON).
+pub const LEVEL_TAGS: [&str; 3] = ["building:levels", "storeysAboveGround", "levels"];
+
 impl Building {
+    /// The building's storeys above ground as its source tags them ([`LEVEL_TAGS`]), if at all.
+    pub fn levels_tag(&self) -> Option<&str> {
+        LEVEL_TAGS
+            .iter()
+            .find_map(|k| self.tags.get(*k))
+            .map(String::as_str)
+    }
+
     /// Footprint area in square metres.
     pub fn footprint_area_m2(&self) -> f64 {
         self.footprint.unsigned_area()

@@ -120,6 +120,17 @@ impl Frame {
     }
 }
 
+/// The EPSG code in a CRS name as sources write it (`EPSG:7415`, `urn:ogc:def:crs:EPSG::28992`,
+/// `urn:ogc:def:crs:EPSG:6.6:1234`, `https://www.opengis.net/def/crs/EPSG/0/7415`): the digits
+/// that end a name mentioning EPSG.
+pub fn epsg_code(name: &str) -> Option<u32> {
+    if !name.to_ascii_uppercase().contains("EPSG") {
+        return None;
+    }
+    let start = name.trim_end_matches(|c: char| c.is_ascii_digit()).len();
+    name[start..].parse().ok()
+}
+
 /// Geodetic `(lon°, lat°, h m)` on WGS84 to ECEF metres.
 pub fn geodetic_to_ecef(lon_deg: f64, lat_deg: f64, h: f64) -> DVec3 {
     let e2 = WGS84_F * (2.0 - WGS84_F);

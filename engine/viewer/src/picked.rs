@@ -66,9 +66,6 @@ pub struct PickFacts<'a> {
     pub city: &'a City,
 }
 
-/// Storey keys shown as "levels" (OSM, CityJSON).
-const LEVEL_KEYS: [&str; 2] = ["building:levels", "storeysAboveGround"];
-
 /// Buildings of a cluster listed by source id in the panel.
 const LISTED_BUILDINGS: usize = 8;
 
@@ -96,8 +93,8 @@ pub fn describe(f: &PickFacts<'_>) -> Picked {
                 "height from",
                 format!("{:?}", b.height_source).to_lowercase(),
             );
-            if let Some(levels) = LEVEL_KEYS.iter().find_map(|k| b.tags.get(*k)) {
-                row("levels", levels.clone());
+            if let Some(levels) = b.levels_tag() {
+                row("levels", levels.to_string());
             }
             for (k, v) in b.tags.iter().take(LISTED_TAGS) {
                 row(k, v.clone());

@@ -13,7 +13,7 @@
 use glam::{DMat4, DVec3, DVec4};
 use proj4rs::proj::Proj;
 
-use crate::frame::{Crs, Frame, geodetic_to_ecef};
+use crate::frame::{Crs, Frame, epsg_code, geodetic_to_ecef};
 
 /// Why the city could not be placed on the globe.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -64,29 +64,14 @@ fn enu_to_ecef(lon_deg: f64, lat_deg: f64, h: f64) -> DMat4 {
     )
 }
 
-/// The EPSG code in a CRS name as the loaders record it (`EPSG:7415`,
-/// `urn:ogc:def:crs:EPSG::28992`, `https://www.opengis.net/def/crs/EPSG/0/7415`).
-pub fn epsg_code(name: &str) -> Option<u16> {
-    if !name.to_ascii_uppercase().contains("EPSG") {
-        return None;
-    }
-    let digits: String = name
-        .chars()
-        .rev()
-        .take_while(char::is_ascii_digit)
-        .collect::<Vec<_>>()
-        .into_iter()
-        .rev()
-        .collect();
-    digits.parse().ok()
-}
-
 fn projected_to_ecef(name: &str, origin: [f64; 3]) -> Result<DMat4, PlacementError> {
     let fail = |why: String| PlacementError::Projection {
         crs: name.to_string(),
         why,
     };
-    let code = epsg_code(name).ok_or_else(|| fail("not an EPSG code".into()))?;
+    let code = epsg_code(name)
+        .and_then(|c| u16::try_from(c).ok())
+        .ok_or_else(|| fail("not an EPSG code".into()))?;
     let definition = crs_definitions::from_code(code)
         .ok_or_else(|| fail(format!("EPSG:{code} is not in the EPSG definitions known")))?;
     let source = Proj::from_proj_string(definition.proj4)

@@ -119,13 +119,11 @@ impl Primitive {
     fn add<F>(&mut self, mesh: &FeatureMesh<'_, F>, feature: u32, centre: DVec3) {
         let mut welded: HashMap<(u32, [i16; 3]), u32> = HashMap::new();
         for t in mesh.triangles {
-            let Some(p) = t
-                .map(|i| mesh.positions.get(i as usize).copied())
-                .into_iter()
-                .collect::<Option<Vec<Vec3>>>()
+            let [Some(a), Some(b), Some(c)] = t.map(|i| mesh.positions.get(i as usize).copied())
             else {
                 continue;
             };
+            let p = [a, b, c];
             let n = (p[1] - p[0]).cross(p[2] - p[0]).normalize_or_zero();
             if n == Vec3::ZERO {
                 continue;

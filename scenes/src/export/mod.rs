@@ -15,7 +15,7 @@ mod tileset;
 
 use std::path::{Path, PathBuf};
 
-use glam::{DVec3, Vec3};
+use glam::Vec3;
 
 use crate::city::HeightSource;
 use crate::package::ScenePackage;
@@ -26,9 +26,6 @@ use glb::{BuildingFeature, ClusterFeature, FeatureMesh, GlbContent};
 /// mesh or of buildings only): contents of 10k–30k triangles load in one request and draw in
 /// one call in a client.
 pub const DEFAULT_TILE_TRIANGLES: u64 = 32_768;
-
-/// The tag keys whose value is a building's number of storeys (OSM, CityJSON).
-const LEVEL_KEYS: [&str; 3] = ["building:levels", "storeysAboveGround", "levels"];
 
 /// Options of an export.
 #[derive(Debug, Clone, PartialEq)]
@@ -161,9 +158,8 @@ impl<'a> Source<'a> {
 
     fn building(&self, id: u32) -> BuildingFeature {
         let b = &self.package.buildings[id as usize];
-        let levels = LEVEL_KEYS
-            .iter()
-            .find_map(|k| b.tags.get(*k))
+        let levels = b
+            .levels_tag()
             .and_then(|v| v.trim().parse::<f64>().ok())
             .filter(|l| l.is_finite() && *l >= 1.0 && *l < 65_535.0)
             .map_or(0, |l| l.round() as u16);
@@ -322,12 +318,4 @@ fn prepare_folder(out: &Path) -> Result<(), ExportError> {
         }
     }
     std::fs::create_dir_all(out.join(tileset::TILES_DIR)).map_err(write_err)
-}
-
-/// The bounds of a set of local points as a 3D Tiles `box` (centre and three half-axes),
-/// grown by `pad` metres so that a flat content has a volume.
-fn bounding_box(lo: DVec3, hi: DVec3, pad: f64) -> [f64; 12] {
-    let c = (lo + hi) * 0.5;
-    let h = ((hi - lo) * 0.5).max(DVec3::ZERO) + DVec3::splat(pad);
-    [c.x, c.y, c.z, h.x, 0.0, 0.0, 0.0, h.y, 0.0, 0.0, 0.0, h.z]
 }

@@ -10,7 +10,7 @@ use glam::{DMat4, DVec3};
 use serde_json::{Value, json};
 
 use super::hlod::HlodTile;
-use super::{ExportError, ExportReport, Source, bounding_box, write_file};
+use super::{ExportError, ExportReport, Source, write_file};
 
 /// The folder of the contents, beside `tileset.json`.
 pub const TILES_DIR: &str = "tiles";
@@ -162,4 +162,12 @@ fn write_tile(
         json,
         bounds: (lo - pad, hi + pad),
     }))
+}
+
+/// The bounds of a set of local points as a 3D Tiles `box` (centre and three half-axes),
+/// grown by `pad` metres so that a flat content has a volume.
+fn bounding_box(lo: DVec3, hi: DVec3, pad: f64) -> [f64; 12] {
+    let c = (lo + hi) * 0.5;
+    let h = ((hi - lo) * 0.5).max(DVec3::ZERO) + DVec3::splat(pad);
+    [c.x, c.y, c.z, h.x, 0.0, 0.0, 0.0, h.y, 0.0, 0.0, 0.0, h.z]
 }

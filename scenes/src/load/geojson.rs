@@ -182,21 +182,12 @@ fn crs_from_member(value: &Value) -> Result<SourceCrs, String> {
             SourceCrs::Local
         });
     }
-    // EPSG:1234, urn:ogc:def:crs:EPSG::1234, urn:ogc:def:crs:EPSG:6.6:1234, .../EPSG/0/1234.
     if lower.contains("epsg") {
-        let code: String = name
-            .chars()
-            .rev()
-            .take_while(char::is_ascii_digit)
-            .collect::<Vec<_>>()
-            .into_iter()
-            .rev()
-            .collect();
-        return match code.as_str() {
-            "" => Err(format!("CRS {name:?} has no EPSG code")),
-            "4326" | "4979" => Ok(SourceCrs::Wgs84),
-            "4978" => Err(format!("CRS {name:?} (ECEF) is not supported for GeoJSON")),
-            _ => Ok(SourceCrs::Projected(format!("EPSG:{code}"))),
+        return match crate::frame::epsg_code(name) {
+            None => Err(format!("CRS {name:?} has no EPSG code")),
+            Some(4326 | 4979) => Ok(SourceCrs::Wgs84),
+            Some(4978) => Err(format!("CRS {name:?} (ECEF) is not supported for GeoJSON")),
+            Some(code) => Ok(SourceCrs::Projected(format!("EPSG:{code}"))),
         };
     }
     Err(format!("unknown CRS {name:?}"))

@@ -4,14 +4,17 @@
 //!
 //! A primitive's first feature-id set that reads a vertex attribute (`_FEATURE_ID_n`) and
 //! points at a property table groups its triangles into features; a feature is named by the
-//! table's first string property among [`NAME_PROPERTIES`], else `table#id`. Feature-id sets
+//! table's first string property among [`name_properties`], else `table#id`. Feature-id sets
 //! by texture or by implicit index are not read (the primitive stays one feature).
 
 use ::gltf::buffer;
 use serde_json::Value;
 
-/// Property names read as a feature's source id, in order of preference.
-pub const NAME_PROPERTIES: [&str; 4] = ["source_id", "id", "gml_id", "name"];
+/// Property names read as a feature's source id, in order of preference: citywalk's export
+/// writes `source_id`; other writers, the batch tables' id columns.
+fn name_properties() -> impl Iterator<Item = &'static str> {
+    std::iter::once("source_id").chain(super::ID_COLUMNS)
+}
 
 /// The feature-id attribute and property table of a primitive, if it has one.
 pub fn primitive_feature_ids(extension: Option<&Value>) -> Option<(u64, usize)> {
@@ -51,12 +54,12 @@ pub fn table_names(
             let class = table.get("class")?.as_str()?;
             let schema = class_properties(class)?;
             let properties = table.get("properties")?.as_object()?;
-            NAME_PROPERTIES.iter().find_map(|name| {
-                let is_string = schema.get(*name)?.get("type")?.as_str()? == "STRING";
+            name_properties().find_map(|name| {
+                let is_string = schema.get(name)?.get("type")?.as_str()? == "STRING";
                 if !is_string {
                     return None;
                 }
-                strings(properties.get(*name)?, count, doc, buffers)
+                strings(properties.get(name)?, count, doc, buffers)
             })
         })
         .collect()
