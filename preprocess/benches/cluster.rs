@@ -72,6 +72,7 @@ pub fn synthetic_city(n: usize) -> (City, Vec<u32>) {
             frame: Frame::local(),
             buildings,
             streets: Vec::new(),
+            ground_areas: Vec::new(),
             report,
         },
         blocks,

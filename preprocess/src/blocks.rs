@@ -457,6 +457,7 @@ mod tests {
             class,
             name: None,
             line: LineString::from(points.to_vec()),
+            tagged_width_m: None,
         }
     }
 
@@ -517,6 +518,7 @@ mod tests {
             frame: Frame::local(),
             buildings,
             streets,
+            ground_areas: Vec::new(),
             report: LoadReport::default(),
         }
     }
@@ -661,6 +663,7 @@ mod tests {
                     frame: Frame::local(),
                     buildings,
                     streets,
+                    ground_areas: Vec::new(),
                     report: LoadReport::default(),
                 };
                 let (blocks, _) = build_blocks_with(&city, &BlockParams::default());

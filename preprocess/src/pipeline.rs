@@ -304,6 +304,7 @@ pub fn preprocess(
         frame: city.frame,
         buildings: city.buildings,
         streets: city.streets,
+        ground_areas: city.ground_areas,
         blocks,
         quadtree,
         occluders,

@@ -795,18 +795,21 @@ mod tests {
                     source_id: "s0".into(),
                     class: StreetClass::Residential,
                     name: None,
+                    tagged_width_m: None,
                     line: LineString::from(vec![(-60.0, 0.0), (0.0, 0.0)]),
                 },
                 Street {
                     source_id: "s1".into(),
                     class: StreetClass::Residential,
                     name: None,
+                    tagged_width_m: None,
                     line: LineString::from(vec![(0.0, 0.0), (60.0, 0.0)]),
                 },
                 Street {
                     source_id: "s2".into(),
                     class: StreetClass::Residential,
                     name: None,
+                    tagged_width_m: None,
                     line: LineString::from(vec![(0.0, -60.0), (0.0, 60.0)]),
                 },
             ]
@@ -817,6 +820,7 @@ mod tests {
             frame: Frame::local(),
             buildings,
             streets,
+            ground_areas: Vec::new(),
             report: LoadReport::default(),
         }
     }

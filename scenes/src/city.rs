@@ -199,6 +199,20 @@ impl StreetClass {
         )
     }
 
+    /// The carriageway width in metres when the source gives none (OSM `width` / `lanes`):
+    /// a two-lane road of its class, after typical urban cross-sections (3.0–3.5 m lanes,
+    /// wider for arterials; footways 3 m).
+    pub fn default_width_m(self) -> f32 {
+        match self {
+            StreetClass::Major => 14.0,
+            StreetClass::Minor => 10.0,
+            StreetClass::Residential => 7.0,
+            StreetClass::Service => 4.5,
+            StreetClass::Pedestrian => 3.0,
+            StreetClass::Other => 4.0,
+        }
+    }
+
     /// A short stable name, used in files.
     pub fn name(self) -> &'static str {
         match self {
@@ -233,6 +247,73 @@ pub struct Street {
     pub class: StreetClass,
     pub name: Option<String>,
     pub line: geo::LineString<f64>,
+    /// The width the source gives (OSM `width`, else `lanes` × a lane), in metres; `None`
+    /// when it gives none ([`Street::width_m`] then uses the class's default).
+    pub tagged_width_m: Option<f32>,
+}
+
+impl Street {
+    /// The street's surface width in metres: the source's, else the class default.
+    pub fn width_m(&self) -> f32 {
+        self.tagged_width_m
+            .unwrap_or_else(|| self.class.default_width_m())
+    }
+}
+
+/// What a ground area is, for its colour and its draw order (later classes lie on top).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+pub enum GroundClass {
+    /// Farmland, meadow, grass, cemeteries and other open land (OSM `landuse=grass|meadow|…`).
+    Grass,
+    /// Woods and forest (OSM `natural=wood`, `landuse=forest`; 3dfier `Forest`).
+    Forest,
+    /// Parks, gardens and pitches (OSM `leisure=park|garden|pitch|playground`).
+    Park,
+    /// Paved open space: squares, parking, plazas (OSM `amenity=parking`, `place=square`,
+    /// `area:highway`; 3dfier `Road` surfaces).
+    Paved,
+    /// Water bodies (OSM `natural=water`, `waterway=riverbank`; 3dfier `Water`).
+    Water,
+    /// Any other classified land (OSM `landuse=*` not above; 3dfier `Terrain`).
+    Other,
+}
+
+impl GroundClass {
+    /// Every class, in draw order.
+    pub const ALL: [GroundClass; 6] = [
+        GroundClass::Other,
+        GroundClass::Grass,
+        GroundClass::Forest,
+        GroundClass::Park,
+        GroundClass::Paved,
+        GroundClass::Water,
+    ];
+
+    /// A short stable name, used in files and reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            GroundClass::Grass => "grass",
+            GroundClass::Forest => "forest",
+            GroundClass::Park => "park",
+            GroundClass::Paved => "paved",
+            GroundClass::Water => "water",
+            GroundClass::Other => "other",
+        }
+    }
+
+    /// Inverse of [`GroundClass::name`].
+    pub fn from_name(name: &str) -> Option<GroundClass> {
+        GroundClass::ALL.into_iter().find(|c| c.name() == name)
+    }
+}
+
+/// An area of the ground that is not a building or a street (water, a park, a square), in the
+/// local frame. Drawn on the ground plane; it never occludes.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct GroundArea {
+    pub source_id: String,
+    pub class: GroundClass,
+    pub polygon: MultiPolygon<f64>,
 }
 
 /// A loaded city: buildings and streets in one local frame, with the load report.
@@ -241,6 +322,8 @@ pub struct City {
     pub frame: Frame,
     pub buildings: Vec<Building>,
     pub streets: Vec<Street>,
+    /// Water, parks, squares and other ground areas.
+    pub ground_areas: Vec<GroundArea>,
     pub report: LoadReport,
 }
 

@@ -26,7 +26,8 @@ pub mod scene_geometry;
 pub mod validate;
 
 pub use city::{
-    Building, BuildingId, BuildingPart, City, HeightSource, Street, StreetClass, TriangleMesh,
+    Building, BuildingId, BuildingPart, City, GroundArea, GroundClass, HeightSource, Street,
+    StreetClass, TriangleMesh,
 };
 pub use frame::{Crs, Frame};
 pub use load::{LoadOptions, load_cities, load_city};

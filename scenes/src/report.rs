@@ -100,6 +100,13 @@ pub struct LoadReport {
     /// range), with their source id and reason: `streets_loaded + streets_rejected =
     /// streets_found`.
     pub streets_rejected: Vec<Rejection>,
+    /// Ground areas (water, parks, squares, ...) found in the input.
+    pub ground_areas_found: usize,
+    /// Ground areas loaded.
+    pub ground_areas_loaded: usize,
+    /// Ground areas that could not be used, with their source id and reason:
+    /// `ground_areas_loaded + ground_areas_rejected = ground_areas_found`.
+    pub ground_areas_rejected: Vec<Rejection>,
     pub warnings: Vec<LoadWarning>,
 }
 
@@ -108,6 +115,8 @@ impl LoadReport {
     pub fn is_balanced(&self) -> bool {
         self.buildings_loaded + self.rejected.len() == self.buildings_found
             && self.streets_loaded + self.streets_rejected.len() == self.streets_found
+            && self.ground_areas_loaded + self.ground_areas_rejected.len()
+                == self.ground_areas_found
     }
 
     /// Folds another file's report into this one.
@@ -122,6 +131,10 @@ impl LoadReport {
         self.streets_loaded += other.streets_loaded;
         self.rejected.extend(other.rejected);
         self.streets_rejected.extend(other.streets_rejected);
+        self.ground_areas_found += other.ground_areas_found;
+        self.ground_areas_loaded += other.ground_areas_loaded;
+        self.ground_areas_rejected
+            .extend(other.ground_areas_rejected);
         self.warnings.extend(other.warnings);
     }
 }
@@ -131,7 +144,7 @@ impl fmt::Display for LoadReport {
         write!(
             f,
             "{} buildings found, {} loaded, {} rejected; {} parts; {} with tagged height, {} \
-             estimated; {} streets ({} rejected); {} warnings",
+             estimated; {} streets ({} rejected); {} ground areas ({} rejected); {} warnings",
             self.buildings_found,
             self.buildings_loaded,
             self.rejected.len(),
@@ -140,6 +153,8 @@ impl fmt::Display for LoadReport {
             self.buildings_estimated_height,
             self.streets_loaded,
             self.streets_rejected.len(),
+            self.ground_areas_loaded,
+            self.ground_areas_rejected.len(),
             self.warnings.len()
         )
     }
@@ -155,6 +170,14 @@ impl LoadReport {
         for r in &self.streets_rejected {
             let file = r.file.display();
             tracing::warn!("rejected: {file}: street {}: {}", r.source_id, r.reason);
+        }
+        for r in &self.ground_areas_rejected {
+            let file = r.file.display();
+            tracing::warn!(
+                "rejected: {file}: ground area {}: {}",
+                r.source_id,
+                r.reason
+            );
         }
         for w in &self.warnings {
             tracing::warn!("{w}");

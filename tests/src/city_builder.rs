@@ -37,6 +37,7 @@ pub fn city_of(buildings: Vec<Building>) -> City {
         frame: Frame::local(),
         buildings,
         streets: Vec::new(),
+        ground_areas: Vec::new(),
         report: LoadReport {
             buildings_found: n,
             buildings_loaded: n,

@@ -156,6 +156,7 @@ mod tests {
             },
             buildings: vec![building(0, "way/1", Some("4")), building(1, "way/22", None)],
             streets: Vec::new(),
+            ground_areas: Vec::new(),
             report: Default::default(),
         }
     }

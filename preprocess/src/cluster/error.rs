@@ -277,6 +277,7 @@ mod tests {
                 rect_building(1, 16.0, 0.0, 26.0, 10.0, 10.0),
             ],
             streets: vec![],
+            ground_areas: Vec::new(),
             report: LoadReport::default(),
         };
         let order = vec![BuildingId(0), BuildingId(1)];

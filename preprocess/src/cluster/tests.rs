@@ -47,6 +47,7 @@ fn city(buildings: Vec<Building>, streets: Vec<Street>) -> City {
         frame: Frame::local(),
         buildings,
         streets,
+        ground_areas: Vec::new(),
         report: LoadReport {
             buildings_found: n,
             buildings_loaded: n,
@@ -197,6 +198,7 @@ fn street_city() -> City {
         source_id: format!("test/{id}"),
         class: StreetClass::Residential,
         name: None,
+        tagged_width_m: None,
         line: LineString::from(pts),
     };
     // The middle street and a ring road around both rows: two street faces.

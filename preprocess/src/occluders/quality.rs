@@ -624,6 +624,7 @@ mod tests {
             frame: Frame::local(),
             buildings: vec![building(0, 0.0), building(1, 10.0), building(2, 40.0)],
             streets: Vec::new(),
+            ground_areas: Vec::new(),
             report: LoadReport::default(),
         };
         let w = outline_walls(&city, &crate::occluders::OccluderParams::default());

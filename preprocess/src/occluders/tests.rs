@@ -152,6 +152,7 @@ pub(crate) fn city_of(buildings: Vec<Building>) -> City {
         frame: Frame::local(),
         buildings,
         streets: Vec::new(),
+        ground_areas: Vec::new(),
         report: LoadReport::default(),
     }
 }

@@ -327,6 +327,7 @@ impl Layout {
                 class,
                 name: Some(name),
                 line,
+                tagged_width_m: Some(street_width_m(class) as f32),
             });
         };
         for (&i, js) in &columns {

@@ -370,11 +370,13 @@ pub fn generate_city(params: &GenerateParams) -> Result<City, GenerateError> {
         rejected: Vec::new(),
         streets_rejected: Vec::new(),
         warnings: Vec::new(),
+        ..LoadReport::default()
     };
     Ok(City {
         frame: Frame::local(),
         buildings,
         streets,
+        ground_areas: Vec::new(),
         report,
     })
 }

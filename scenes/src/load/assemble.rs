@@ -30,7 +30,7 @@ use rstar::primitives::{GeomWithData, Rectangle};
 use rstar::{AABB, RTree};
 
 use super::LoadOptions;
-use super::heights::{ResolvedHeights, TaggedHeights};
+use super::heights::{ResolvedHeights, TaggedHeights, parse_length_m};
 use crate::city::{Building, BuildingId, BuildingPart, City, HeightSource, Street, StreetClass};
 use crate::frame::Frame;
 use crate::report::{LoadError, LoadReport, LoadWarning, RejectReason, Rejection};
@@ -69,6 +69,27 @@ pub(crate) struct RawStreet {
     pub name: Option<String>,
     /// The line, or why it could not be read.
     pub points: Result<Vec<Coord<f64>>, RejectReason>,
+    /// [`street_width_m`] of its tags.
+    pub tagged_width_m: Option<f32>,
+}
+
+/// A lane's width when a street tags `lanes` but no `width` (metres; urban lanes are 3.0–3.5 m).
+const LANE_WIDTH_M: f64 = 3.25;
+/// Widths beyond this are not a street's (a typo, or a unit lost): the class default is used.
+const MAX_STREET_WIDTH_M: f64 = 150.0;
+
+/// A street's width from OSM-style tags (also GeoJSON properties): `width` as a length
+/// (see [`parse_length_m`]), else `lanes` × [`LANE_WIDTH_M`]; `None` when neither gives a
+/// positive width below [`MAX_STREET_WIDTH_M`].
+pub(crate) fn street_width_m(tag: impl Fn(&str) -> Option<String>) -> Option<f32> {
+    let plausible = |w: f64| (w > 0.0 && w <= MAX_STREET_WIDTH_M).then_some(w as f32);
+    tag("width")
+        .and_then(|w| parse_length_m(&w))
+        .and_then(plausible)
+        .or_else(|| {
+            let lanes = tag("lanes")?.trim().parse::<f64>().ok()?;
+            plausible(lanes.round() * LANE_WIDTH_M)
+        })
 }
 
 /// The CRS of the source coordinates.
@@ -297,6 +318,7 @@ pub(crate) fn assemble(
                 class: s.class,
                 name: s.name,
                 line: LineString::new(points),
+                tagged_width_m: s.tagged_width_m,
             });
         }
     }
@@ -309,6 +331,7 @@ pub(crate) fn assemble(
         frame,
         buildings: out,
         streets: city_streets,
+        ground_areas: Vec::new(),
         report,
     };
     city.renumber();

@@ -42,7 +42,9 @@ use serde::de::{self, DeserializeSeed, Deserializer, IgnoredAny, MapAccess, SeqA
 use serde_json::{Map, Value};
 
 use super::LoadOptions;
-use super::assemble::{AreaKind, RawArea, RawCity, RawPolygons, RawStreet, SourceCrs, assemble};
+use super::assemble::{
+    AreaKind, RawArea, RawCity, RawPolygons, RawStreet, SourceCrs, assemble, street_width_m,
+};
 use super::heights::{HeightKeys, TaggedHeights};
 use crate::city::{City, StreetClass};
 use crate::report::{LoadError, LoadWarning, RejectReason};
@@ -656,6 +658,11 @@ impl Sink<'_> {
             Err(reason) => vec![Err(reason)],
         };
         let single = lines.len() == 1;
+        let tagged_width_m = street_width_m(|k| match properties.get(k)? {
+            Value::String(v) => Some(v.clone()),
+            Value::Number(n) => Some(n.to_string()),
+            _ => None,
+        });
         let name = properties
             .get("name")
             .and_then(Value::as_str)
@@ -670,6 +677,7 @@ impl Sink<'_> {
                 class: StreetClass::from_osm_highway(highway),
                 name: name.clone(),
                 points,
+                tagged_width_m,
             });
         }
     }

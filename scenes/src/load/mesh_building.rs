@@ -95,6 +95,7 @@ pub(crate) fn assemble(
         frame,
         buildings: out,
         streets: Vec::new(),
+        ground_areas: Vec::new(),
         report,
     };
     rest_on_ground(&mut city);

@@ -33,7 +33,9 @@ use geo::Coord;
 use osmpbf::{BlobReader, BlobType, Element, RelMemberType};
 
 use super::LoadOptions;
-use super::assemble::{AreaKind, RawArea, RawCity, RawPolygons, RawStreet, SourceCrs, assemble};
+use super::assemble::{
+    AreaKind, RawArea, RawCity, RawPolygons, RawStreet, SourceCrs, assemble, street_width_m,
+};
 use super::heights::{HeightKeys, TaggedHeights};
 use crate::city::{City, StreetClass};
 use crate::report::{LoadError, LoadWarning, RejectReason};
@@ -315,6 +317,7 @@ fn read(path: &Path, options: &LoadOptions) -> Result<RawCity, LoadError> {
                     class,
                     name: w.tags.get("name").cloned(),
                     points: Ok(points),
+                    tagged_width_m: street_width_m(|k| w.tags.get(k).cloned()),
                 });
             }
         }

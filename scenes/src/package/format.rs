@@ -43,7 +43,9 @@ pub const MAGIC: [u8; 4] = *b"CWK\0";
 ///   tags moved to a section of their own ([`SectionKind::BuildingDetails`]).
 /// - 6: every cluster tree node has a geometric and a colour error
 ///   (`ClusterNode::geometric_error_m`, `colour_error_m`), the default LOD criterion's.
-pub const FORMAT_VERSION: u32 = 6;
+/// - 7: streets carry their tagged width (`Street::tagged_width_m`); ground areas (water,
+///   parks, squares) in a section of their own ([`SectionKind::GroundAreas`]).
+pub const FORMAT_VERSION: u32 = 7;
 /// Sections start at multiples of this (a cache line, and enough for any scalar type).
 pub const SECTION_ALIGN: u64 = 64;
 /// The most sections a package may have.
@@ -80,10 +82,12 @@ pub enum SectionKind {
     /// in building order): what preprocessing and inspection read and drawing does not, kept
     /// apart from the buildings so a package opened to draw does not decode them.
     BuildingDetails = 11,
+    /// `Vec<GroundArea>`: water, parks, squares.
+    GroundAreas = 12,
 }
 
 impl SectionKind {
-    pub const ALL: [SectionKind; 11] = [
+    pub const ALL: [SectionKind; 12] = [
         SectionKind::Frame,
         SectionKind::Buildings,
         SectionKind::Streets,
@@ -95,6 +99,7 @@ impl SectionKind {
         SectionKind::Timings,
         SectionKind::GpuScene,
         SectionKind::BuildingDetails,
+        SectionKind::GroundAreas,
     ];
 
     pub fn from_u32(v: u32) -> Option<SectionKind> {
@@ -114,12 +119,16 @@ impl SectionKind {
             SectionKind::Timings => "timings",
             SectionKind::GpuScene => "gpu scene",
             SectionKind::BuildingDetails => "building details",
+            SectionKind::GroundAreas => "ground areas",
         }
     }
 
     fn required(self) -> bool {
         (self as u32) <= SectionKind::Provenance as u32
-            || matches!(self, SectionKind::GpuScene | SectionKind::BuildingDetails)
+            || matches!(
+                self,
+                SectionKind::GpuScene | SectionKind::BuildingDetails | SectionKind::GroundAreas
+            )
     }
 }
 
@@ -166,6 +175,7 @@ pub fn encode(pkg: &ScenePackage, options: WriteOptions) -> Result<Vec<u8>, Pack
     payloads.push((SectionKind::GpuScene, pkg.gpu_scene.bytes().to_vec()));
     let details: Vec<_> = pkg.buildings.iter().map(|b| (&b.parts, &b.tags)).collect();
     payloads.push(encode_one(SectionKind::BuildingDetails, &details)?);
+    payloads.push(encode_one(SectionKind::GroundAreas, &pkg.ground_areas)?);
 
     let table_end = (HEADER_LEN + ENTRY_LEN * payloads.len()) as u64;
     let mut entries = Vec::with_capacity(payloads.len());
@@ -637,6 +647,7 @@ fn decode_with(
         frame: required(decode_one(bytes, entries, K::Frame)?, K::Frame)?,
         buildings,
         streets: required(decode_one(bytes, entries, K::Streets)?, K::Streets)?,
+        ground_areas: required(decode_one(bytes, entries, K::GroundAreas)?, K::GroundAreas)?,
         blocks: required(decode_one(bytes, entries, K::Blocks)?, K::Blocks)?,
         quadtree: required(decode_one(bytes, entries, K::Quadtree)?, K::Quadtree)?,
         provenance: required(decode_one(bytes, entries, K::Provenance)?, K::Provenance)?,

@@ -14,7 +14,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use crate::blocks::UrbanBlocks;
-use crate::city::{Building, City, Street};
+use crate::city::{Building, City, GroundArea, Street};
 use crate::cluster_tree::ClusterTree;
 use crate::frame::Frame;
 use crate::occluder::OccluderSet;
@@ -74,6 +74,7 @@ pub struct ScenePackage {
     pub frame: Frame,
     pub buildings: Vec<Building>,
     pub streets: Vec<Street>,
+    pub ground_areas: Vec<GroundArea>,
     pub blocks: UrbanBlocks,
     pub quadtree: BQuadtree,
     /// `None` when the occluder stage was not run.
@@ -113,6 +114,7 @@ impl ScenePackage {
             frame: self.frame.clone(),
             buildings: self.buildings.clone(),
             streets: self.streets.clone(),
+            ground_areas: self.ground_areas.clone(),
             report: self.provenance.load_report.clone(),
         }
     }
@@ -130,6 +132,7 @@ impl ScenePackage {
                 frame: self.frame,
                 buildings: self.buildings,
                 streets: self.streets,
+                ground_areas: self.ground_areas,
                 report: self.provenance.load_report,
             },
             blocks: self.blocks,

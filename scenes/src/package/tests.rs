@@ -7,7 +7,7 @@ use glam::Vec3;
 
 use super::*;
 use crate::blocks::UrbanBlock;
-use crate::city::{BuildingId, BuildingPart, HeightSource, StreetClass, TriangleMesh};
+use crate::city::{BuildingId, BuildingPart, GroundClass, HeightSource, StreetClass, TriangleMesh};
 use crate::quadtree::{Aabb, QuadNode, QuadNodeKind};
 use crate::scene_geometry::SceneGeometry;
 
@@ -81,6 +81,20 @@ pub(crate) fn small_package() -> ScenePackage {
             class: StreetClass::Residential,
             name: Some("Rua".into()),
             line: geo::LineString::from(vec![(0.0, -5.0), (30.0, -5.0)]),
+            tagged_width_m: Some(8.5),
+        }],
+        ground_areas: vec![GroundArea {
+            source_id: "way/10".into(),
+            class: GroundClass::Park,
+            polygon: MultiPolygon::new(vec![geo::Polygon::new(
+                geo::LineString::from(vec![
+                    (0.0, -20.0),
+                    (30.0, -20.0),
+                    (30.0, -12.0),
+                    (0.0, -20.0),
+                ]),
+                vec![],
+            )]),
         }],
         blocks,
         quadtree,
@@ -113,6 +127,7 @@ fn city_of(buildings: &[Building]) -> City {
         frame: Frame::wgs84(-8.61, 41.15),
         buildings: buildings.to_vec(),
         streets: vec![],
+        ground_areas: Vec::new(),
         report: LoadReport::default(),
     }
 }
@@ -202,10 +217,10 @@ fn other_files_and_versions_are_refused() {
         .to_bytes(WriteOptions::default())
         .expect("encode");
     assert!(matches!(
-        ScenePackage::from_bytes(b"CWK\0\x07\0\0\0"),
+        ScenePackage::from_bytes(b"CWK\0\x09\0\0\0"),
         Err(PackageError::Version {
             path: None,
-            found: 7,
+            found: 9,
             supported: FORMAT_VERSION
         })
     ));

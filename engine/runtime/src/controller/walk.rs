@@ -250,6 +250,7 @@ mod tests {
             class: StreetClass::Residential,
             name: None,
             line: LineString::from(vec![a, b]),
+            tagged_width_m: None,
         };
         let streets = vec![
             street(0, (40.0, -20.0), (40.0, 130.0)),
@@ -261,6 +262,7 @@ mod tests {
             frame: Frame::local(),
             buildings,
             streets,
+            ground_areas: Vec::new(),
             report: LoadReport::default(),
         }
     }
