@@ -15,6 +15,7 @@ pub mod extrude;
 pub mod frame;
 pub mod frustum;
 pub mod generate;
+pub mod ground_surfaces;
 pub mod load;
 pub mod mesh_footprint;
 pub mod occluder;
