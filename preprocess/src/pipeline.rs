@@ -12,6 +12,7 @@ use std::time::Instant;
 
 use citywalk_scenes::blocks::{UrbanBlock, UrbanBlocks};
 use citywalk_scenes::cluster_tree::{ClusterParams, ClusterTree};
+use citywalk_scenes::ground_surfaces::GroundSurfaces;
 use citywalk_scenes::package::{
     GpuScene, InputFile, PackageError, Provenance, ScenePackage, StageTiming, sha256_file,
 };
@@ -30,17 +31,20 @@ pub enum Stage {
     Occluders,
     ClusterTree,
     Quadtree,
+    /// Streets and ground areas as drawn surfaces ([`GroundSurfaces::build`]).
+    GroundSurfaces,
     /// The GPU-ready scene the runtime uploads in place ([`GpuScene::build`]).
     GpuScene,
     Package,
 }
 
 impl Stage {
-    pub const ALL: [Stage; 6] = [
+    pub const ALL: [Stage; 7] = [
         Stage::Blocks,
         Stage::Occluders,
         Stage::ClusterTree,
         Stage::Quadtree,
+        Stage::GroundSurfaces,
         Stage::GpuScene,
         Stage::Package,
     ];
@@ -51,6 +55,7 @@ impl Stage {
             Stage::Occluders => "occluders",
             Stage::ClusterTree => "cluster tree",
             Stage::Quadtree => "quadtree",
+            Stage::GroundSurfaces => "ground surfaces",
             Stage::GpuScene => "gpu scene",
             Stage::Package => "package",
         }
@@ -226,6 +231,25 @@ pub fn preprocess(
         )
     });
 
+    let mut ground_surfaces = GroundSurfaces::default();
+    run(Stage::GroundSurfaces, &mut || {
+        ground_surfaces = GroundSurfaces::build(&city);
+        format!(
+            "{} draws, {} triangles from {} streets and {} ground areas; {} skipped",
+            ground_surfaces.draws.len(),
+            ground_surfaces.triangle_count(),
+            city.streets.len(),
+            city.ground_areas.len(),
+            ground_surfaces.skipped.len()
+        )
+    });
+    for skipped in &ground_surfaces.skipped {
+        provenance.warnings.push(format!(
+            "ground surface of {}: {}",
+            skipped.source_id, skipped.reason
+        ));
+    }
+
     let mut gpu_scene = None;
     run(Stage::GpuScene, &mut || {
         let scene = GpuScene::build(&city, cluster_tree.as_ref(), occluders.as_ref());
@@ -268,6 +292,8 @@ pub fn preprocess(
     };
     count("buildings", city.buildings.len());
     count("streets", city.streets.len());
+    count("ground_areas", city.ground_areas.len());
+    count("ground_surface_triangles", ground_surfaces.triangle_count());
     count("blocks", blocks.blocks.len());
     count("block_street_faces", block_report.faces);
     count("blocks_from_streets", block_report.street_blocks);
@@ -305,6 +331,7 @@ pub fn preprocess(
         buildings: city.buildings,
         streets: city.streets,
         ground_areas: city.ground_areas,
+        ground_surfaces,
         blocks,
         quadtree,
         occluders,

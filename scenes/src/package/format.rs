@@ -44,7 +44,8 @@ pub const MAGIC: [u8; 4] = *b"CWK\0";
 /// - 6: every cluster tree node has a geometric and a colour error
 ///   (`ClusterNode::geometric_error_m`, `colour_error_m`), the default LOD criterion's.
 /// - 7: streets carry their tagged width (`Street::tagged_width_m`); ground areas (water,
-///   parks, squares) in a section of their own ([`SectionKind::GroundAreas`]).
+///   parks, squares) in a section of their own ([`SectionKind::GroundAreas`]); streets and
+///   ground areas as drawn triangles ([`SectionKind::GroundSurfaces`]).
 pub const FORMAT_VERSION: u32 = 7;
 /// Sections start at multiples of this (a cache line, and enough for any scalar type).
 pub const SECTION_ALIGN: u64 = 64;
@@ -84,10 +85,12 @@ pub enum SectionKind {
     BuildingDetails = 11,
     /// `Vec<GroundArea>`: water, parks, squares.
     GroundAreas = 12,
+    /// [`crate::ground_surfaces::GroundSurfaces`]: streets and ground areas as drawn triangles.
+    GroundSurfaces = 13,
 }
 
 impl SectionKind {
-    pub const ALL: [SectionKind; 12] = [
+    pub const ALL: [SectionKind; 13] = [
         SectionKind::Frame,
         SectionKind::Buildings,
         SectionKind::Streets,
@@ -100,6 +103,7 @@ impl SectionKind {
         SectionKind::GpuScene,
         SectionKind::BuildingDetails,
         SectionKind::GroundAreas,
+        SectionKind::GroundSurfaces,
     ];
 
     pub fn from_u32(v: u32) -> Option<SectionKind> {
@@ -120,6 +124,7 @@ impl SectionKind {
             SectionKind::GpuScene => "gpu scene",
             SectionKind::BuildingDetails => "building details",
             SectionKind::GroundAreas => "ground areas",
+            SectionKind::GroundSurfaces => "ground surfaces",
         }
     }
 
@@ -127,7 +132,10 @@ impl SectionKind {
         (self as u32) <= SectionKind::Provenance as u32
             || matches!(
                 self,
-                SectionKind::GpuScene | SectionKind::BuildingDetails | SectionKind::GroundAreas
+                SectionKind::GpuScene
+                    | SectionKind::BuildingDetails
+                    | SectionKind::GroundAreas
+                    | SectionKind::GroundSurfaces
             )
     }
 }
@@ -176,6 +184,10 @@ pub fn encode(pkg: &ScenePackage, options: WriteOptions) -> Result<Vec<u8>, Pack
     let details: Vec<_> = pkg.buildings.iter().map(|b| (&b.parts, &b.tags)).collect();
     payloads.push(encode_one(SectionKind::BuildingDetails, &details)?);
     payloads.push(encode_one(SectionKind::GroundAreas, &pkg.ground_areas)?);
+    payloads.push(encode_one(
+        SectionKind::GroundSurfaces,
+        &pkg.ground_surfaces,
+    )?);
 
     let table_end = (HEADER_LEN + ENTRY_LEN * payloads.len()) as u64;
     let mut entries = Vec::with_capacity(payloads.len());
@@ -648,6 +660,10 @@ fn decode_with(
         buildings,
         streets: required(decode_one(bytes, entries, K::Streets)?, K::Streets)?,
         ground_areas: required(decode_one(bytes, entries, K::GroundAreas)?, K::GroundAreas)?,
+        ground_surfaces: required(
+            decode_one(bytes, entries, K::GroundSurfaces)?,
+            K::GroundSurfaces,
+        )?,
         blocks: required(decode_one(bytes, entries, K::Blocks)?, K::Blocks)?,
         quadtree: required(decode_one(bytes, entries, K::Quadtree)?, K::Quadtree)?,
         provenance: required(decode_one(bytes, entries, K::Provenance)?, K::Provenance)?,

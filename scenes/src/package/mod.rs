@@ -17,6 +17,7 @@ use crate::blocks::UrbanBlocks;
 use crate::city::{Building, City, GroundArea, Street};
 use crate::cluster_tree::ClusterTree;
 use crate::frame::Frame;
+use crate::ground_surfaces::GroundSurfaces;
 use crate::occluder::OccluderSet;
 use crate::quadtree::BQuadtree;
 use crate::report::LoadReport;
@@ -75,6 +76,8 @@ pub struct ScenePackage {
     pub buildings: Vec<Building>,
     pub streets: Vec<Street>,
     pub ground_areas: Vec<GroundArea>,
+    /// The streets and ground areas as drawn surfaces ([`GroundSurfaces::build`]).
+    pub ground_surfaces: GroundSurfaces,
     pub blocks: UrbanBlocks,
     pub quadtree: BQuadtree,
     /// `None` when the occluder stage was not run.
@@ -239,6 +242,9 @@ impl ScenePackage {
         }
         if let Err(e) = self.quadtree.check_invariants() {
             errors.push(("quadtree", e));
+        }
+        if let Err(e) = self.ground_surfaces.check() {
+            errors.push(("ground surfaces", e));
         }
         if self.quadtree.block_bounds.len() != self.blocks.blocks.len() {
             errors.push((

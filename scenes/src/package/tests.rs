@@ -8,6 +8,7 @@ use glam::Vec3;
 use super::*;
 use crate::blocks::UrbanBlock;
 use crate::city::{BuildingId, BuildingPart, GroundClass, HeightSource, StreetClass, TriangleMesh};
+use crate::ground_surfaces::GroundSurfaces;
 use crate::quadtree::{Aabb, QuadNode, QuadNodeKind};
 use crate::scene_geometry::SceneGeometry;
 
@@ -73,7 +74,7 @@ pub(crate) fn small_package() -> ScenePackage {
     let mut counts = BTreeMap::new();
     counts.insert("blocks".to_string(), 1);
     let gpu_scene = GpuScene::build(&city_of(&buildings), None, None);
-    ScenePackage {
+    let mut package = ScenePackage {
         frame: Frame::wgs84(-8.61, 41.15),
         buildings,
         streets: vec![Street {
@@ -96,6 +97,7 @@ pub(crate) fn small_package() -> ScenePackage {
                 vec![],
             )]),
         }],
+        ground_surfaces: GroundSurfaces::default(),
         blocks,
         quadtree,
         occluders: None,
@@ -119,7 +121,10 @@ pub(crate) fn small_package() -> ScenePackage {
         },
         timings: vec![],
         gpu_scene,
-    }
+    };
+    package.ground_surfaces = GroundSurfaces::of(&package.streets, &package.ground_areas);
+    assert!(!package.ground_surfaces.draws.is_empty());
+    package
 }
 
 fn city_of(buildings: &[Building]) -> City {
