@@ -6,6 +6,11 @@
 /// `building_id` of the ground plane's vertices: not a building. The id pass writes 0 for it.
 pub const GROUND_ID: u32 = u32::MAX;
 
+/// `building_id` of the first ground-surface layer (streets, water, parks): a surface of layer
+/// `k` (`citywalk_scenes::ground_surfaces::SurfaceLayer::index`) has `SURFACE_ID_BASE + k`. Not a
+/// building; drawn by the ground-surface pass only.
+pub const SURFACE_ID_BASE: u32 = GROUND_ID - 64;
+
 /// Value of an id-buffer pixel that shows no building (sky or ground). A building with id `i`
 /// writes `i + ID_OFFSET`.
 pub const ID_BACKGROUND: u32 = 0;
@@ -123,6 +128,7 @@ pub const TREE_LIST_HEADER: u32 = 4;
 /// Every `u32` constant emitted into WGSL, by name.
 pub const WGSL_U32: &[(&str, u32)] = &[
     ("GROUND_ID", GROUND_ID),
+    ("SURFACE_ID_BASE", SURFACE_ID_BASE),
     ("ID_BACKGROUND", ID_BACKGROUND),
     ("ID_OFFSET", ID_OFFSET),
     ("HZB_BUILD_WORKGROUP", HZB_BUILD_WORKGROUP),

@@ -13,7 +13,7 @@ mod debug;
 mod hzb;
 mod types;
 
-pub use constants::{GROUND_ID, ID_BACKGROUND, ID_OFFSET};
+pub use constants::{GROUND_ID, ID_BACKGROUND, ID_OFFSET, SURFACE_ID_BASE};
 pub use debug::PyramidViewParams;
 pub use hzb::{HzbCullParams, TreeCullParams, TreeLandmark, TreeNode};
 pub use types::{BuildingRecord, CullPart, DrawIndexedIndirectArgs, SceneVertex, ViewUniforms};

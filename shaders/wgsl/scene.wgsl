@@ -39,6 +39,27 @@ fn facade_colour(id: u32) -> vec3<f32> {
     return srgb_to_linear(base * (0.88 + 0.2 * jitter));
 }
 
+// Ground surfaces by layer (citywalk_scenes::ground_surfaces::SurfaceLayer::index): ground areas
+// (other land, grass, forest, park, paved, water), then streets from minor to major (other,
+// footway, service, residential, minor, major): asphalt darkens with the road's rank.
+fn surface_colour(layer: u32) -> vec3<f32> {
+    var palette = array<vec3<f32>, 12>(
+        vec3<f32>(0.62, 0.60, 0.52), // other land
+        vec3<f32>(0.52, 0.64, 0.40), // grass
+        vec3<f32>(0.30, 0.46, 0.28), // forest
+        vec3<f32>(0.44, 0.62, 0.36), // park
+        vec3<f32>(0.70, 0.69, 0.66), // paved square
+        vec3<f32>(0.36, 0.53, 0.72), // water
+        vec3<f32>(0.50, 0.50, 0.50), // other street
+        vec3<f32>(0.74, 0.70, 0.64), // footway
+        vec3<f32>(0.46, 0.46, 0.47), // service road
+        vec3<f32>(0.42, 0.42, 0.44), // residential street
+        vec3<f32>(0.39, 0.39, 0.41), // minor road
+        vec3<f32>(0.35, 0.35, 0.37), // major road
+    );
+    return srgb_to_linear(palette[min(layer, 11u)]);
+}
+
 fn roof_colour(id: u32) -> vec3<f32> {
     let h = hash_u32(id ^ 0x9e3779b9u);
     let shade = 0.40 + 0.16 * f32(h & 255u) / 255.0;
@@ -56,9 +77,11 @@ fn fs_main(in: VertexOutput) -> @location(0) vec4<f32> {
     }
     var albedo: vec3<f32>;
     if in.building_id == GROUND_ID {
-        // Ground: a faint checker of 50 m tiles helps judge distance and motion.
-        let tile = (i32(floor(in.world_m.x / 50.0)) + i32(floor(in.world_m.y / 50.0))) & 1;
-        albedo = srgb_to_linear(vec3<f32>(0.47, 0.50, 0.44) * (0.96 + 0.04 * f32(tile)));
+        // Bare ground between the streets and areas: a plain earth tone.
+        albedo = srgb_to_linear(vec3<f32>(0.56, 0.56, 0.50));
+        n = vec3<f32>(0.0, 0.0, 1.0);
+    } else if in.building_id >= SURFACE_ID_BASE {
+        albedo = surface_colour(in.building_id - SURFACE_ID_BASE);
         n = vec3<f32>(0.0, 0.0, 1.0);
     } else if n.z > 0.7 {
         albedo = roof_colour(in.building_id);

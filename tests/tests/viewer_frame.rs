@@ -41,6 +41,7 @@ fn every_stage_combination_and_debug_view_renders_and_reports_its_counts() {
         blocks: Some((package.blocks.clone(), package.quadtree.clone())),
         // As `citywalk view` opens a package: the geometry uploaded from its GPU section.
         gpu_scene: Some(package.gpu_scene.clone()),
+        ground_surfaces: Some(package.ground_surfaces.clone()),
     };
     let features = scene.features();
     assert_eq!(
@@ -225,6 +226,7 @@ fn a_click_picks_the_building_under_the_cursor_and_tints_it() {
         blocks: None,
         // A raw input: the viewer meshes it and keeps the arrays for picking.
         gpu_scene: None,
+        ground_surfaces: None,
     };
     let features = scene.features();
     let format = BruteRenderer::PNG_FORMAT;

@@ -216,6 +216,7 @@ pub fn run_benchmark_with(
             occluders,
             cluster_tree,
             gpu_scene,
+            ground_surfaces,
         } = package.into_parts();
         let name = scene_name(scene_path);
         let sphere = CitySphere::of(&city);
@@ -232,6 +233,7 @@ pub fn run_benchmark_with(
         drop(occluders);
         let mut drawable =
             DrawableScene::upload_package(&gpu, &gpu_scene, cluster_tree, Some((blocks, quadtree)))
+                .and_then(|d| d.with_surfaces(&gpu, &ground_surfaces))
                 .with_context(|| format!("cannot draw {}", scene_path.display()))?;
         if let Some(lod) = &mut drawable.lod {
             lod.criterion = LOD_CRITERION.get().copied().flatten();

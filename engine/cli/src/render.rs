@@ -154,6 +154,7 @@ fn load_drawable(
         parts.cluster_tree,
         Some((parts.blocks, parts.quadtree)),
     )
+    .and_then(|d| d.with_surfaces(gpu, &parts.ground_surfaces))
     .with_context(|| format!("cannot draw {}", path.display()))?;
     Ok((parts.city, scene))
 }

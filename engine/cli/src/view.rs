@@ -191,6 +191,7 @@ fn load_scene(path: &Path, load: &citywalk_scenes::LoadOptions) -> anyhow::Resul
             cluster_tree: parts.cluster_tree,
             blocks: Some((parts.blocks, parts.quadtree)),
             gpu_scene: Some(parts.gpu_scene),
+            ground_surfaces: Some(parts.ground_surfaces),
         }
     } else {
         ViewerScene {
@@ -198,6 +199,7 @@ fn load_scene(path: &Path, load: &citywalk_scenes::LoadOptions) -> anyhow::Resul
             cluster_tree: None,
             blocks: None,
             gpu_scene: None,
+            ground_surfaces: None,
         }
     };
     let city = &scene.city;

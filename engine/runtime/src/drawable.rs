@@ -6,6 +6,7 @@
 use citywalk_scenes::City;
 use citywalk_scenes::blocks::UrbanBlocks;
 use citywalk_scenes::cluster_tree::ClusterTree;
+use citywalk_scenes::ground_surfaces::GroundSurfaces;
 use citywalk_scenes::package::GpuScene;
 use citywalk_scenes::quadtree::BQuadtree;
 
@@ -13,6 +14,7 @@ use crate::frame::OccluderMeshes;
 use crate::gpu::GpuContext;
 use crate::lod::scene::LodScene;
 use crate::plan::SceneFeatures;
+use crate::render::SurfaceMeshes;
 use crate::runner::SceneRefs;
 use crate::scene_gpu::SceneGpu;
 use crate::upload::UploadError;
@@ -28,6 +30,8 @@ pub struct DrawableScene {
     pub blocks: Option<(UrbanBlocks, BQuadtree)>,
     /// The virtual occluders (`None` when the scene has none).
     pub occluders: Option<OccluderMeshes>,
+    /// Streets and ground areas drawn over the ground (`None` when the scene has none).
+    pub surfaces: Option<SurfaceMeshes>,
 }
 
 impl DrawableScene {
@@ -56,12 +60,27 @@ impl DrawableScene {
             lod,
             blocks,
             occluders,
+            surfaces: None,
         })
     }
 
+    /// Uploads the streets and ground areas drawn over the ground plane (a package's
+    /// [`citywalk_scenes::package::ScenePackage::ground_surfaces`], or
+    /// [`GroundSurfaces::build`] of a city).
+    pub fn with_surfaces(
+        mut self,
+        gpu: &GpuContext,
+        surfaces: &GroundSurfaces,
+    ) -> Result<DrawableScene, UploadError> {
+        // The ground plane's height (`SceneGeometry`'s ground quad).
+        let ground_z = self.buildings.bounds.0.z.min(0.0);
+        self.surfaces = SurfaceMeshes::upload(gpu, surfaces, ground_z)?;
+        Ok(self)
+    }
+
     /// Meshes and uploads a city loaded from a raw input, as preprocessing does for a package
-    /// (once, the buildings and the cluster meshes of `cluster_tree` in shared buffers): no
-    /// occluders (preprocessing makes them) and no blocks unless given.
+    /// (once, the buildings and the cluster meshes of `cluster_tree` in shared buffers, and the
+    /// streets and ground areas as surfaces): no occluders (preprocessing makes them) and no blocks unless given.
     pub fn upload_city(
         gpu: &GpuContext,
         city: &City,
@@ -69,7 +88,8 @@ impl DrawableScene {
         blocks: Option<(UrbanBlocks, BQuadtree)>,
     ) -> Result<DrawableScene, UploadError> {
         let gpu_scene = GpuScene::build(city, cluster_tree.as_ref(), None);
-        Self::upload_package(gpu, &gpu_scene, cluster_tree, blocks)
+        Self::upload_package(gpu, &gpu_scene, cluster_tree, blocks)?
+            .with_surfaces(gpu, &GroundSurfaces::build(city))
     }
 
     /// What a frame draws from.
@@ -79,6 +99,7 @@ impl DrawableScene {
             lod: self.lod.as_ref(),
             blocks: self.blocks.as_ref().map(|(b, q)| (b, q)),
             occluders: self.occluders.as_ref(),
+            surfaces: self.surfaces.as_ref(),
         }
     }
 

@@ -38,7 +38,7 @@ use crate::lod::{LodCriterion, LodView, VisibleBlocks};
 use crate::plan::{FramePlan, SceneFeatures};
 use crate::render::selected::SelectedRenderer;
 use crate::render::targets::OffscreenTarget;
-use crate::render::{BruteRenderer, DepthTarget};
+use crate::render::{BruteRenderer, DepthTarget, GroundSurfacePass, SurfaceMeshes, SurfaceStats};
 use crate::scene_gpu::SceneGpu;
 
 /// The phase of the plain (single-pass) frames: the scene pass.
@@ -52,6 +52,8 @@ pub struct SceneRefs<'a> {
     pub lod: Option<&'a LodScene>,
     pub blocks: Option<(&'a UrbanBlocks, &'a BQuadtree)>,
     pub occluders: Option<&'a OccluderMeshes>,
+    /// Streets and ground areas, drawn over every frame after its scene passes.
+    pub surfaces: Option<&'a SurfaceMeshes>,
 }
 
 impl SceneRefs<'_> {
@@ -125,6 +127,8 @@ pub struct FrameReport {
     /// The occluders the HZB frame drew into its pyramid (indices into
     /// [`OccluderMeshes::occluders`]).
     pub occluders: Vec<usize>,
+    /// The streets and ground areas drawn (not in `triangles` or `draw_calls`).
+    pub surfaces: SurfaceStats,
 }
 
 /// Runs frames of any plan: the renderers a plan may need, made once.
@@ -133,6 +137,7 @@ pub struct FrameRunner {
     brute: BruteRenderer,
     selected: SelectedRenderer,
     culling: CullingRenderer,
+    surfaces: GroundSurfacePass,
     timer: GpuTimer,
 }
 
@@ -142,6 +147,7 @@ impl FrameRunner {
             brute: BruteRenderer::new(gpu, format),
             selected: SelectedRenderer::new(gpu, format),
             culling: CullingRenderer::new(gpu, format),
+            surfaces: GroundSurfacePass::new(gpu, format),
             timer: GpuTimer::new(gpu, "plain frame timer", DRAW_PHASES),
         }
     }
@@ -331,6 +337,16 @@ impl FrameRunner {
                 report.drawn = drawn_set.then(|| report.ids.clone());
             }
         }
+        if let Some(meshes) = scene.surfaces {
+            report.surfaces = self.surfaces.encode(
+                gpu,
+                &mut encoder,
+                meshes,
+                camera,
+                (target.colour, target.depth),
+                &self.brute.style,
+            );
+        }
         if timed {
             self.timer.resolve(&mut encoder);
         }
@@ -365,34 +381,69 @@ impl FrameRunner {
         };
         let occluders = scene.occluders.filter(|_| plan.occluders);
         let frame_scene = match frame {
-            HzbFrame::Tree(lod, criterion) => {
-                let ticket = self.culling.submit_tree(
-                    gpu,
-                    lod,
-                    criterion,
-                    occluders,
-                    &options,
-                    visibility,
-                    camera,
-                    target.colour,
-                    target.size,
-                )?;
-                return self.finish_hzb(gpu, scene, plan, ticket, visibility, completion, select);
-            }
-            HzbFrame::Cut(lod, cut) => FrameScene::Lod(lod, &cut.draw_ids),
-            HzbFrame::Buildings => FrameScene::Buildings(scene.scene),
+            HzbFrame::Tree(lod, criterion) => Err((lod, criterion)),
+            HzbFrame::Cut(lod, cut) => Ok(FrameScene::Lod(lod, &cut.draw_ids)),
+            HzbFrame::Buildings => Ok(FrameScene::Buildings(scene.scene)),
         };
-        let ticket = self.culling.submit(
+        let ticket = match frame_scene {
+            Err((lod, criterion)) => self.culling.submit_tree(
+                gpu,
+                lod,
+                criterion,
+                occluders,
+                &options,
+                visibility,
+                camera,
+                target.colour,
+                target.size,
+            )?,
+            Ok(frame_scene) => self.culling.submit(
+                gpu,
+                frame_scene,
+                occluders,
+                &options,
+                visibility,
+                camera,
+                target.colour,
+                target.size,
+            )?,
+        };
+        let surfaces = self.hzb_surfaces(gpu, scene, camera, target);
+        let mut report =
+            self.finish_hzb(gpu, scene, plan, ticket, visibility, completion, select)?;
+        if let Some(report) = &mut report {
+            report.surfaces = surfaces;
+        }
+        Ok(report)
+    }
+
+    /// The ground-surface pass over the HZB frame just submitted (its own depth target), in a
+    /// submission of its own that the frame's completion waits for too.
+    fn hzb_surfaces(
+        &self,
+        gpu: &GpuContext,
+        scene: SceneRefs<'_>,
+        camera: &Camera,
+        target: FrameTarget<'_>,
+    ) -> SurfaceStats {
+        let (Some(meshes), Some(depth)) = (scene.surfaces, self.culling.depth_target()) else {
+            return SurfaceStats::default();
+        };
+        let mut encoder = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("ground surfaces"),
+            });
+        let stats = self.surfaces.encode(
             gpu,
-            frame_scene,
-            occluders,
-            &options,
-            visibility,
+            &mut encoder,
+            meshes,
             camera,
-            target.colour,
-            target.size,
-        )?;
-        self.finish_hzb(gpu, scene, plan, ticket, visibility, completion, select)
+            (target.colour, depth),
+            &self.brute.style,
+        );
+        gpu.queue.submit([encoder.finish()]);
+        stats
     }
 
     /// Waits for or polls the report of the HZB frame `ticket`.
@@ -469,6 +520,7 @@ fn hzb_report(plan: FramePlan, output: FrameOutput, scene: SceneRefs<'_>) -> Fra
         gpu: s.gpu.clone(),
         occluders: output.occluders.clone(),
         drawn: Some(output.drawn),
+        surfaces: SurfaceStats::default(),
     }
 }
 

@@ -3,6 +3,7 @@
 
 use citywalk_scenes::blocks::UrbanBlocks;
 use citywalk_scenes::cluster_tree::ClusterTree;
+use citywalk_scenes::ground_surfaces::GroundSurfaces;
 use citywalk_scenes::package::GpuScene;
 use citywalk_scenes::quadtree::BQuadtree;
 
@@ -34,6 +35,8 @@ pub struct ViewerScene {
     /// A scene package's GPU-ready geometry and virtual occluders (uploaded from the mapping;
     /// `None`: built from the city at load, without occluders, which come from preprocessing).
     pub gpu_scene: Option<GpuScene>,
+    /// A scene package's streets and ground areas as surfaces (`None`: built from the city).
+    pub ground_surfaces: Option<GroundSurfaces>,
 }
 
 impl ViewerScene {
@@ -116,8 +119,12 @@ impl FrameDrawer {
         let geometry = scene
             .gpu_scene
             .unwrap_or_else(|| GpuScene::build(&scene.city, scene.cluster_tree.as_ref(), None));
+        let surfaces = scene
+            .ground_surfaces
+            .unwrap_or_else(|| GroundSurfaces::build(&scene.city));
         let drawable =
-            DrawableScene::upload_package(gpu, &geometry, scene.cluster_tree, scene.blocks)?;
+            DrawableScene::upload_package(gpu, &geometry, scene.cluster_tree, scene.blocks)?
+                .with_surfaces(gpu, &surfaces)?;
         let occluder_overlay_meshes = drawable.occluders.as_ref().map(OccluderOverlayMeshes::of);
         Ok(FrameDrawer {
             runner: FrameRunner::new(gpu, format),

@@ -101,6 +101,7 @@ pub struct PackageParts {
     pub occluders: Option<OccluderSet>,
     pub cluster_tree: Option<ClusterTree>,
     pub gpu_scene: GpuScene,
+    pub ground_surfaces: GroundSurfaces,
 }
 
 /// Options of [`ScenePackage::to_bytes`] / [`ScenePackage::write`].
@@ -143,6 +144,7 @@ impl ScenePackage {
             occluders: self.occluders,
             cluster_tree: self.cluster_tree,
             gpu_scene: self.gpu_scene,
+            ground_surfaces: self.ground_surfaces,
         }
     }
 

@@ -4,11 +4,13 @@
 pub mod brute;
 pub mod debug;
 pub(crate) mod draws;
+pub mod ground_surfaces;
 pub mod selected;
 pub mod targets;
 pub mod view;
 
 pub use brute::BruteRenderer;
+pub use ground_surfaces::{GroundSurfacePass, SurfaceMeshes, SurfaceStats};
 pub use targets::{DepthTarget, OffscreenTarget, ReadbackError};
 pub use view::{SceneStyle, view_uniforms};
 

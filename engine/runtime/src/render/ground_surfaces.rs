@@ -1,0 +1,299 @@
+//! The ground-surface pass: streets, water, parks and squares drawn over the ground plane after
+//! the frame's scene passes, whatever the plan.
+//!
+//! * **Never an occluder.** The pass tests depth and writes none, so the surfaces neither hide
+//!   a building from the hierarchical-Z pyramid nor enter the visibility oracle (which draws
+//!   buildings only); a building in front of a street still covers it. They lie a few
+//!   centimetres above the ground plane, so they pass the depth test over it without fighting;
+//!   overlapping surfaces (a street's pieces, a crossing) draw in layer order, last on top.
+//! * **Distance LOD.** A draw (one layer in one chunk, [`GroundSurfaces`]) is drawn while its
+//!   narrowest feature projects to at least [`SURFACE_MIN_PX`] pixels at the nearest point of
+//!   its bounds: far away only the major roads and large areas remain. The selection is made
+//!   on the CPU with a margin and kept while the eye stays within it, so most frames do no
+//!   per-draw work; a new selection writes one indirect-draw list (consecutive draws merged).
+
+use std::cell::Cell;
+
+use citywalk_scenes::ground_surfaces::GroundSurfaces;
+use citywalk_shaders::{DrawIndexedIndirectArgs, SCENE_WGSL, SURFACE_ID_BASE, SceneVertex};
+use glam::{Vec2, Vec3};
+
+use crate::camera::Camera;
+use crate::gpu::GpuContext;
+use crate::render::targets::DepthTarget;
+use crate::render::view::{SceneStyle, view_uniforms};
+use crate::upload::{UploadError, array_buffer};
+
+/// A surface draw is skipped where its narrowest feature projects below this many pixels: the
+/// building LOD's default tolerance (1 px), so dropping it changes no more than a pixel's band.
+pub const SURFACE_MIN_PX: f32 = 1.0;
+
+/// How far above the ground plane the surfaces lie (metres), and the extra lift per layer: both
+/// far above the depth buffer's resolution at any distance the LOD draws (reversed-Z float),
+/// and invisible at eye height.
+const LIFT_M: f32 = 0.04;
+const LIFT_PER_LAYER_M: f32 = 0.002;
+
+/// The selection is remade once the eye has moved this far (metres) or this share of its
+/// height above the ground, whichever is more; the draws within the cut-off distance plus this
+/// margin are selected, so every draw the LOD wants is in it until then.
+const RESELECT_MARGIN_M: f32 = 32.0;
+const RESELECT_MARGIN_OF_HEIGHT: f32 = 0.05;
+
+/// The ground surfaces on the GPU and their current LOD selection.
+#[derive(Debug)]
+pub struct SurfaceMeshes {
+    vertex_buffer: wgpu::Buffer,
+    index_buffer: wgpu::Buffer,
+    /// The package's draws (CPU copy, for the selection).
+    draws: Vec<Draw>,
+    indirect: wgpu::Buffer,
+    /// The current selection (a cell: frames draw through shared references to the scene).
+    selection: Cell<Option<Selection>>,
+    ground_z: f32,
+}
+
+/// The pass drawing [`SurfaceMeshes`] into colour targets of one format.
+#[derive(Debug)]
+pub struct GroundSurfacePass {
+    pipeline: wgpu::RenderPipeline,
+    view_buffer: wgpu::Buffer,
+    view_group: wgpu::BindGroup,
+}
+
+/// One draw's range and what the LOD tests.
+#[derive(Debug, Clone, Copy)]
+struct Draw {
+    first_index: u32,
+    index_count: u32,
+    min: Vec2,
+    max: Vec2,
+    feature_m: f32,
+}
+
+/// The draws selected for eyes within `margin_m` of `eye`, at `focal_px`.
+#[derive(Debug, Clone, Copy)]
+struct Selection {
+    eye: Vec3,
+    margin_m: f32,
+    focal_px: f32,
+    /// Indirect draws written.
+    count: u32,
+    /// Draws selected (before merging), for the report.
+    draws: u32,
+    triangles: u64,
+}
+
+/// What the pass drew in a frame.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct SurfaceStats {
+    /// Surface draws (layer × chunk) drawn.
+    pub draws: u32,
+    pub triangles: u64,
+}
+
+impl SurfaceMeshes {
+    /// Uploads `surfaces` to lie just above the ground plane at height `ground_z`. `None` when
+    /// there is nothing to draw.
+    pub fn upload(
+        gpu: &GpuContext,
+        surfaces: &GroundSurfaces,
+        ground_z: f32,
+    ) -> Result<Option<SurfaceMeshes>, UploadError> {
+        if surfaces.draws.is_empty() {
+            return Ok(None);
+        }
+        // Each vertex takes the layer of the draw it belongs to (draws never share vertices).
+        let mut vertices: Vec<SceneVertex> = surfaces
+            .vertices
+            .iter()
+            .map(|&[x, y]| SceneVertex {
+                position_m: [x, y, ground_z + LIFT_M],
+                building_id: SURFACE_ID_BASE,
+            })
+            .collect();
+        for d in &surfaces.draws {
+            let range = d.first_index as usize..(d.first_index + d.index_count) as usize;
+            for &i in &surfaces.indices[range] {
+                if let Some(v) = vertices.get_mut(i as usize) {
+                    v.building_id = SURFACE_ID_BASE + d.layer;
+                    v.position_m[2] = ground_z + LIFT_M + LIFT_PER_LAYER_M * d.layer as f32;
+                }
+            }
+        }
+        use wgpu::BufferUsages as U;
+        let keep = &|_: &[u8]| {};
+        let vertex_buffer =
+            array_buffer(gpu, "ground surface vertices", &vertices, U::VERTEX, keep)?;
+        let index_buffer = array_buffer(
+            gpu,
+            "ground surface indices",
+            &surfaces.indices,
+            U::INDEX,
+            keep,
+        )?;
+        let draws: Vec<Draw> = surfaces
+            .draws
+            .iter()
+            .map(|d| Draw {
+                first_index: d.first_index,
+                index_count: d.index_count,
+                min: Vec2::from(d.min_m),
+                max: Vec2::from(d.max_m),
+                feature_m: d.feature_m,
+            })
+            .collect();
+        let indirect = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("ground surface draws"),
+            size: (draws.len() * size_of::<DrawIndexedIndirectArgs>()) as u64,
+            usage: U::INDIRECT | U::COPY_DST,
+            mapped_at_creation: false,
+        });
+        Ok(Some(SurfaceMeshes {
+            vertex_buffer,
+            index_buffer,
+            draws,
+            indirect,
+            selection: Cell::new(None),
+            ground_z,
+        }))
+    }
+
+    /// Surface draws in all.
+    pub fn draw_count(&self) -> usize {
+        self.draws.len()
+    }
+
+    /// The selection for `camera` at a viewport `height_px` high: the current one while the
+    /// eye stays within its margin, else a new one written to the indirect buffer.
+    fn select(&self, gpu: &GpuContext, camera: &Camera, height_px: u32) -> Selection {
+        let focal_px = height_px.max(1) as f32 / (2.0 * (camera.fov_y_rad / 2.0).tan());
+        let eye = camera.position;
+        if let Some(s) = self.selection.get()
+            && s.focal_px == focal_px
+            && s.eye.distance(eye) <= s.margin_m
+        {
+            return s;
+        }
+        let height = (eye.z - self.ground_z).abs();
+        let margin_m = RESELECT_MARGIN_M.max(RESELECT_MARGIN_OF_HEIGHT * height);
+        let mut args: Vec<DrawIndexedIndirectArgs> = Vec::new();
+        let (mut draws, mut triangles) = (0, 0);
+        for d in &self.draws {
+            let cut_off_m = d.feature_m * focal_px / SURFACE_MIN_PX;
+            let nearest = eye.truncate().clamp(d.min, d.max).extend(self.ground_z);
+            if eye.distance(nearest) > cut_off_m + margin_m {
+                continue;
+            }
+            draws += 1;
+            triangles += u64::from(d.index_count / 3);
+            match args.last_mut() {
+                Some(last) if last.first_index + last.index_count == d.first_index => {
+                    last.index_count += d.index_count;
+                }
+                _ => args.push(DrawIndexedIndirectArgs {
+                    index_count: d.index_count,
+                    instance_count: 1,
+                    first_index: d.first_index,
+                    base_vertex: 0,
+                    first_instance: 0,
+                }),
+            }
+        }
+        if !args.is_empty() {
+            gpu.queue
+                .write_buffer(&self.indirect, 0, bytemuck::cast_slice(&args));
+        }
+        let selection = Selection {
+            eye,
+            margin_m,
+            focal_px,
+            count: args.len() as u32,
+            draws,
+            triangles,
+        };
+        self.selection.set(Some(selection));
+        selection
+    }
+}
+
+impl GroundSurfacePass {
+    /// The pass for colour targets of `colour_format`.
+    pub fn new(gpu: &GpuContext, colour_format: wgpu::TextureFormat) -> GroundSurfacePass {
+        let device = &gpu.device;
+        let layout = super::view_bind_group_layout(device, "ground surface view");
+        let (view_buffer, view_group) =
+            super::view_buffer_and_group(device, &layout, "ground surface view");
+        let colour = wgpu::ColorTargetState {
+            format: colour_format,
+            blend: None,
+            write_mask: wgpu::ColorWrites::ALL,
+        };
+        let pipeline = super::scene_pipeline_with(
+            device,
+            "ground surfaces",
+            SCENE_WGSL,
+            &layout,
+            (Camera::DEPTH_COMPARE, false),
+            Some(colour),
+        );
+        GroundSurfacePass {
+            pipeline,
+            view_buffer,
+            view_group,
+        }
+    }
+
+    /// Records the pass of `meshes` over a frame already drawn into `colour` and `depth` (both loaded and
+    /// kept; depth is only tested) for `camera`, with the look `style`.
+    pub fn encode(
+        &self,
+        gpu: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        meshes: &SurfaceMeshes,
+        camera: &Camera,
+        (colour, depth): (&wgpu::TextureView, &DepthTarget),
+        style: &SceneStyle,
+    ) -> SurfaceStats {
+        let selection = meshes.select(gpu, camera, depth.height);
+        let stats = SurfaceStats {
+            draws: selection.draws,
+            triangles: selection.triangles,
+        };
+        if selection.count == 0 {
+            return stats;
+        }
+        let uniforms = view_uniforms(camera, depth.width, depth.height, style);
+        gpu.queue
+            .write_buffer(&self.view_buffer, 0, bytemuck::bytes_of(&uniforms));
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("ground surfaces"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: colour,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Load,
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &depth.view,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Load,
+                    store: wgpu::StoreOp::Store,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, &self.view_group, &[]);
+        pass.set_vertex_buffer(0, meshes.vertex_buffer.slice(..));
+        pass.set_index_buffer(meshes.index_buffer.slice(..), wgpu::IndexFormat::Uint32);
+        pass.multi_draw_indexed_indirect(&meshes.indirect, 0, selection.count);
+        stats
+    }
+}
