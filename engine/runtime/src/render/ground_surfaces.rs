@@ -177,29 +177,8 @@ impl SurfaceMeshes {
         }
         let height = (eye.z - self.ground_z).abs();
         let margin_m = RESELECT_MARGIN_M.max(RESELECT_MARGIN_OF_HEIGHT * height);
-        let mut args: Vec<DrawIndexedIndirectArgs> = Vec::new();
-        let (mut draws, mut triangles) = (0, 0);
-        for d in &self.draws {
-            let cut_off_m = d.feature_m * focal_px / SURFACE_MIN_PX;
-            let nearest = eye.truncate().clamp(d.min, d.max).extend(self.ground_z);
-            if eye.distance(nearest) > cut_off_m + margin_m {
-                continue;
-            }
-            draws += 1;
-            triangles += u64::from(d.index_count / 3);
-            match args.last_mut() {
-                Some(last) if last.first_index + last.index_count == d.first_index => {
-                    last.index_count += d.index_count;
-                }
-                _ => args.push(DrawIndexedIndirectArgs {
-                    index_count: d.index_count,
-                    instance_count: 1,
-                    first_index: d.first_index,
-                    base_vertex: 0,
-                    first_instance: 0,
-                }),
-            }
-        }
+        let (args, draws, triangles) =
+            selected_draws(&self.draws, eye, self.ground_z, focal_px, margin_m);
         if !args.is_empty() {
             gpu.queue
                 .write_buffer(&self.indirect, 0, bytemuck::cast_slice(&args));
@@ -215,6 +194,42 @@ impl SurfaceMeshes {
         self.selection.set(Some(selection));
         selection
     }
+}
+
+/// The draws of `draws` whose narrowest feature projects to [`SURFACE_MIN_PX`] or more, at
+/// `focal_px`, for some eye within `margin_m` of `eye` (the ground at `ground_z`): as indirect
+/// draws, consecutive ranges merged, with the number of draws and triangles selected.
+fn selected_draws(
+    draws: &[Draw],
+    eye: Vec3,
+    ground_z: f32,
+    focal_px: f32,
+    margin_m: f32,
+) -> (Vec<DrawIndexedIndirectArgs>, u32, u64) {
+    let mut args: Vec<DrawIndexedIndirectArgs> = Vec::new();
+    let (mut count, mut triangles) = (0, 0);
+    for d in draws {
+        let cut_off_m = d.feature_m * focal_px / SURFACE_MIN_PX;
+        let nearest = eye.truncate().clamp(d.min, d.max).extend(ground_z);
+        if eye.distance(nearest) > cut_off_m + margin_m {
+            continue;
+        }
+        count += 1;
+        triangles += u64::from(d.index_count / 3);
+        match args.last_mut() {
+            Some(last) if last.first_index + last.index_count == d.first_index => {
+                last.index_count += d.index_count;
+            }
+            _ => args.push(DrawIndexedIndirectArgs {
+                index_count: d.index_count,
+                instance_count: 1,
+                first_index: d.first_index,
+                base_vertex: 0,
+                first_instance: 0,
+            }),
+        }
+    }
+    (args, count, triangles)
 }
 
 impl GroundSurfacePass {
@@ -295,5 +310,76 @@ impl GroundSurfacePass {
         pass.set_index_buffer(meshes.index_buffer.slice(..), wgpu::IndexFormat::Uint32);
         pass.multi_draw_indexed_indirect(&meshes.indirect, 0, selection.count);
         stats
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn draw(first_index: u32, x: f32, feature_m: f32) -> Draw {
+        Draw {
+            first_index,
+            index_count: 6,
+            min: Vec2::new(x, 0.0),
+            max: Vec2::new(x + 100.0, 100.0),
+            feature_m,
+        }
+    }
+
+    #[test]
+    fn far_away_only_wide_features_are_drawn_and_near_ones_merge() {
+        // A footway (3 m), a residential street (7 m) and a major road (14 m) side by side, then
+        // a major road elsewhere; a 720 px high view with a 60° field of view.
+        let draws = [
+            draw(0, 0.0, 3.0),
+            draw(6, 0.0, 7.0),
+            draw(12, 0.0, 14.0),
+            draw(30, 5000.0, 14.0),
+        ];
+        let focal_px = 720.0 / (2.0 * (30f32.to_radians()).tan());
+        let near = Vec3::new(50.0, 50.0, 1.7);
+        let (args, count, triangles) = selected_draws(&draws, near, 0.0, focal_px, 32.0);
+        // All four: the far major road (5 km) still projects to 14 × 623 / 4900 ≈ 1.8 px.
+        assert_eq!(count, 4);
+        assert_eq!(triangles, 8);
+        // The three adjacent ranges merge into one indirect draw.
+        assert_eq!(args.len(), 2);
+        assert_eq!((args[0].first_index, args[0].index_count), (0, 18));
+        // 4 km from the first group: the footway (3 m → 0.5 px) and the street (7 m → 1.1 px
+        // at 4 km, dropped at 4.4 km) go, the major road stays.
+        let far = Vec3::new(4_500.0 + 100.0, 50.0, 1.7);
+        let (args, count, _) = selected_draws(&draws, far, 0.0, focal_px, 32.0);
+        assert_eq!(count, 2, "{args:?}");
+        assert!(
+            args.iter()
+                .all(|a| a.first_index == 12 || a.first_index == 30)
+        );
+    }
+
+    #[test]
+    fn the_margin_keeps_a_selection_valid_while_the_eye_moves_within_it() {
+        // Whatever the eye does within the margin, a draw the LOD wants there was selected.
+        let draws: Vec<Draw> = (0..40)
+            .map(|k| draw(6 * k, 150.0 * k as f32, 2.0 + (k % 5) as f32 * 3.0))
+            .collect();
+        let focal_px = 500.0;
+        let margin = 32.0;
+        for start_x in [0.0f32, 1_000.0, 3_333.0] {
+            let start = Vec3::new(start_x, -200.0, 2.0);
+            for step in 0..=8 {
+                let eye =
+                    start + Vec3::new(step as f32 * margin / 8.0 * 0.7, step as f32 * 2.0, 0.0);
+                assert!(eye.distance(start) <= margin);
+                for d in &draws {
+                    let nearest = eye.truncate().clamp(d.min, d.max).extend(0.0);
+                    let wanted = d.feature_m * focal_px / eye.distance(nearest) >= SURFACE_MIN_PX;
+                    let selected =
+                        selected_draws(std::slice::from_ref(d), start, 0.0, focal_px, margin).1
+                            == 1;
+                    assert!(!wanted || selected, "draw at {:?} from {eye}", d.min);
+                }
+            }
+        }
     }
 }
