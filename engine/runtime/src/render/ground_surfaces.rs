@@ -3,8 +3,8 @@
 //!
 //! * **Never an occluder.** The pass tests depth and writes none, so the surfaces neither hide
 //!   a building from the hierarchical-Z pyramid nor enter the visibility oracle (which draws
-//!   buildings only); a building in front of a street still covers it. They lie a few
-//!   centimetres above the ground plane, so they pass the depth test over it without fighting;
+//!   buildings only); a building in front of a street still covers it. They lie a centimetre
+//!   or so above the ground plane, so they pass the depth test over it without fighting;
 //!   overlapping surfaces (a street's pieces, a crossing) draw in layer order, last on top.
 //! * **Distance LOD.** A draw (one layer in one chunk, [`GroundSurfaces`]) is drawn while its
 //!   narrowest feature projects to at least [`SURFACE_MIN_PX`] pixels at the nearest point of
@@ -28,11 +28,12 @@ use crate::upload::{UploadError, array_buffer};
 /// building LOD's default tolerance (1 px), so dropping it changes no more than a pixel's band.
 pub const SURFACE_MIN_PX: f32 = 1.0;
 
-/// How far above the ground plane the surfaces lie (metres), and the extra lift per layer: both
-/// far above the depth buffer's resolution at any distance the LOD draws (reversed-Z float),
-/// and invisible at eye height.
-const LIFT_M: f32 = 0.04;
-const LIFT_PER_LAYER_M: f32 = 0.002;
+/// How far above the ground plane the surfaces lie (metres), and the extra lift per layer: far
+/// above the depth buffer's resolution wherever the LOD draws them (reversed-Z float; the depth
+/// step is about lift ÷ eye height of the depth), yet a wall standing on a street loses at most
+/// its bottom 1.6 cm to the street (at most a pixel row along its foot).
+const LIFT_M: f32 = 0.01;
+const LIFT_PER_LAYER_M: f32 = 0.0005;
 
 /// The selection is remade once the eye has moved this far (metres) or this share of its
 /// height above the ground, whichever is more; the draws within the cut-off distance plus this
