@@ -16,8 +16,8 @@ use crate::run::{BenchConfig, BenchError, BenchScene, FrameRecord, pose_camera};
 use citywalk_runtime::cpu_clock::CpuClock;
 use citywalk_runtime::gpu::GpuContext;
 use citywalk_runtime::oracle::Oracle;
-use citywalk_runtime::render::BruteRenderer;
 use citywalk_runtime::render::targets::OffscreenTarget;
+use citywalk_runtime::render::{BruteRenderer, GroundSurfacePass, SurfaceMeshes};
 use citywalk_runtime::scene_gpu::SceneGpu;
 
 /// The name the pseudo-mode has in every output.
@@ -99,6 +99,8 @@ impl BaselineTarget {
 #[derive(Debug)]
 pub struct DecimatedBaseline {
     brute: BruteRenderer,
+    /// The streets and ground areas, over the reference and the decimated city alike.
+    surfaces: GroundSurfacePass,
     oracle: Oracle,
 }
 
@@ -106,6 +108,7 @@ impl DecimatedBaseline {
     pub fn new(gpu: &GpuContext) -> DecimatedBaseline {
         DecimatedBaseline {
             brute: BruteRenderer::new(gpu, BruteRenderer::PNG_FORMAT),
+            surfaces: GroundSurfacePass::new(gpu, BruteRenderer::PNG_FORMAT),
             oracle: Oracle::new(gpu),
         }
     }
@@ -138,7 +141,8 @@ impl DecimatedBaseline {
             return Ok(records);
         }
         // Warm-up (pipeline compilation) before timing.
-        self.render(gpu, decimated, &pose_camera(path, 0), &target);
+        let surfaces = scene.drawable.surfaces.as_ref();
+        self.render(gpu, (decimated, surfaces), &pose_camera(path, 0), &target);
         for i in 0..path.poses.len() {
             let camera = pose_camera(path, i);
             let ids = self
@@ -151,9 +155,14 @@ impl DecimatedBaseline {
             let false_culls = (0..total)
                 .filter(|&b| visible.contains(citywalk_scenes::BuildingId(b as u32)) && !kept[b])
                 .count();
-            self.render(gpu, &scene.drawable.buildings, &camera, &reference);
+            self.render(
+                gpu,
+                (&scene.drawable.buildings, surfaces),
+                &camera,
+                &reference,
+            );
             let reference_rgba = reference.read_colour(gpu)?;
-            let (frame_ms, cpu_ms) = self.render(gpu, decimated, &camera, &target);
+            let (frame_ms, cpu_ms) = self.render(gpu, (decimated, surfaces), &camera, &target);
             let rgba = target.read_colour(gpu)?;
             let error = pixel_error(&reference_rgba, &rgba);
             let bound_px = crate::run::bound_px(scene, &camera);
@@ -214,7 +223,7 @@ impl DecimatedBaseline {
     fn render(
         &self,
         gpu: &GpuContext,
-        scene: &SceneGpu,
+        (scene, surfaces): (&SceneGpu, Option<&SurfaceMeshes>),
         camera: &citywalk_runtime::camera::Camera,
         target: &OffscreenTarget,
     ) -> (f64, f64) {
@@ -233,6 +242,16 @@ impl DecimatedBaseline {
             &target.colour_view,
             &target.depth,
         );
+        if let Some(meshes) = surfaces {
+            self.surfaces.encode(
+                gpu,
+                &mut encoder,
+                meshes,
+                camera,
+                (&target.colour_view, &target.depth),
+                &self.brute.style,
+            );
+        }
         gpu.queue.submit([encoder.finish()]);
         let cpu_ms = cpu.elapsed_ms();
         gpu.wait_idle();

@@ -19,9 +19,9 @@ use citywalk_runtime::gpu::GpuContext;
 use citywalk_runtime::gpu_timer::{GpuTimer, GpuTimes};
 use citywalk_runtime::lod::LodCriterion;
 use citywalk_runtime::oracle::{IdImage, Oracle, VisibleSet};
-use citywalk_runtime::render::BruteRenderer;
 use citywalk_runtime::render::selected::SelectedRenderer;
 use citywalk_runtime::render::targets::{OffscreenTarget, ReadbackError};
+use citywalk_runtime::render::{BruteRenderer, GroundSurfacePass, SurfaceMeshes};
 pub use citywalk_runtime::runner::DRAW_PHASES;
 use citywalk_runtime::runner::{Completion, FrameRunner, FrameTarget};
 
@@ -156,6 +156,9 @@ pub struct BenchRenderers {
     brute: BruteRenderer,
     selected: SelectedRenderer,
     oracle: Oracle,
+    /// The streets and ground areas over the frames not drawn by the frame runner (the
+    /// reference, `oracle`), as the runner draws them over its own.
+    surfaces: GroundSurfacePass,
     /// Every mode with a frame plan runs through it, with each mode's visible set carried from
     /// frame to frame along a path.
     runner: FrameRunner,
@@ -174,11 +177,33 @@ impl BenchRenderers {
             brute: BruteRenderer::new(gpu, BruteRenderer::PNG_FORMAT),
             selected: SelectedRenderer::new(gpu, BruteRenderer::PNG_FORMAT),
             oracle: Oracle::new(gpu),
+            surfaces: GroundSurfacePass::new(gpu, BruteRenderer::PNG_FORMAT),
             runner: FrameRunner::new(gpu, BruteRenderer::PNG_FORMAT),
             visibility: std::collections::HashMap::new(),
             timer: GpuTimer::new(gpu, "bench draw timer", DRAW_PHASES),
             last_gpu: GpuTimes::default(),
             auto: None,
+        }
+    }
+
+    /// Records the ground-surface pass of `surfaces` (if any) over the frame in `target`.
+    fn encode_surfaces(
+        &self,
+        gpu: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        surfaces: Option<&SurfaceMeshes>,
+        camera: &Camera,
+        target: &OffscreenTarget,
+    ) {
+        if let Some(meshes) = surfaces {
+            self.surfaces.encode(
+                gpu,
+                encoder,
+                meshes,
+                camera,
+                (&target.colour_view, &target.depth),
+                &self.brute.style,
+            );
         }
     }
 
@@ -315,6 +340,13 @@ fn render_selection(
         (&target.colour_view, &target.depth),
         renderers.timer.render_pass_writes("draw"),
     );
+    renderers.encode_surfaces(
+        gpu,
+        &mut encoder,
+        scene.drawable.surfaces.as_ref(),
+        camera,
+        target,
+    );
     renderers.timer.resolve(&mut encoder);
     gpu.queue.submit([encoder.finish()]);
     let cpu_ms = cpu.elapsed_ms();
@@ -410,6 +442,13 @@ pub fn run_path(
             &camera,
             &reference.colour_view,
             &reference.depth,
+        );
+        renderers.encode_surfaces(
+            gpu,
+            &mut encoder,
+            scene.drawable.surfaces.as_ref(),
+            &camera,
+            &reference,
         );
         gpu.queue.submit([encoder.finish()]);
         let reference_rgba = reference.read_colour(gpu)?;
