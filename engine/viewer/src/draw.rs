@@ -290,6 +290,7 @@ impl FrameDrawer {
                 clusters_drawn: r.clusters_drawn,
                 triangles: r.triangles,
                 draw_calls: r.draw_calls,
+                surfaces: (r.surfaces.draws, r.surfaces.triangles),
                 occluders_drawn: r.occluders_drawn,
                 gate_culled: r.gate_culled,
                 cpu_ms: 0.0,

@@ -61,6 +61,8 @@ pub struct StageCounts {
     pub triangles: u64,
     /// Non-empty draws issued.
     pub draw_calls: u32,
+    /// Streets and ground areas drawn: chunk draws and triangles (not in `triangles`).
+    pub surfaces: (u32, u64),
     /// Virtual occluders drawn into the pyramid's depth (with the pre-pass).
     pub occluders_drawn: Option<u32>,
     /// Last frame's visible candidates the occluder gate kept out of the early pass (with the
@@ -185,6 +187,12 @@ fn stats_grid(ui: &mut egui::Ui, stats: &OverlayStats) {
                 format!("{} / {}", c.triangles, stats.triangles_total),
             );
             row("draw calls", c.draw_calls.to_string());
+            if c.surfaces.0 > 0 {
+                row(
+                    "streets, ground areas",
+                    format!("{} chunks, {} triangles", c.surfaces.0, c.surfaces.1),
+                );
+            }
             if let Some(n) = c.occluders_drawn {
                 row("occluders drawn", n.to_string());
             }
@@ -605,6 +613,7 @@ mod tests {
                     clusters_drawn: Some(6),
                     triangles: 98_765,
                     draw_calls: 19,
+                    surfaces: (42, 4321),
                     occluders_drawn: Some(5),
                     gate_culled: Some(3),
                     cpu_ms: 1.25,
@@ -626,6 +635,8 @@ mod tests {
                 "clusters",
                 "98765",
                 "19",
+                "streets, ground areas",
+                "42 chunks, 4321 triangles",
                 "occluders drawn",
                 "kept out by the gate",
                 "1.25 ms",
