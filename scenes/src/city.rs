@@ -260,7 +260,9 @@ impl Street {
     }
 }
 
-/// What a ground area is, for its colour and its draw order (later classes lie on top).
+/// What a ground area is, for its colour and its draw order (later classes lie on top). The
+/// sources' tags and classes map to it in one place each: [`GroundClass::from_osm_tags`] (OSM,
+/// GeoJSON) and [`GroundClass::from_class_name`] (3dfier OBJ).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 pub enum GroundClass {
     /// Farmland, meadow, grass, cemeteries and other open land (OSM `landuse=grass|meadow|…`).
@@ -270,7 +272,7 @@ pub enum GroundClass {
     /// Parks, gardens and pitches (OSM `leisure=park|garden|pitch|playground`).
     Park,
     /// Paved open space: squares, parking, plazas (OSM `amenity=parking`, `place=square`,
-    /// `area:highway`; 3dfier `Road` surfaces).
+    /// `area:highway`; 3dfier `Road` and `Bridge` surfaces).
     Paved,
     /// Water bodies (OSM `natural=water`, `waterway=riverbank`; 3dfier `Water`).
     Water,
@@ -304,6 +306,94 @@ impl GroundClass {
     /// Inverse of [`GroundClass::name`].
     pub fn from_name(name: &str) -> Option<GroundClass> {
         GroundClass::ALL.into_iter().find(|c| c.name() == name)
+    }
+
+    /// The class of an area from its OSM tags (OSM ways and relations, and GeoJSON properties,
+    /// which carry the same tags), or `None` when the tags make no ground area. `tag` answers
+    /// a key's value. The caller decides first that the element is not a building or a
+    /// building part: a building is never also a ground area.
+    ///
+    /// The first matching rule wins, so that a pond tagged inside a park is water and a
+    /// pitch on a recreation ground a park:
+    /// 1. Water: `natural=water`, `waterway=riverbank`, `water=*`, `landuse=reservoir|basin`.
+    /// 2. Paved: `area:highway=*`, `highway=*` with `area=yes` (a pedestrian plaza drawn as
+    ///    an area), `place=square`, `amenity=parking` (not `parking=underground`).
+    /// 3. Park: `leisure=park|garden|pitch|playground|common|nature_reserve|dog_park`.
+    /// 4. Forest: `natural=wood`, `landuse=forest`.
+    /// 5. Grass: `natural=grassland|scrub|heath|wetland`, `landuse=grass|meadow|village_green|
+    ///    cemetery|farmland|recreation_ground|allotments|orchard|vineyard`.
+    /// 6. Other: any other `landuse=*`.
+    ///
+    /// A value `no` counts as absent.
+    pub fn from_osm_tags<'a>(tag: impl Fn(&str) -> Option<&'a str>) -> Option<GroundClass> {
+        let tag = |k: &str| tag(k).filter(|v| !v.is_empty() && *v != "no");
+        let is = |k: &str, values: &[&str]| tag(k).is_some_and(|v| values.contains(&v));
+        let natural = |values: &[&str]| is("natural", values);
+        let landuse = |values: &[&str]| is("landuse", values);
+        if natural(&["water"])
+            || is("waterway", &["riverbank"])
+            || tag("water").is_some()
+            || landuse(&["reservoir", "basin"])
+        {
+            return Some(GroundClass::Water);
+        }
+        if tag("area:highway").is_some()
+            || (tag("highway").is_some() && is("area", &["yes"]))
+            || is("place", &["square"])
+            || (is("amenity", &["parking"]) && !is("parking", &["underground"]))
+        {
+            return Some(GroundClass::Paved);
+        }
+        let parks = [
+            "park",
+            "garden",
+            "pitch",
+            "playground",
+            "common",
+            "nature_reserve",
+            "dog_park",
+        ];
+        if is("leisure", &parks) {
+            return Some(GroundClass::Park);
+        }
+        if natural(&["wood"]) || landuse(&["forest"]) {
+            return Some(GroundClass::Forest);
+        }
+        let grass = [
+            "grass",
+            "meadow",
+            "village_green",
+            "cemetery",
+            "farmland",
+            "recreation_ground",
+            "allotments",
+            "orchard",
+            "vineyard",
+        ];
+        if natural(&["grassland", "scrub", "heath", "wetland"]) || landuse(&grass) {
+            return Some(GroundClass::Grass);
+        }
+        tag("landuse").map(|_| GroundClass::Other)
+    }
+
+    /// The class of a mesh object from a class name of its source: a 3dfier class (its OBJ
+    /// material or object name: `Terrain`, `Forest`, `Water`, `Road`, `Bridge`,
+    /// `Separation`), matched as an ASCII case-insensitive substring. `Road` and `Bridge`
+    /// (also `Overpass`) are paved (a bridge's deck is drawn in plan, as a road); `Terrain`,
+    /// `Separation` (walls, fences) and anything unknown are `None`, which callers read as
+    /// [`GroundClass::Other`] after trying the object's other names.
+    pub fn from_class_name(name: &str) -> Option<GroundClass> {
+        let name = name.to_ascii_lowercase();
+        let has = |words: &[&str]| words.iter().any(|w| name.contains(w));
+        if has(&["water"]) {
+            Some(GroundClass::Water)
+        } else if has(&["road", "bridge", "overpass"]) {
+            Some(GroundClass::Paved)
+        } else if has(&["forest"]) {
+            Some(GroundClass::Forest)
+        } else {
+            None
+        }
     }
 }
 
@@ -344,7 +434,8 @@ impl City {
     }
 
     /// Checks the model's invariants: ids are positions, every building has parts, heights are
-    /// ordered and finite, footprints are valid. Returns the first violation found.
+    /// ordered and finite, footprints and ground areas are valid. Returns the first violation
+    /// found.
     pub fn check_invariants(&self) -> Result<(), String> {
         for (i, b) in self.buildings.iter().enumerate() {
             if b.id.index() != i {
@@ -375,6 +466,62 @@ impl City {
                 }
             }
         }
+        for g in &self.ground_areas {
+            crate::validate::check_multipolygon(&g.polygon)
+                .map_err(|r| format!("ground area {}: polygon {r}", g.source_id))?;
+        }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::GroundClass;
+
+    fn class(tags: &[(&str, &str)]) -> Option<GroundClass> {
+        GroundClass::from_osm_tags(|k| tags.iter().find(|(key, _)| *key == k).map(|(_, v)| *v))
+    }
+
+    #[test]
+    fn osm_tags_map_to_ground_classes_first_rule_winning() {
+        use GroundClass::*;
+        assert_eq!(class(&[("natural", "water")]), Some(Water));
+        assert_eq!(
+            class(&[("water", "pond"), ("leisure", "park")]),
+            Some(Water)
+        );
+        assert_eq!(class(&[("waterway", "riverbank")]), Some(Water));
+        assert_eq!(
+            class(&[("highway", "pedestrian"), ("area", "yes")]),
+            Some(Paved)
+        );
+        assert_eq!(class(&[("highway", "pedestrian")]), None);
+        assert_eq!(class(&[("area:highway", "footway")]), Some(Paved));
+        assert_eq!(class(&[("place", "square")]), Some(Paved));
+        assert_eq!(class(&[("amenity", "parking")]), Some(Paved));
+        let underground = [("amenity", "parking"), ("parking", "underground")];
+        assert_eq!(class(&underground), None);
+        let pitch = [("leisure", "pitch"), ("landuse", "recreation_ground")];
+        assert_eq!(class(&pitch), Some(Park));
+        assert_eq!(class(&[("natural", "wood")]), Some(Forest));
+        assert_eq!(class(&[("landuse", "forest")]), Some(Forest));
+        assert_eq!(class(&[("landuse", "cemetery")]), Some(Grass));
+        assert_eq!(class(&[("natural", "scrub")]), Some(Grass));
+        assert_eq!(class(&[("landuse", "retail")]), Some(Other));
+        assert_eq!(class(&[("landuse", "no")]), None);
+        assert_eq!(class(&[("leisure", "sports_centre")]), None);
+        assert_eq!(class(&[("name", "Hudson")]), None);
+    }
+
+    #[test]
+    fn class_names_map_3dfier_classes() {
+        use GroundClass::*;
+        assert_eq!(GroundClass::from_class_name("Water"), Some(Water));
+        assert_eq!(GroundClass::from_class_name("WaterBody"), Some(Water));
+        assert_eq!(GroundClass::from_class_name("Road"), Some(Paved));
+        assert_eq!(GroundClass::from_class_name("bridge_3"), Some(Paved));
+        assert_eq!(GroundClass::from_class_name("FOREST"), Some(Forest));
+        assert_eq!(GroundClass::from_class_name("Terrain"), None);
+        assert_eq!(GroundClass::from_class_name("Separation"), None);
     }
 }

@@ -6,7 +6,9 @@ use std::path::Path;
 use std::time::Instant;
 
 use citywalk_scenes::load::{geojson, osm};
-use citywalk_scenes::{Crs, HeightSource, LoadError, LoadOptions, RejectReason, StreetClass};
+use citywalk_scenes::{
+    Crs, GroundClass, HeightSource, LoadError, LoadOptions, RejectReason, StreetClass,
+};
 use files::{temp_file, thread_cpu_ns};
 use fuzz::fixed_runner;
 use proptest::prelude::*;
@@ -258,13 +260,15 @@ fn streets_crs_and_ids() {
     assert_eq!(city.streets[0].line.0[0].x, -55.0);
     assert_eq!(city.streets[1].class, StreetClass::Pedestrian);
     assert_eq!(city.report.streets_loaded, 3);
-    // The canal and the pedestrian square are skipped, with one warning.
+    // The canal is skipped, with a warning; the pedestrian square is a paved ground area.
     assert_eq!(city.report.buildings_found, 2);
+    assert_eq!(city.ground_areas.len(), 1);
+    assert_eq!(city.ground_areas[0].class, GroundClass::Paved);
     assert!(
         city.report
             .warnings
             .iter()
-            .any(|w| w.message.starts_with("2 feature(s)")),
+            .any(|w| w.message.starts_with("1 feature(s)")),
         "{:?}",
         city.report.warnings
     );
@@ -575,4 +579,75 @@ fn issue14_small_geojson_with_bom_loads() {
         assert_eq!(city.buildings.len(), 2, "{name}");
         assert!(city.report.is_balanced());
     }
+}
+
+/// Issue 16: polygons that are not buildings and carry OSM area tags are ground areas, with
+/// the OSM loader's classes; a building tagged `landuse` stays a building; a bad ground area is
+/// rejected with its id; a street area without `area=yes` is still skipped.
+#[test]
+fn ground_areas_load_by_class() {
+    let f = |id: &str, coords: serde_json::Value, props: serde_json::Value| {
+        json!({"type": "Feature", "id": id, "geometry": {"type": "Polygon",
+               "coordinates": coords}, "properties": props})
+    };
+    let doc = json!({"type": "FeatureCollection",
+        "crs": {"type": "name", "properties": {"name": "citywalk:local"}},
+        "features": [
+            f("house", json!([ring(0.0, 0.0, 10.0)]),
+              json!({"building": "yes", "landuse": "retail", "height": 9})),
+            f("untagged", json!([ring(20.0, 0.0, 10.0)]), json!({})),
+            f("pond", json!([ring(100.0, 0.0, 40.0)]), json!({"natural": "water"})),
+            f("park", json!([ring(200.0, 0.0, 30.0), ring(210.0, 10.0, 5.0)]),
+              json!({"tags": {"leisure": "park", "name": "Green"}})),
+            f("square", json!([ring(300.0, 0.0, 20.0)]), json!({"place": "square"})),
+            f("plaza", json!([ring(400.0, 0.0, 15.0)]),
+              json!({"highway": "pedestrian", "area": "yes"})),
+            f("street-area", json!([ring(500.0, 0.0, 15.0)]), json!({"highway": "pedestrian"})),
+            f("sliver", json!([[[600.0, 0.0], [610.0, 0.0], [600.0, 0.0]]]),
+              json!({"landuse": "grass"})),
+            {"type": "Feature", "id": "woods", "geometry": {"type": "MultiPolygon",
+              "coordinates": [[ring(700.0, 0.0, 10.0)], [ring(720.0, 0.0, 10.0)]]},
+             "properties": {"landuse": "forest"}},
+        ]
+    });
+    let city = load_json("ground.geojson", &doc).unwrap();
+    let r = &city.report;
+    assert!(r.is_balanced(), "{r}");
+    city.check_invariants().unwrap();
+    let ids: Vec<&str> = city
+        .buildings
+        .iter()
+        .map(|b| b.source_id.as_str())
+        .collect();
+    assert_eq!(ids, ["house", "untagged"]);
+    assert_eq!((r.ground_areas_found, r.ground_areas_loaded), (6, 5), "{r}");
+    use geo::Area;
+    let got: Vec<(&str, GroundClass, f64)> = city
+        .ground_areas
+        .iter()
+        .map(|g| (g.source_id.as_str(), g.class, g.polygon.unsigned_area()))
+        .collect();
+    assert_eq!(
+        got,
+        [
+            ("pond", GroundClass::Water, 1600.0),
+            ("park", GroundClass::Park, 875.0),
+            ("square", GroundClass::Paved, 400.0),
+            ("plaza", GroundClass::Paved, 225.0),
+            ("woods", GroundClass::Forest, 200.0),
+        ]
+    );
+    let rejected = &r.ground_areas_rejected;
+    assert_eq!(rejected.len(), 1);
+    assert_eq!(rejected[0].source_id, "sliver");
+    assert_eq!(rejected[0].reason, RejectReason::TooFewPoints);
+    assert!(rejected[0].file.ends_with("ground.geojson"));
+    // The street area alone is skipped.
+    assert!(
+        r.warnings
+            .iter()
+            .any(|w| w.message.starts_with("1 feature(s)")),
+        "{:?}",
+        r.warnings
+    );
 }

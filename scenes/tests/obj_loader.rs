@@ -7,7 +7,7 @@ use std::path::Path;
 
 use citywalk_scenes::load::UpAxis;
 use citywalk_scenes::load::obj;
-use citywalk_scenes::{City, Crs, LoadError, LoadOptions, RejectReason, load_city};
+use citywalk_scenes::{City, Crs, GroundClass, LoadError, LoadOptions, RejectReason, load_city};
 use fuzz::fixed_runner;
 use mutate::mutated;
 use proptest::prelude::*;
@@ -187,19 +187,76 @@ fn a_3dfier_style_file_loads_its_buildings_and_reports_the_rest() {
         "{source}"
     );
     assert!((source.z - 1.0).abs() < 1e-3, "{source}");
-    // The other classes are counted and reported, one warning per class.
-    let about = |class: &str| {
-        r.warnings
+    // The other objects are ground areas of their 3dfier class, in the same frame: each quad
+    // is centred on (X0, Y0), 2 × its half size wide.
+    use geo::Area;
+    let expected = [
+        ("t1", GroundClass::Other, 40_000.0),
+        ("r1", GroundClass::Paved, 100.0),
+        ("r2", GroundClass::Paved, 64.0),
+        ("w1", GroundClass::Water, 10_000.0),
+    ];
+    assert_eq!(city.ground_areas.len(), expected.len());
+    for (g, (id, class, area_m2)) in city.ground_areas.iter().zip(expected) {
+        assert_eq!((g.source_id.as_str(), g.class), (id, class));
+        let got = g.polygon.unsigned_area();
+        assert!((got - area_m2).abs() < 1e-6 * area_m2, "{id}: {got} m²");
+    }
+    assert_eq!((r.ground_areas_found, r.ground_areas_loaded), (4, 4), "{r}");
+    let water = city.ground_areas[3].polygon.0[0].exterior().0[0];
+    let source = city
+        .frame
+        .to_source(glam::DVec3::new(water.x, water.y, 0.0));
+    assert!(
+        ((source.x - X0).abs() - 50.0).abs() < 1e-3 && ((source.y - Y0).abs() - 50.0).abs() < 1e-3,
+        "{source}"
+    );
+    assert!(r.warnings.is_empty(), "{:?}", r.warnings);
+}
+
+/// Issue 16: every non-building object is a ground area, its class from its name, group or
+/// material (3dfier classes; unknown ones are `Other`), its polygon its plan; one that cannot
+/// be used (a broken face, walls only) is rejected with its name.
+#[test]
+fn other_objects_are_ground_areas_by_class() {
+    let mut t = city_obj();
+    let mut v = t.lines().filter(|l| l.starts_with("v ")).count();
+    push_ground(&mut t, &mut v, "f1", "Forest", 10.0);
+    push_ground(&mut t, &mut v, "bridge_7", "Concrete", 3.0);
+    push_ground(&mut t, &mut v, "x1", "Mystery", 2.0);
+    // Walls only: a box's four sides.
+    t.push_str("o wall\nusemtl Separation\n");
+    for (x, z) in [(0.0, 0.0), (5.0, 0.0), (5.0, 3.0), (0.0, 3.0)] {
+        writeln!(t, "v {} {} {}", X0 + x, Y0 + 200.0, z).unwrap();
+    }
+    t.push_str("f -4 -3 -2 -1\n");
+    // A broken face.
+    t.push_str("o canal\nusemtl Water\nf 1 2 0\n");
+    let city = load_text(&t, &LoadOptions::default()).unwrap();
+    let r = &city.report;
+    assert!(r.is_balanced(), "{r}");
+    city.check_invariants().unwrap();
+    let class = |id: &str| {
+        city.ground_areas
             .iter()
-            .find(|w| w.message.contains(&format!(" {class} object")))
-            .unwrap_or_else(|| panic!("no warning about {class}: {:?}", r.warnings))
-            .message
-            .clone()
+            .find(|g| g.source_id == id)
+            .map(|g| g.class)
     };
-    assert!(about("terrain").starts_with("1 terrain object(s) (1 faces, first t1)"));
-    assert!(about("road").starts_with("2 road object(s) (2 faces, first r1)"));
-    assert!(about("water").starts_with("1 water object(s)"));
-    assert_eq!(r.warnings.len(), 3, "{:?}", r.warnings);
+    assert_eq!(class("f1"), Some(GroundClass::Forest));
+    assert_eq!(class("bridge_7"), Some(GroundClass::Paved));
+    assert_eq!(class("x1"), Some(GroundClass::Other));
+    assert_eq!((r.ground_areas_found, r.ground_areas_loaded), (9, 7), "{r}");
+    let rejected: Vec<(&str, &RejectReason)> = r
+        .ground_areas_rejected
+        .iter()
+        .map(|x| (x.source_id.as_str(), &x.reason))
+        .collect();
+    assert_eq!(rejected[0], ("wall", &RejectReason::ZeroArea));
+    assert_eq!(rejected[1].0, "canal");
+    assert!(
+        matches!(rejected[1].1, RejectReason::InvalidGeometry(m) if m.contains("index 0")),
+        "{rejected:?}"
+    );
 }
 
 #[test]
@@ -266,7 +323,7 @@ fn markers_choose_the_buildings() {
         .unwrap_err()
         .to_string();
     assert!(
-        err.contains("no object marked as a building") && err.contains("1 unclassified"),
+        err.contains("no object marked as a building") && err.contains("1 other"),
         "{err}"
     );
 }

@@ -231,6 +231,16 @@ fn chelsea_counts_match_the_readme() {
     // README: height min/median/max = 2.7 / 14.2 / 69.4 m.
     let tallest = city.buildings.iter().map(|b| b.top_m).fold(0.0, f32::max);
     assert!((tallest - 69.4).abs() < 0.05, "{tallest}");
+    // Ground areas (issue 16), by class; one multipolygon reaches beyond the extract.
+    let mut by_class = std::collections::BTreeMap::new();
+    for g in &city.ground_areas {
+        *by_class.entry(g.class.name()).or_insert(0) += 1;
+    }
+    println!("Chelsea ground areas: {by_class:?}");
+    let expected = [("grass", 1), ("other", 5), ("park", 11), ("paved", 2)];
+    assert_eq!(by_class, expected.into_iter().collect(), "{r}");
+    assert_eq!(r.ground_areas_found, 20, "{r}");
+    assert_eq!(r.ground_areas_rejected[0].source_id, "relation/2389611");
 }
 
 #[test]
@@ -676,4 +686,137 @@ fn issue14_small_duplicate_osm_id_is_dropped_with_a_warning() {
         .count();
     // The repeat inside the first file, then all three ways of the copy.
     assert_eq!(dropped, 4, "{:?}", city.report.warnings);
+}
+
+/// The area (m²) of a lon/lat ring in the city's frame, for expected ground-area sizes.
+fn local_area_m2(city: &citywalk_scenes::City, ring: &[(f64, f64)]) -> f64 {
+    let local: Vec<glam::DVec3> = ring
+        .iter()
+        .map(|&(lon, lat)| city.frame.to_local(glam::DVec3::new(lon, lat, 0.0)))
+        .collect();
+    let twice: f64 = local
+        .iter()
+        .zip(local.iter().cycle().skip(1))
+        .map(|(a, b)| a.x * b.y - b.x * a.y)
+        .sum();
+    0.5 * twice.abs()
+}
+
+/// The corners of [`square`]'s ring, as lon/lat.
+fn square_corners(lon: f64, lat: f64, size_deg: f64) -> Vec<(f64, f64)> {
+    [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)]
+        .iter()
+        .map(|(dx, dy)| (lon + dx * size_deg, lat + dy * size_deg))
+        .collect()
+}
+
+/// Issue 16: water, a park (a multipolygon with a hole), a square and a parking lot load as
+/// ground areas of their class; a ground area that cannot be built is rejected with its id; a
+/// building tagged with `landuse` stays a building only; a plaza (`highway=pedestrian` +
+/// `area=yes`) is an area, not a street line; an underground car park is no ground area.
+#[test]
+fn ground_areas_load_by_class() {
+    use citywalk_scenes::GroundClass;
+    let mut osm = pbf::Osm::default();
+    let d = 0.0002;
+    let house = square(&mut osm, 1, 8.0, 47.0, d);
+    osm.ways.push((
+        1,
+        vec![("building", "yes"), ("landuse", "residential")],
+        house,
+    ));
+    let water = square(&mut osm, 11, 8.001, 47.0, 0.001);
+    osm.ways.push((2, vec![("natural", "water")], water));
+    let plaza = square(&mut osm, 21, 8.0, 47.001, d);
+    osm.ways.push((
+        3,
+        vec![
+            ("highway", "pedestrian"),
+            ("area", "yes"),
+            ("name", "Plaza"),
+        ],
+        plaza,
+    ));
+    let parking = square(&mut osm, 31, 8.0, 47.002, d);
+    osm.ways
+        .push((4, vec![("amenity", "parking")], parking.clone()));
+    osm.ways.push((
+        5,
+        vec![("amenity", "parking"), ("parking", "underground")],
+        parking,
+    ));
+    // A park: a multipolygon whose outer ring is split over two untagged ways, with a hole.
+    let outer = square(&mut osm, 41, 8.003, 47.0, 0.001);
+    let hole = square(&mut osm, 51, 8.0034, 47.0004, 0.0002);
+    osm.ways.push((40, vec![], outer[0..3].to_vec()));
+    osm.ways.push((41, vec![], outer[2..5].to_vec()));
+    osm.ways.push((42, vec![], hole));
+    osm.relations.push((
+        600,
+        vec![("type", "multipolygon"), ("leisure", "park")],
+        vec![(40, "outer"), (41, "outer"), (42, "inner")],
+    ));
+    // Malformed: an open grass way, and a forest relation whose member is not in the file.
+    let grass = square(&mut osm, 61, 8.0, 47.003, d);
+    osm.ways
+        .push((6, vec![("landuse", "grass")], grass[0..4].to_vec()));
+    osm.relations.push((
+        601,
+        vec![("type", "multipolygon"), ("landuse", "forest")],
+        vec![(999, "outer")],
+    ));
+    let city = load_bytes("ground.osm.pbf", &osm.encode()).unwrap();
+    let r = &city.report;
+    assert!(r.is_balanced(), "{r}");
+    city.check_invariants().unwrap();
+    assert_eq!((r.buildings_found, r.buildings_loaded), (1, 1), "{r}");
+    assert_eq!(
+        (r.ground_areas_found, r.ground_areas_loaded),
+        (6, 4),
+        "{r}: {:?}",
+        r.ground_areas_rejected
+    );
+    let area = |id: &str| {
+        city.ground_areas
+            .iter()
+            .find(|g| g.source_id == id)
+            .unwrap_or_else(|| panic!("{id} not loaded: {:?}", city.ground_areas))
+    };
+    let close = |got: f64, want: f64| (got - want).abs() < 1e-6 * want;
+    use geo::Area;
+    let water_m2 = local_area_m2(&city, &square_corners(8.001, 47.0, 0.001));
+    assert_eq!(area("way/2").class, GroundClass::Water);
+    assert!(close(area("way/2").polygon.unsigned_area(), water_m2));
+    assert!(water_m2 > 8000.0 && water_m2 < 9000.0, "{water_m2}");
+    assert_eq!(area("way/3").class, GroundClass::Paved);
+    assert_eq!(area("way/4").class, GroundClass::Paved);
+    let park = area("relation/600");
+    assert_eq!(park.class, GroundClass::Park);
+    assert_eq!(park.polygon.0.len(), 1);
+    assert_eq!(park.polygon.0[0].interiors().len(), 1);
+    let park_m2 = local_area_m2(&city, &square_corners(8.003, 47.0, 0.001))
+        - local_area_m2(&city, &square_corners(8.0034, 47.0004, 0.0002));
+    assert!(close(park.polygon.unsigned_area(), park_m2));
+    // The plaza is no street; the building is no ground area.
+    assert!(city.streets.is_empty(), "{:?}", city.streets);
+    assert_eq!(r.streets_found, 0);
+    assert!(city.ground_areas.iter().all(|g| g.source_id != "way/1"));
+    assert_eq!(city.buildings[0].source_id, "way/1");
+    // Rejections name the file, the id and the reason.
+    let reason = |id: &str| {
+        r.ground_areas_rejected
+            .iter()
+            .find(|x| x.source_id == id)
+            .map(|x| x.reason.clone())
+            .unwrap_or_else(|| panic!("{id} not rejected"))
+    };
+    assert!(matches!(reason("way/6"), RejectReason::InvalidGeometry(m) if m.contains("closed")));
+    assert!(
+        matches!(reason("relation/601"), RejectReason::MissingGeometry(m) if m.contains("999"))
+    );
+    assert!(
+        r.ground_areas_rejected
+            .iter()
+            .all(|x| x.file.ends_with("ground.osm.pbf"))
+    );
 }

@@ -20,6 +20,9 @@
 //!    apart), so the report stays as the source counts it: the part is in `parts_found` only.
 //! 5. A part with no height of its own inherits its building's heights (the building's tags
 //!    describe the whole building when the part says nothing).
+//! 6. Ground areas (water, parks, squares: [`AreaKind::Ground`]) are projected and cleaned like
+//!    footprints, without heights; one that fails, or lies beyond the local range, is a
+//!    [`Rejection`] in the report's ground-area list. They take no part in placing the frame.
 
 use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
@@ -31,22 +34,27 @@ use rstar::{AABB, RTree};
 
 use super::LoadOptions;
 use super::heights::{ResolvedHeights, TaggedHeights, parse_length_m};
-use crate::city::{Building, BuildingId, BuildingPart, City, HeightSource, Street, StreetClass};
+use crate::city::{
+    Building, BuildingId, BuildingPart, City, GroundArea, GroundClass, HeightSource, Street,
+    StreetClass,
+};
 use crate::frame::Frame;
 use crate::report::{LoadError, LoadReport, LoadWarning, RejectReason, Rejection};
-use crate::validate::{MAX_LOCAL_COORDINATE_M, check_heights, clean_footprint};
+use crate::validate::{CleanFootprint, MAX_LOCAL_COORDINATE_M, check_heights, clean_footprint};
 
 /// Polygons of rings (outer ring first, then holes), in source coordinates.
 pub(crate) type RawPolygons = Vec<Vec<Vec<Coord<f64>>>>;
 
-/// Whether an area is a building or a `building:part`.
+/// Whether an area is a building, a `building:part` or a ground area.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum AreaKind {
     Building,
     Part,
+    Ground(GroundClass),
 }
 
-/// One building or part as read from the source, before projection and validation.
+/// One building, part or ground area as read from the source, before projection and
+/// validation.
 #[derive(Debug, Clone)]
 pub(crate) struct RawArea {
     pub source_id: String,
@@ -144,7 +152,7 @@ pub(crate) fn assemble(
             .iter()
             .filter(|a| a.kind == AreaKind::Building)
             .count();
-        let first = if areas.is_empty() {
+        let first = if areas.iter().all(|a| matches!(a.kind, AreaKind::Ground(_))) {
             "the file has no building or building:part"
         } else {
             "no building or part has a usable coordinate"
@@ -171,11 +179,42 @@ pub(crate) fn assemble(
         Ok(Coord { x: p.x, y: p.y })
     };
 
-    // Validate every area; buildings that fail are rejected, parts that fail are dropped.
+    // Validate every area; buildings and ground areas that fail are rejected, parts that fail
+    // are dropped.
     let mut buildings: Vec<Area2> = Vec::new();
     let mut parts: Vec<Area2> = Vec::new();
+    let mut ground_areas: Vec<GroundArea> = Vec::new();
     let mut link: HashMap<String, usize> = HashMap::new();
     for (area, outlier) in areas.into_iter().zip(outliers) {
+        if let AreaKind::Ground(class) = area.kind {
+            report.ground_areas_found += 1;
+            let cleaned = match outlier {
+                Some(reason) => Err(reason),
+                None => area.polygons.and_then(|p| clean_polygons(p, &project)),
+            };
+            match cleaned {
+                Ok(clean) => {
+                    for message in clean.repairs {
+                        report.warnings.push(LoadWarning {
+                            file: path.to_path_buf(),
+                            source_id: area.source_id.clone(),
+                            message,
+                        });
+                    }
+                    ground_areas.push(GroundArea {
+                        source_id: area.source_id,
+                        class,
+                        polygon: clean.footprint,
+                    });
+                }
+                Err(reason) => report.ground_areas_rejected.push(Rejection {
+                    file: path.to_path_buf(),
+                    source_id: area.source_id,
+                    reason,
+                }),
+            }
+            continue;
+        }
         let is_building = area.kind == AreaKind::Building;
         if is_building {
             report.buildings_found += 1;
@@ -323,6 +362,7 @@ pub(crate) fn assemble(
         }
     }
     report.streets_loaded = city_streets.len();
+    report.ground_areas_loaded = ground_areas.len();
 
     if out.is_empty() {
         return Err(LoadError::nothing_loaded(path, &report));
@@ -331,7 +371,7 @@ pub(crate) fn assemble(
         frame,
         buildings: out,
         streets: city_streets,
-        ground_areas: Vec::new(),
+        ground_areas,
         report,
     };
     city.renumber();
@@ -478,24 +518,8 @@ fn validate_area(
         ..
     } = area;
     let fail = |reason| (source_id.clone(), reason);
-    let polygons = polygons.map_err(fail)?;
-    let mut local: RawPolygons = Vec::with_capacity(polygons.len());
-    for rings in polygons {
-        let mut out_rings = Vec::with_capacity(rings.len());
-        for ring in rings {
-            let ring: Result<Vec<_>, _> = ring.into_iter().map(project).collect();
-            out_rings.push(ring.map_err(fail)?);
-        }
-        local.push(out_rings);
-    }
-    // `geo`'s overlay (used to repair crossing rings) is robust, but a panic on some
-    // pathological ring must not take the whole load down: it rejects this building only.
-    let clean = std::panic::catch_unwind(|| clean_footprint(&local))
-        .unwrap_or_else(|_| {
-            Err(RejectReason::InvalidGeometry(
-                "footprint repair failed".into(),
-            ))
-        })
+    let clean = polygons
+        .and_then(|p| clean_polygons(p, project))
         .map_err(fail)?;
     let resolved = heights.resolve(options);
     check_heights(resolved.base_m, resolved.top_m).map_err(fail)?;
@@ -510,6 +534,33 @@ fn validate_area(
         },
         clean.repairs,
     ))
+}
+
+/// Projects an area's polygons into the local frame and cleans them
+/// ([`crate::validate::clean_footprint`]).
+fn clean_polygons(
+    polygons: RawPolygons,
+    project: &impl Fn(Coord<f64>) -> Result<Coord<f64>, RejectReason>,
+) -> Result<CleanFootprint, RejectReason> {
+    let mut local: RawPolygons = Vec::with_capacity(polygons.len());
+    for rings in polygons {
+        let mut out_rings = Vec::with_capacity(rings.len());
+        for ring in rings {
+            out_rings.push(
+                ring.into_iter()
+                    .map(project)
+                    .collect::<Result<Vec<_>, _>>()?,
+            );
+        }
+        local.push(out_rings);
+    }
+    // `geo`'s overlay (used to repair crossing rings) is robust, but a panic on some
+    // pathological ring must not take the whole load down: it rejects this area only.
+    std::panic::catch_unwind(|| clean_footprint(&local)).unwrap_or_else(|_| {
+        Err(RejectReason::InvalidGeometry(
+            "footprint repair failed".into(),
+        ))
+    })
 }
 
 /// Makes the model's building from a validated building (or orphan part) and its parts.

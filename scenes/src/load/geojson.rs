@@ -1,15 +1,19 @@
-//! GeoJSON loader (RFC 7946): a FeatureCollection of building footprints, building parts and
-//! street lines.
+//! GeoJSON loader (RFC 7946): a FeatureCollection of building footprints, building parts,
+//! street lines and ground areas.
 //!
 //! - Polygon and MultiPolygon features are buildings, or parts when the property `kind` is
 //!   `"building:part"` (as written by the OSM extracts in `shared/data/*/buildings.geojson`),
-//!   or when there is no `kind` and a `building:part` property but no `building` property.
+//!   or when there is no `kind` and a `building:part` property but no `building` property,
+//!   or ground areas when neither `kind` nor a `building` / `building:part` property makes
+//!   them a building or part and their properties, read as OSM tags, give a class
+//!   ([`GroundClass::from_osm_tags`], the OSM loader's mapping: water, parks, squares, ...).
 //!   A part names its building with the property `part_of` (the building's feature `id` or
 //!   `id` property), else it is attached by containment like an OSM part
 //!   ([`super::assemble`]).
 //! - LineString and MultiLineString features with a string property `highway` are streets;
 //!   other lines, points, and polygons with `highway` but no `building` / `building:part` /
-//!   `kind` (street areas) are skipped, counted in one warning.
+//!   `kind` and no ground class (street areas without `area=yes`) are skipped, counted in one
+//!   warning.
 //! - Heights: [`LoadOptions::height_property`] when set, then `height`, `height_m`,
 //!   `render_height_m` (read as levels when `render_height_source` says it came from levels),
 //!   then `levels` / `building:levels` × level height; the base from `min_height` /
@@ -46,7 +50,7 @@ use super::assemble::{
     AreaKind, RawArea, RawCity, RawPolygons, RawStreet, SourceCrs, assemble, street_width_m,
 };
 use super::heights::{HeightKeys, TaggedHeights};
-use crate::city::{City, StreetClass};
+use crate::city::{City, GroundClass, StreetClass};
 use crate::report::{LoadError, LoadWarning, RejectReason};
 
 const FORMAT: &str = "GeoJSON";
@@ -119,7 +123,7 @@ fn read(path: &Path, options: &LoadOptions) -> Result<RawCity, LoadError> {
             file: path.to_path_buf(),
             source_id: "-".into(),
             message: format!(
-                "{} feature(s) that are neither buildings nor streets skipped",
+                "{} feature(s) that are neither buildings, streets nor ground areas skipped",
                 sink.ignored
             ),
         });
@@ -156,7 +160,10 @@ fn read(path: &Path, options: &LoadOptions) -> Result<RawCity, LoadError> {
 fn mostly_not_lon_lat(areas: &[RawArea]) -> bool {
     let mut outside = 0usize;
     let mut total = 0usize;
-    for a in areas {
+    for a in areas
+        .iter()
+        .filter(|a| !matches!(a.kind, AreaKind::Ground(_)))
+    {
         let Ok(polys) = &a.polygons else { continue };
         total += 1;
         let bad = polys
@@ -539,6 +546,14 @@ impl Sink<'_> {
             .as_ref()
             .and_then(|g| g.coordinates.as_ref());
         let highway = properties.get("highway").and_then(Value::as_str);
+        let is_no = |v: &Value| v.is_null() || v.as_str() == Some("no");
+        let part = properties.get("building:part").is_some_and(|v| !is_no(v));
+        let building = properties.get("building").is_some_and(|v| !is_no(v));
+        let ground = match properties.get("kind").and_then(Value::as_str) {
+            Some("building" | "building:part") => None,
+            _ if part || building => None,
+            _ => GroundClass::from_osm_tags(|k| tags.get(k).map(String::as_str)),
+        };
         match (geometry_kind, highway) {
             ("LineString" | "MultiLineString", Some(highway)) => {
                 self.push_street(&source_id, geometry_kind, coords, highway, properties);
@@ -550,9 +565,10 @@ impl Sink<'_> {
             }
             // A street area (a pedestrian square) is not a building unless tagged as one.
             (_, Some(_))
-                if !["kind", "building", "building:part"]
-                    .iter()
-                    .any(|k| properties.contains_key(*k)) =>
+                if ground.is_none()
+                    && !["kind", "building", "building:part"]
+                        .iter()
+                        .any(|k| properties.contains_key(*k)) =>
             {
                 self.ignored += 1;
                 return;
@@ -580,19 +596,12 @@ impl Sink<'_> {
                 "unsupported geometry type {other:?}"
             ))),
         };
-        let kind = match properties.get("kind").and_then(Value::as_str) {
-            Some("building:part") => AreaKind::Part,
-            Some("building") => AreaKind::Building,
-            _ => {
-                let is_no = |v: &Value| v.is_null() || v.as_str() == Some("no");
-                let part = properties.get("building:part").is_some_and(|v| !is_no(v));
-                let building = properties.get("building").is_some_and(|v| !is_no(v));
-                if part && !building {
-                    AreaKind::Part
-                } else {
-                    AreaKind::Building
-                }
-            }
+        let kind = match (properties.get("kind").and_then(Value::as_str), ground) {
+            (Some("building:part"), _) => AreaKind::Part,
+            (Some("building"), _) => AreaKind::Building,
+            (_, Some(class)) => AreaKind::Ground(class),
+            _ if part && !building => AreaKind::Part,
+            _ => AreaKind::Building,
         };
         let heights = self.heights(&tags);
         let part_of = properties.get("part_of").and_then(value_string);

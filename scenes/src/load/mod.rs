@@ -244,7 +244,7 @@ pub fn load_cities(paths: &[PathBuf], options: &LoadOptions) -> Result<City, Loa
     Ok(city)
 }
 
-/// Moves `other` into `city`'s frame and appends its buildings and streets.
+/// Moves `other` into `city`'s frame and appends its buildings, streets and ground areas.
 fn merge_into(city: &mut City, other: City, path: &Path) -> Result<(), LoadError> {
     use glam::DVec3;
     if std::mem::discriminant(&city.frame.crs) != std::mem::discriminant(&other.frame.crs) {
@@ -293,6 +293,10 @@ fn merge_into(city: &mut City, other: City, path: &Path) -> Result<(), LoadError
     for mut s in other.streets {
         s.line.map_coords_in_place(|c| move_xy(c.x, c.y).into());
         city.streets.push(s);
+    }
+    for mut g in other.ground_areas {
+        g.polygon.map_coords_in_place(|c| move_xy(c.x, c.y).into());
+        city.ground_areas.push(g);
     }
     city.report.merge(other.report);
     Ok(())

@@ -11,9 +11,12 @@
 //!   contains one of [`LoadOptions::obj_building_markers`] (default `building`, matching
 //!   3dfier's `Building` class). Each building object is one building of one part, its
 //!   footprint and heights derived from the mesh as for CityJSON ([`super::mesh_building`]).
-//!   Other objects (3dfier's `Terrain`, `Road`, `Water`, `Forest`, `Bridge`, ...) are counted
-//!   per class (their first material, else `unclassified`) and reported with a file warning:
-//!   the scene package has no ground areas to keep them in.
+//!   Every other object (3dfier's `Terrain`, `Road`, `Water`, `Forest`, `Bridge`, ...) is a
+//!   ground area: its class from the first of its name, group names and materials that
+//!   [`GroundClass::from_class_name`] knows (else [`GroundClass::Other`]), its polygon the
+//!   plan of its non-vertical faces ([`crate::mesh_footprint::footprint_from_mesh`], as a
+//!   building's footprint). One that fails (a broken face, nothing but walls) is rejected
+//!   into the report's ground-area list.
 //! * Frame: OBJ names no CRS and no up axis, so [`LoadOptions::source_crs`] and
 //!   [`LoadOptions::up_axis`] give them; origin at the centre of the vertices' xy extent and
 //!   at the lowest building base, as for CityJSON: large absolute coordinates (RD New, UTM)
@@ -33,9 +36,10 @@ use glam::DVec3;
 
 use super::mesh_building::{MeshBuilding, MeshPart, append_surface, assemble, xy_extent_centre};
 use super::{LoadOptions, UpAxis};
-use crate::city::{City, TriangleMesh};
+use crate::city::{City, GroundArea, GroundClass, TriangleMesh};
 use crate::frame::{Crs, Frame};
-use crate::report::{LoadError, LoadReport, LoadWarning, RejectReason};
+use crate::mesh_footprint::footprint_from_mesh;
+use crate::report::{LoadError, LoadReport, LoadWarning, RejectReason, Rejection};
 
 const FORMAT: &str = "OBJ";
 
@@ -83,11 +87,15 @@ pub fn load_reader(
     };
     let origin = DVec3::from_array(origin);
 
-    // Other classes: objects and faces per class, and the first object of each.
-    let mut others: BTreeMap<String, (usize, usize, String)> = BTreeMap::new();
+    // Every object that is not a building is a ground area; the count per class names what
+    // a file without buildings holds.
+    let mut others: BTreeMap<&'static str, usize> = BTreeMap::new();
+    let mut ground_areas = Vec::new();
     let mut buildings = Vec::new();
     for object in &parsed.objects {
-        if object.faces.is_empty() {
+        // An object without faces is no geometry at all (a name, a material); one whose only
+        // face is broken is rejected below, with that face's line.
+        if object.faces.is_empty() && object.broken.is_none() {
             continue;
         }
         if object.is_building(&markers) {
@@ -100,32 +108,40 @@ pub fn load_reader(
                 tags: object.tags(),
             });
         } else {
-            let class = object
-                .materials
-                .first()
-                .map(|m| m.to_ascii_lowercase())
-                .unwrap_or_else(|| "unclassified".into());
-            let entry = others
-                .entry(class)
-                .or_insert_with(|| (0, 0, object.source_id()));
-            entry.0 += 1;
-            entry.1 += object.faces.len();
+            let class = object.ground_class();
+            *others.entry(class.name()).or_insert(0) += 1;
+            report.ground_areas_found += 1;
+            let polygon = object
+                .mesh(&parsed.vertices, &parsed.bad_vertices, origin)
+                .and_then(|mesh| footprint_from_mesh(&mesh));
+            match polygon {
+                Ok(clean) => {
+                    for message in clean.repairs {
+                        report.warnings.push(LoadWarning {
+                            file: path.to_path_buf(),
+                            source_id: object.source_id(),
+                            message,
+                        });
+                    }
+                    ground_areas.push(GroundArea {
+                        source_id: object.source_id(),
+                        class,
+                        polygon: clean.footprint,
+                    });
+                }
+                Err(reason) => report.ground_areas_rejected.push(Rejection {
+                    file: path.to_path_buf(),
+                    source_id: object.source_id(),
+                    reason,
+                }),
+            }
         }
     }
-    for (class, (objects, faces, first)) in &others {
-        report.warnings.push(LoadWarning {
-            file: path.to_path_buf(),
-            source_id: String::new(),
-            message: format!(
-                "{objects} {class} object(s) ({faces} faces, first {first}) not loaded: the \
-                 scene package has no ground areas"
-            ),
-        });
-    }
+    report.ground_areas_loaded = ground_areas.len();
     if buildings.is_empty() {
         let found: Vec<String> = others
             .iter()
-            .map(|(class, (n, _, _))| format!("{n} {class}"))
+            .map(|(class, n)| format!("{n} {class}"))
             .collect();
         return Err(LoadError::Malformed {
             path: path.to_path_buf(),
@@ -142,7 +158,9 @@ pub fn load_reader(
             ),
         });
     }
-    assemble(path, FORMAT, frame, buildings, report)
+    let mut city = assemble(path, FORMAT, frame, buildings, report)?;
+    city.ground_areas = ground_areas;
+    Ok(city)
 }
 
 /// One face: its corners (0-based vertex indices, checked against the vertex count at the end)
@@ -183,6 +201,16 @@ impl Object {
         names
             .map(|n| n.to_ascii_lowercase())
             .any(|n| markers.iter().any(|m| n.contains(m.as_str())))
+    }
+
+    /// The ground class of a non-building object: the first of its name, group names and
+    /// materials that names a class, else [`GroundClass::Other`] (3dfier's `Terrain`).
+    fn ground_class(&self) -> GroundClass {
+        std::iter::once(&self.name)
+            .chain(&self.groups)
+            .chain(&self.materials)
+            .find_map(|n| GroundClass::from_class_name(n))
+            .unwrap_or(GroundClass::Other)
     }
 
     fn tags(&self) -> BTreeMap<String, String> {

@@ -1,11 +1,14 @@
-//! OpenStreetMap PBF loader: buildings, building parts and streets.
+//! OpenStreetMap PBF loader: buildings, building parts, streets and ground areas.
 //!
 //! What is read (OSM Simple 3D Buildings, <https://wiki.openstreetmap.org/wiki/Simple_3D_Buildings>):
 //! - buildings: closed ways and `type=multipolygon` relations tagged `building=*` (not
 //!   `building=no`);
 //! - parts: the same, tagged `building:part=*` (not `no`) and not `building=*`; attached to the
 //!   building whose outline contains them (see [`super::assemble`]);
-//! - streets: ways tagged `highway=*` (not buildings), as polylines.
+//! - streets: ways tagged `highway=*` (not buildings, not `area=yes`), as polylines;
+//! - ground areas: closed ways and multipolygon relations that are neither buildings nor
+//!   parts and whose tags give a [`GroundClass`] ([`GroundClass::from_osm_tags`]: water,
+//!   parks, squares, `landuse=*`, ...).
 //!
 //! Heights come from `height`, `min_height`, `building:levels`, `building:min_level`,
 //! `roof:height` and `roof:levels` ([`super::heights`]).
@@ -37,7 +40,7 @@ use super::assemble::{
     AreaKind, RawArea, RawCity, RawPolygons, RawStreet, SourceCrs, assemble, street_width_m,
 };
 use super::heights::{HeightKeys, TaggedHeights};
-use crate::city::{City, StreetClass};
+use crate::city::{City, GroundClass, StreetClass};
 use crate::report::{LoadError, LoadWarning, RejectReason};
 
 const FORMAT: &str = "OSM PBF";
@@ -50,11 +53,16 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<City, LoadError> {
     Ok(city)
 }
 
-/// Whether tags make an element a building, a part, or neither.
-fn classify<'a>(tags: impl Iterator<Item = (&'a str, &'a str)>) -> Option<AreaKind> {
+/// Whether tags make an element a building, a part, a ground area, or none of them; a
+/// building tag wins over the others, a part tag over a ground area's. `tags` gives the
+/// element's tags afresh on every call.
+fn classify<'a, I>(tags: impl Fn() -> I) -> Option<AreaKind>
+where
+    I: Iterator<Item = (&'a str, &'a str)>,
+{
     let mut part = false;
     let mut building = false;
-    for (k, v) in tags {
+    for (k, v) in tags() {
         match k {
             "building" if v != "no" => building = true,
             "building:part" if v != "no" => part = true,
@@ -66,8 +74,20 @@ fn classify<'a>(tags: impl Iterator<Item = (&'a str, &'a str)>) -> Option<AreaKi
     } else if part {
         Some(AreaKind::Part)
     } else {
-        None
+        GroundClass::from_osm_tags(|key| tags().find(|(k, _)| *k == key).map(|(_, v)| v))
+            .map(AreaKind::Ground)
     }
+}
+
+/// Whether a way is a street line: tagged `highway=*`, neither a building nor a part, and
+/// not an area (`area=yes`: a plaza, which is a ground area).
+fn is_street_line<'a, I>(tags: impl Fn() -> I, kind: Option<AreaKind>) -> bool
+where
+    I: Iterator<Item = (&'a str, &'a str)>,
+{
+    !matches!(kind, Some(AreaKind::Building | AreaKind::Part))
+        && tags().any(|(k, _)| k == "highway")
+        && !tags().any(|(k, v)| k == "area" && v == "yes")
 }
 
 fn tag_map<'a>(tags: impl Iterator<Item = (&'a str, &'a str)>) -> BTreeMap<String, String> {
@@ -91,10 +111,11 @@ struct Relation {
     members: Vec<(i64, bool)>,
 }
 
-/// A tagged way (building, part or street).
+/// A tagged way (building, part, ground area, street, or both of the last two).
 struct Way {
     id: i64,
     kind: Option<AreaKind>,
+    street: bool,
     tags: BTreeMap<String, String>,
     refs: Vec<i64>,
 }
@@ -177,7 +198,7 @@ fn read(path: &Path, options: &LoadOptions) -> Result<RawCity, LoadError> {
         });
     }
 
-    // Pass 1: multipolygon relations that are buildings or parts. Skipped blocks are told
+    // Pass 1: multipolygon relations that are buildings, parts or ground areas. Skipped blocks are told
     // once, from this pass.
     let mut relations: Vec<Relation> = Vec::new();
     let skipped = pass(path, &mut |e| {
@@ -186,7 +207,7 @@ fn read(path: &Path, options: &LoadOptions) -> Result<RawCity, LoadError> {
             if !is_mp {
                 return;
             }
-            let Some(kind) = classify(r.tags()) else {
+            let Some(kind) = classify(|| r.tags()) else {
                 return;
             };
             let members = r
@@ -214,9 +235,8 @@ fn read(path: &Path, options: &LoadOptions) -> Result<RawCity, LoadError> {
     pass(path, &mut |e| {
         saw_any = true;
         if let Element::Way(w) = e {
-            let kind = classify(w.tags());
-            let is_street =
-                kind.is_none() && options.load_streets && w.tags().any(|(k, _)| k == "highway");
+            let kind = classify(|| w.tags());
+            let is_street = options.load_streets && is_street_line(|| w.tags(), kind);
             let is_member = member_ways.contains(&w.id());
             if kind.is_none() && !is_street && !is_member {
                 return;
@@ -229,6 +249,7 @@ fn read(path: &Path, options: &LoadOptions) -> Result<RawCity, LoadError> {
                 ways.push(Way {
                     id: w.id(),
                     kind,
+                    street: is_street,
                     tags: tag_map(w.tags()),
                     refs,
                 });
@@ -291,35 +312,33 @@ fn read(path: &Path, options: &LoadOptions) -> Result<RawCity, LoadError> {
         .collect();
     for w in ways {
         let source_id = format!("way/{}", w.id);
-        match w.kind {
-            Some(kind) => {
-                let polygons = if w.refs.len() < 2 || w.refs.first() != w.refs.last() {
-                    Err(RejectReason::InvalidGeometry("way is not closed".into()))
-                } else {
-                    coords(&w.refs).map(|ring| vec![vec![ring]])
-                };
-                areas.push(RawArea {
-                    source_id,
-                    kind,
-                    polygons,
-                    heights: read_heights(&w.tags, options),
-                    tags: w.tags,
-                    link_ids: Vec::new(),
-                    part_of: None,
-                });
-            }
-            None => {
-                let points: Vec<Coord<f64>> = w.refs.iter().filter_map(node).collect();
-                let class =
-                    StreetClass::from_osm_highway(w.tags.get("highway").map_or("", String::as_str));
-                streets.push(RawStreet {
-                    source_id,
-                    class,
-                    name: w.tags.get("name").cloned(),
-                    points: Ok(points),
-                    tagged_width_m: street_width_m(|k| w.tags.get(k).cloned()),
-                });
-            }
+        if w.street {
+            let points: Vec<Coord<f64>> = w.refs.iter().filter_map(node).collect();
+            let class =
+                StreetClass::from_osm_highway(w.tags.get("highway").map_or("", String::as_str));
+            streets.push(RawStreet {
+                source_id: source_id.clone(),
+                class,
+                name: w.tags.get("name").cloned(),
+                points: Ok(points),
+                tagged_width_m: street_width_m(|k| w.tags.get(k).cloned()),
+            });
+        }
+        if let Some(kind) = w.kind {
+            let polygons = if w.refs.len() < 2 || w.refs.first() != w.refs.last() {
+                Err(RejectReason::InvalidGeometry("way is not closed".into()))
+            } else {
+                coords(&w.refs).map(|ring| vec![vec![ring]])
+            };
+            areas.push(RawArea {
+                source_id,
+                kind,
+                polygons,
+                heights: read_heights(&w.tags, options),
+                tags: w.tags,
+                link_ids: Vec::new(),
+                part_of: None,
+            });
         }
     }
     for r in relations {
