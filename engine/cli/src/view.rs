@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use citywalk_runtime::camera_path_io::PlayEnd;
 use citywalk_runtime::controller::Mode;
-use citywalk_scenes::package::{Decode, ScenePackage};
+use citywalk_scenes::package::{Decode, PackageFile};
 use citywalk_viewer::{
     CriterionKind, DebugView, FramePlan, PlayRequest, RenderSettings, ScreenshotRequest,
     ViewerOptions, ViewerScene,
@@ -183,14 +183,19 @@ fn load_scene(path: &Path, load: &citywalk_scenes::LoadOptions) -> anyhow::Resul
     let scene = if crate::scene_input::is_package(path)? || named_package {
         // What drawing and walking need: the occluders and cluster meshes come from the GPU
         // scene; the buildings' parts are walked against.
-        let package = ScenePackage::read_as(path, Decode::RuntimeWithParts)
-            .with_context(|| format!("cannot read the scene package {}", path.display()))?;
+        // The file stays mapped: a picked building's tags are read from it.
+        let context = || format!("cannot read the scene package {}", path.display());
+        let file = PackageFile::open(path).with_context(context)?;
+        let package = file
+            .decode_as(Decode::RuntimeWithParts)
+            .with_context(context)?;
         let parts = package.into_parts();
         ViewerScene {
             city: parts.city,
             cluster_tree: parts.cluster_tree,
             blocks: Some((parts.blocks, parts.quadtree)),
             gpu_scene: Some(parts.gpu_scene),
+            package: Some(file),
         }
     } else {
         ViewerScene {
@@ -198,6 +203,7 @@ fn load_scene(path: &Path, load: &citywalk_scenes::LoadOptions) -> anyhow::Resul
             cluster_tree: None,
             blocks: None,
             gpu_scene: None,
+            package: None,
         }
     };
     let city = &scene.city;

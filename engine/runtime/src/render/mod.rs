@@ -4,11 +4,13 @@
 pub mod brute;
 pub mod debug;
 pub(crate) mod draws;
+pub mod outline;
 pub mod selected;
 pub mod targets;
 pub mod view;
 
 pub use brute::BruteRenderer;
+pub use outline::OutlineRenderer;
 pub use targets::{DepthTarget, OffscreenTarget, ReadbackError};
 pub use view::{SceneStyle, view_uniforms};
 

@@ -126,6 +126,7 @@ fn run_viewer(script: impl FnMut(&mut App, &ActiveEventLoop, u32) -> Next) -> Ap
         cluster_tree: None,
         blocks: None,
         gpu_scene: None,
+        package: None,
     };
     let options = ViewerOptions {
         mode: Mode::Walk,
