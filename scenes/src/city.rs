@@ -129,13 +129,18 @@ pub struct Building {
 /// Tag keys whose value is a building's number of storeys above ground (OSM, CityJSON).
 pub const LEVEL_TAGS: [&str; 3] = ["building:levels", "storeysAboveGround", "levels"];
 
+/// The storeys above ground as `tags` give them ([`LEVEL_TAGS`], first found), if at all.
+pub fn levels_tag(tags: &BTreeMap<String, String>) -> Option<&str> {
+    LEVEL_TAGS
+        .iter()
+        .find_map(|k| tags.get(*k))
+        .map(String::as_str)
+}
+
 impl Building {
     /// The building's storeys above ground as its source tags them ([`LEVEL_TAGS`]), if at all.
     pub fn levels_tag(&self) -> Option<&str> {
-        LEVEL_TAGS
-            .iter()
-            .find_map(|k| self.tags.get(*k))
-            .map(String::as_str)
+        levels_tag(&self.tags)
     }
 
     /// Footprint area in square metres.

@@ -125,6 +125,19 @@ pub const TREE_C_WORDS: u32 = TREE_C_QUEUE_START + TREE_MAX_LEVELS;
 /// halves.
 pub const TREE_LIST_HEADER: u32 = 4;
 
+// ---- The outline of a picked building or cluster mesh (engine `render::outline`). ----
+
+/// Linear RGB of the outline: a saturated yellow, apart from the amber tint of the picked draw
+/// it rims, the sky behind it and every facade colour.
+pub const OUTLINE_RGB: [f32; 3] = [1.0, 0.92, 0.02];
+
+/// How far the outline's lines are pulled towards the eye, relative: their reversed-Z depth is
+/// scaled by `1 + OUTLINE_DEPTH_BIAS_REL`, the depth of a point `1 / (1 + bias)` as far (0.3 %
+/// of the distance). The lines lie on the faces they border and would otherwise tie with them
+/// in the depth test; a relative bias holds at every distance, where a constant one in depth
+/// units would be metres far away and nothing close by.
+pub const OUTLINE_DEPTH_BIAS_REL: f32 = 0.003;
+
 /// Every `u32` constant emitted into WGSL, by name.
 pub const WGSL_U32: &[(&str, u32)] = &[
     ("GROUND_ID", GROUND_ID),
@@ -177,4 +190,8 @@ pub const WGSL_F32: &[(&str, f32)] = &[
     ("DEBUG_OCCLUDER_SELECTED_G", DEBUG_OCCLUDER_SELECTED_RGB[1]),
     ("DEBUG_OCCLUDER_SELECTED_B", DEBUG_OCCLUDER_SELECTED_RGB[2]),
     ("DEBUG_OCCLUDER_ALPHA", DEBUG_OCCLUDER_ALPHA),
+    ("OUTLINE_R", OUTLINE_RGB[0]),
+    ("OUTLINE_G", OUTLINE_RGB[1]),
+    ("OUTLINE_B", OUTLINE_RGB[2]),
+    ("OUTLINE_DEPTH_BIAS_REL", OUTLINE_DEPTH_BIAS_REL),
 ];

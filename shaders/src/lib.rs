@@ -57,6 +57,11 @@ pub const DEBUG_CLUSTERS_WGSL: &str =
 pub const DEBUG_OCCLUDERS_WGSL: &str =
     include_str!(concat!(env!("OUT_DIR"), "/debug_occluders.wgsl"));
 
+/// Outline of a picked draw (`wgsl/outline.wgsl`): a line list of [`SceneVertex`] (the id is
+/// not read) in [`constants::OUTLINE_RGB`], pulled towards the eye by
+/// [`constants::OUTLINE_DEPTH_BIAS_REL`]; group 0 binding 0 the [`ViewUniforms`].
+pub const OUTLINE_WGSL: &str = include_str!(concat!(env!("OUT_DIR"), "/outline.wgsl"));
+
 /// Every composed shader by file name, for tests that validate or inspect them all.
 pub const ALL_WGSL: &[(&str, &str)] = &[
     ("scene.wgsl", SCENE_WGSL),
@@ -66,4 +71,5 @@ pub const ALL_WGSL: &[(&str, &str)] = &[
     ("debug_pyramid.wgsl", DEBUG_PYRAMID_WGSL),
     ("debug_clusters.wgsl", DEBUG_CLUSTERS_WGSL),
     ("debug_occluders.wgsl", DEBUG_OCCLUDERS_WGSL),
+    ("outline.wgsl", OUTLINE_WGSL),
 ];

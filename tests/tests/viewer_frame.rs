@@ -42,6 +42,7 @@ fn every_stage_combination_and_debug_view_renders_and_reports_its_counts() {
         // As `citywalk view` opens a package: the geometry uploaded from its GPU section.
         gpu_scene: Some(package.gpu_scene.clone()),
         ground_surfaces: Some(package.ground_surfaces.clone()),
+        package: None,
     };
     let features = scene.features();
     assert_eq!(
@@ -208,9 +209,9 @@ fn every_stage_combination_and_debug_view_renders_and_reports_its_counts() {
 
 /// Picking in the viewer's frame (`FrameDrawer::pick`): a click lands on the building the frame
 /// shows under the cursor, not the one hidden behind it, nor anything in the sky; the picked
-/// building is tinted in the next frame and nothing else changes.
+/// building is tinted and outlined in the next frame and nothing else changes.
 #[test]
-fn a_click_picks_the_building_under_the_cursor_and_tints_it() {
+fn a_click_picks_the_building_under_the_cursor_and_tints_and_outlines_it() {
     let Some(gpu) = gpu_or_skip("viewer_frame pick") else {
         return;
     };
@@ -227,6 +228,7 @@ fn a_click_picks_the_building_under_the_cursor_and_tints_it() {
         // A raw input: the viewer meshes it and keeps the arrays for picking.
         gpu_scene: None,
         ground_surfaces: None,
+        package: None,
     };
     let features = scene.features();
     let format = BruteRenderer::PNG_FORMAT;
@@ -239,7 +241,7 @@ fn a_click_picks_the_building_under_the_cursor_and_tints_it() {
         auto: false,
         ..RenderSettings::default()
     };
-    let frame = |drawer: &mut FrameDrawer| -> Vec<u8> {
+    let frame_of = |drawer: &mut FrameDrawer, settings: &RenderSettings| -> Vec<u8> {
         drawer
             .draw(
                 &gpu,
@@ -247,12 +249,13 @@ fn a_click_picks_the_building_under_the_cursor_and_tints_it() {
                 &target.depth,
                 SIZE,
                 &camera,
-                &settings,
+                settings,
                 features,
             )
             .expect("frame");
         target.read_colour(&gpu).expect("read the frame")
     };
+    let frame = |drawer: &mut FrameDrawer| frame_of(drawer, &settings);
     let before = frame(&mut drawer);
     let (w, h) = (SIZE.0 as f32, SIZE.1 as f32);
     let centre = drawer
@@ -276,7 +279,8 @@ fn a_click_picks_the_building_under_the_cursor_and_tints_it() {
         "a raw input keeps its tags for the panel"
     );
 
-    drawer.set_highlight(Some(centre.draw));
+    // A box without a floor: 4 roof, 4 corner and 4 ground edges, no face diagonals.
+    assert_eq!(drawer.set_highlight(&gpu, Some(centre.draw)), 12);
     let tinted = frame(&mut drawer);
     let changed = differing_share(&before, &tinted);
     assert!(changed > 0.02, "the picked building is tinted ({changed})");
@@ -287,6 +291,112 @@ fn a_click_picks_the_building_under_the_cursor_and_tints_it() {
         "{:?}",
         &tinted[at..at + 4]
     );
-    drawer.set_highlight(None);
+
+    // The outline: along the near building's silhouette, the outline colour; inside its front
+    // face (where its hidden back edges project) and away from it, the frame as before. The
+    // same over the HZB frame, which draws into a depth of its own.
+    let hzb = RenderSettings {
+        stages: FramePlan {
+            lod: false,
+            ..FramePlan::ALL
+        },
+        ..settings
+    };
+    drawer.set_highlight(&gpu, None);
+    // Twice: the second HZB frame starts from the first one's visible set, as the next does.
+    frame_of(&mut drawer, &hzb);
+    let hzb_before = frame_of(&mut drawer, &hzb);
+    drawer.set_highlight(&gpu, Some(centre.draw));
+    let hzb_outlined = frame_of(&mut drawer, &hzb);
+    let front = screen_box(&camera, [20.0, -5.0, 0.0], [20.0, 5.0, 10.0]);
+    for (plan, before, outlined) in [
+        ("brute force", &before, &tinted),
+        ("hzb", &hzb_before, &hzb_outlined),
+    ] {
+        check_outline(plan, before, outlined, front);
+    }
+
+    drawer.set_highlight(&gpu, None);
     assert_eq!(differing_share(&before, &frame(&mut drawer)), 0.0);
+}
+
+/// The pixel box `(x0, y0, x1, y1)` that the box `lo`–`hi` (metres) covers in a [`SIZE`] view
+/// from `camera`.
+fn screen_box(camera: &Camera, lo: [f32; 3], hi: [f32; 3]) -> (f32, f32, f32, f32) {
+    let view_proj = camera.view_proj(SIZE.0 as f32 / SIZE.1 as f32);
+    let (mut x0, mut y0, mut x1, mut y1) = (f32::MAX, f32::MAX, f32::MIN, f32::MIN);
+    for i in 0..8 {
+        let corner = Vec3::new(
+            if i & 1 == 0 { lo[0] } else { hi[0] },
+            if i & 2 == 0 { lo[1] } else { hi[1] },
+            if i & 4 == 0 { lo[2] } else { hi[2] },
+        );
+        let clip = view_proj * corner.extend(1.0);
+        let x = (clip.x / clip.w + 1.0) / 2.0 * SIZE.0 as f32;
+        let y = (1.0 - clip.y / clip.w) / 2.0 * SIZE.1 as f32;
+        (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x), y1.max(y));
+    }
+    (x0, y0, x1, y1)
+}
+
+/// The outline of the building whose front face covers the pixel box `front` is drawn in
+/// `outlined` and not in `before`: its colour on both vertical sides of the box, no pixel of
+/// that colour inside it (its back edges are hidden), nothing changed away from it.
+fn check_outline(plan: &str, before: &[u8], outlined: &[u8], front: (f32, f32, f32, f32)) {
+    // The outline colour as the sRGB target stores it.
+    let expected = citywalk_shaders::constants::OUTLINE_RGB.map(|c| {
+        let s = if c <= 0.003_130_8 {
+            12.92 * c
+        } else {
+            1.055 * c.powf(1.0 / 2.4) - 0.055
+        };
+        (s * 255.0).round() as i32
+    });
+    let pixel = |image: &[u8], x: u32, y: u32| {
+        let at = ((y * SIZE.0 + x) * 4) as usize;
+        [image[at], image[at + 1], image[at + 2]]
+    };
+    // Within 3 levels per channel: lavapipe writes the colour exactly; slack for rounding on
+    // other adapters.
+    let is_outline = |p: [u8; 3]| {
+        p.iter()
+            .zip(expected)
+            .all(|(&c, e)| (i32::from(c) - e).abs() <= 3)
+    };
+    let (x0, y0, x1, y1) = front;
+    let mut on_edges = 0;
+    for y in 0..SIZE.1 {
+        for x in 0..SIZE.0 {
+            let (fx, fy) = (x as f32 + 0.5, y as f32 + 0.5);
+            let near = |margin: f32| {
+                fx > x0 - margin && fx < x1 + margin && fy > y0 - margin && fy < y1 + margin
+            };
+            let (was, now) = (pixel(before, x, y), pixel(outlined, x, y));
+            assert!(
+                !is_outline(was),
+                "{plan}: ({x}, {y}) outlined before the pick"
+            );
+            if !near(2.0) {
+                assert_eq!(was, now, "{plan}: ({x}, {y}) away from the pick changed");
+            } else if near(-3.0) {
+                assert!(!is_outline(now), "{plan}: ({x}, {y}) inside the front face");
+            } else if is_outline(now) {
+                on_edges += 1;
+            }
+        }
+    }
+    // Both vertical sides, at mid-height, within a pixel of the projected silhouette.
+    let mid = ((y0 + y1) / 2.0) as u32;
+    for side in [x0, x1] {
+        let hit = (-1..=1).any(|dx: i32| {
+            let x = (side as i32 + dx).clamp(0, SIZE.0 as i32 - 1) as u32;
+            is_outline(pixel(outlined, x, mid))
+        });
+        assert!(hit, "{plan}: no outline at x = {side}, y = {mid}");
+    }
+    let perimeter = 2.0 * ((x1 - x0) + (y1 - y0));
+    assert!(
+        on_edges as f32 > 0.8 * perimeter,
+        "{plan}: {on_edges} outline pixels along a silhouette of {perimeter} px"
+    );
 }

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use citywalk_runtime::camera_path_io::PlayEnd;
 use citywalk_runtime::controller::Mode;
-use citywalk_scenes::package::{Decode, ScenePackage};
+use citywalk_scenes::package::{Decode, PackageFile};
 use citywalk_viewer::{
     CriterionKind, DebugView, FramePlan, PlayRequest, RenderSettings, ScreenshotRequest,
     ViewerOptions, ViewerScene,
@@ -183,8 +183,12 @@ fn load_scene(path: &Path, load: &citywalk_scenes::LoadOptions) -> anyhow::Resul
     let scene = if crate::scene_input::is_package(path)? || named_package {
         // What drawing and walking need: the occluders and cluster meshes come from the GPU
         // scene; the buildings' parts are walked against.
-        let package = ScenePackage::read_as(path, Decode::RuntimeWithParts)
-            .with_context(|| format!("cannot read the scene package {}", path.display()))?;
+        // The file stays mapped: a picked building's tags are read from it.
+        let context = || format!("cannot read the scene package {}", path.display());
+        let file = PackageFile::open(path).with_context(context)?;
+        let package = file
+            .decode_as(Decode::RuntimeWithParts)
+            .with_context(context)?;
         let parts = package.into_parts();
         ViewerScene {
             city: parts.city,
@@ -192,6 +196,7 @@ fn load_scene(path: &Path, load: &citywalk_scenes::LoadOptions) -> anyhow::Resul
             blocks: Some((parts.blocks, parts.quadtree)),
             gpu_scene: Some(parts.gpu_scene),
             ground_surfaces: Some(parts.ground_surfaces),
+            package: Some(file),
         }
     } else {
         ViewerScene {
@@ -200,6 +205,7 @@ fn load_scene(path: &Path, load: &citywalk_scenes::LoadOptions) -> anyhow::Resul
             blocks: None,
             gpu_scene: None,
             ground_surfaces: None,
+            package: None,
         }
     };
     let city = &scene.city;

@@ -345,6 +345,11 @@ impl CullingRenderer {
         self.targets.as_ref().map(|t| &t.pyramid)
     }
 
+    /// The depth the last frame drew into; `None` until a frame has made its targets.
+    pub fn depth(&self) -> Option<&crate::render::DepthTarget> {
+        self.targets.as_ref().map(|t| &t.depth)
+    }
+
     /// A renderer drawing into colour targets of `colour_format` (as
     /// [`crate::render::BruteRenderer::new`]).
     pub fn new(gpu: &GpuContext, colour_format: wgpu::TextureFormat) -> CullingRenderer {

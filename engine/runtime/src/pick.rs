@@ -123,31 +123,41 @@ impl Picker {
 
 /// The nearest distance at which `ray` meets a triangle of `draw` (infinity when none).
 fn draw_hit(geometry: PickGeometry<'_>, draw: u32, ray: &Ray) -> f32 {
-    let Some(r) = geometry.records.get(draw as usize) else {
-        return f32::INFINITY;
-    };
-    let first = r.first_index as usize;
-    let Some(indices) = geometry
-        .indices
-        .get(first..first.saturating_add(r.index_count as usize))
-    else {
-        return f32::INFINITY;
-    };
-    let vertex = |i: u32| -> Option<Vec3A> {
-        let at = usize::try_from(i64::from(r.base_vertex) + i64::from(i)).ok()?;
-        geometry.vertices.get(at).map(|v| Vec3A::from(v.position_m))
+    draw_triangles(geometry, draw)
+        .map(|[v0, v1, v2]| {
+            Triangle {
+                v0: v0.into(),
+                v1: v1.into(),
+                v2: v2.into(),
+            }
+            .intersect(ray)
+        })
+        .fold(f32::INFINITY, f32::min)
+}
+
+/// The triangles of draw `draw` (corner positions, metres); none for a draw out of range, and
+/// a triangle with a corner outside the arrays is left out.
+pub(crate) fn draw_triangles(
+    geometry: PickGeometry<'_>,
+    draw: u32,
+) -> impl Iterator<Item = [Vec3; 3]> + '_ {
+    let record = geometry.records.get(draw as usize);
+    let indices = record
+        .and_then(|r| {
+            let first = r.first_index as usize;
+            geometry
+                .indices
+                .get(first..first.saturating_add(r.index_count as usize))
+        })
+        .unwrap_or(&[]);
+    let base = record.map_or(0, |r| i64::from(r.base_vertex));
+    let vertex = move |i: u32| -> Option<Vec3> {
+        let at = usize::try_from(base + i64::from(i)).ok()?;
+        geometry.vertices.get(at).map(|v| Vec3::from(v.position_m))
     };
     indices
         .chunks_exact(3)
-        .filter_map(|t| {
-            Some(Triangle {
-                v0: vertex(t[0])?,
-                v1: vertex(t[1])?,
-                v2: vertex(t[2])?,
-            })
-        })
-        .map(|t| t.intersect(ray))
-        .fold(f32::INFINITY, f32::min)
+        .filter_map(move |t| Some([vertex(t[0])?, vertex(t[1])?, vertex(t[2])?]))
 }
 
 #[cfg(test)]

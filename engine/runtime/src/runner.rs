@@ -139,6 +139,8 @@ pub struct FrameRunner {
     culling: CullingRenderer,
     surfaces: GroundSurfacePass,
     timer: GpuTimer,
+    /// The last frame was the HZB frame, whose depth is its own.
+    last_drew_own_depth: bool,
 }
 
 impl FrameRunner {
@@ -149,6 +151,7 @@ impl FrameRunner {
             culling: CullingRenderer::new(gpu, format),
             surfaces: GroundSurfacePass::new(gpu, format),
             timer: GpuTimer::new(gpu, "plain frame timer", DRAW_PHASES),
+            last_drew_own_depth: false,
         }
     }
 
@@ -163,6 +166,15 @@ impl FrameRunner {
     /// The HZB frame's renderer (its pyramid and style, for debug views).
     pub fn culling(&self) -> &CullingRenderer {
         &self.culling
+    }
+
+    /// The depth the last frame left: the HZB frame's own, or else `target`'s (that frame's
+    /// [`FrameTarget::depth`]), for a pass drawn over the frame (the pick outline).
+    pub fn frame_depth<'a>(&'a self, target: &'a DepthTarget) -> &'a DepthTarget {
+        match self.culling.depth() {
+            Some(own) if self.last_drew_own_depth => own,
+            _ => target,
+        }
     }
 
     /// The pyramid of the last HZB frame.
@@ -213,6 +225,7 @@ impl FrameRunner {
         (completion, drawn_set): (Completion, bool),
     ) -> Result<Option<FrameReport>, FrameError> {
         let plan = plan.resolve(scene.features());
+        self.last_drew_own_depth = plan.hzb;
         let start = Instant::now();
         let cpu = CpuClock::start();
         let (width, height) = target.size;

@@ -1,6 +1,7 @@
 //! The winit application: window events in, one rendered frame per redraw out.
 
 use std::sync::Arc;
+use std::sync::mpsc::Receiver;
 use std::time::Instant;
 
 use image::RgbaImage;
@@ -24,6 +25,7 @@ use citywalk_runtime::camera_path_io::{PathPlayer, PathRecorder, pose_from_camer
 use citywalk_runtime::controller::{CameraRig, CollisionWorld, Mode};
 use citywalk_runtime::render::OffscreenTarget;
 use citywalk_runtime::render::targets::read_texture;
+use citywalk_scenes::package::{BuildingDetails, PackageError, PackageFile};
 
 /// Longest time step fed to the controllers (seconds): a stall does not teleport the walker.
 const MAX_DT_S: f32 = 0.25;
@@ -62,8 +64,15 @@ pub(super) struct App {
     cursor: Option<(f32, f32)>,
     /// The camera and size of the last frame drawn: a pick is cast through what the user sees.
     last_view: Option<(Camera, (u32, u32))>,
-    /// The building or cluster mesh picked last (left click), tinted in the frames.
+    /// The building or cluster mesh picked last (left click), tinted and outlined in the
+    /// frames.
     picked: Option<Picked>,
+    /// The package the scene was read from, for a picked building's levels and tags.
+    package: Option<Arc<PackageFile>>,
+    /// A picked building's levels and tags being read from the package, on a thread of its
+    /// own: the read walks the details of every building before it (a second or so at a
+    /// million buildings), which the frames must not wait for.
+    reading_details: Option<(u32, Receiver<Result<BuildingDetails, PackageError>>)>,
 }
 
 /// Everything that exists only while there is a window.
@@ -97,6 +106,7 @@ impl App {
             "viewer ready; {KEY_HELP}"
         );
         let source_ids = SourceIds::of(&scene.city);
+        let package = scene.package.take().map(Arc::new);
         scene.release_buildings();
         let player = (options.play.as_ref()).map(|p| PathPlayer::new(p.path.clone(), p.end));
         if let Some(p) = &options.play {
@@ -126,6 +136,8 @@ impl App {
             cursor: None,
             last_view: None,
             picked: None,
+            package,
+            reading_details: None,
         }
     }
 
@@ -147,7 +159,8 @@ impl App {
     }
 
     /// Picks the drawn building or cluster mesh under the cursor in the last frame, describes
-    /// it in the panel and tints it; a click on the sky or the ground clears the pick.
+    /// it in the panel, tints and outlines it (a package building's levels and tags are read
+    /// from the package off this thread); a click on the sky or the ground clears the pick.
     fn pick_under_cursor(&mut self) {
         let (Some(gfx), Some(cursor), Some((camera, size))) =
             (&mut self.gfx, self.cursor, self.last_view)
@@ -155,6 +168,7 @@ impl App {
             return;
         };
         let pick = gfx.drawer.pick(&camera, size, cursor);
+        let city = gfx.drawer.city();
         self.picked = pick.map(|p| {
             let (bounds, covered) = gfx.drawer.draw_facts(p.draw);
             describe(&PickFacts {
@@ -164,9 +178,31 @@ impl App {
                 bounds,
                 covered: &covered,
                 source_ids: &self.source_ids,
-                city: gfx.drawer.city(),
+                city,
+                package_details: self.package.is_some()
+                    && (p.draw as usize) >= city.buildings.len(),
             })
         });
+        self.reading_details = None;
+        if let (Some(id), Some(package)) = (
+            self.picked.as_ref().and_then(|p| p.details_pending),
+            &self.package,
+        ) {
+            let (send, receive) = std::sync::mpsc::channel();
+            let package = Arc::clone(package);
+            std::thread::spawn(move || {
+                let start = Instant::now();
+                let read = package.building_details(id as usize);
+                tracing::debug!(
+                    building = id,
+                    ms = start.elapsed().as_secs_f64() * 1e3,
+                    "read a building's details from the package"
+                );
+                // The pick may have moved on and dropped the receiver: nothing to tell.
+                let _ = send.send(read);
+            });
+            self.reading_details = Some((id, receive));
+        }
         if let Some(p) = &self.picked {
             let summary: Vec<String> = p
                 .rows
@@ -176,8 +212,27 @@ impl App {
                 .collect();
             tracing::info!("picked {}", summary.join(", "));
         }
+        let gpu = &gfx.surface.gpu;
         gfx.drawer
-            .set_highlight(self.picked.as_ref().map(|p| p.draw));
+            .set_highlight(gpu, self.picked.as_ref().map(|p| p.draw));
+    }
+
+    /// Puts a picked building's levels and tags in the panel once their read is done.
+    fn receive_details(&mut self) {
+        let Some((id, receiver)) = &self.reading_details else {
+            return;
+        };
+        let read = match receiver.try_recv() {
+            Ok(read) => read.map_err(|e| e.to_string()),
+            Err(std::sync::mpsc::TryRecvError::Empty) => return,
+            Err(std::sync::mpsc::TryRecvError::Disconnected) => {
+                Err("the read stopped without an answer".to_string())
+            }
+        };
+        if let Some(picked) = &mut self.picked {
+            picked.fill_details(*id, read);
+        }
+        self.reading_details = None;
     }
 
     /// Stops with `error`; an error while the device is lost is that loss (the call that failed
@@ -435,6 +490,7 @@ impl App {
             features,
         )?;
         self.last_view = Some((camera, size));
+        self.receive_details();
         let stats = self.overlay_stats(&camera, scene_counts, drawn.counts);
         let Some(gfx) = &mut self.gfx else {
             return Ok(());

@@ -4,7 +4,7 @@
 use citywalk_scenes::blocks::UrbanBlocks;
 use citywalk_scenes::cluster_tree::ClusterTree;
 use citywalk_scenes::ground_surfaces::GroundSurfaces;
-use citywalk_scenes::package::GpuScene;
+use citywalk_scenes::package::{GpuScene, PackageFile};
 use citywalk_scenes::quadtree::BQuadtree;
 
 use super::overlay::StageCounts;
@@ -16,11 +16,11 @@ use citywalk_runtime::frame::{FrameError, Visibility};
 use citywalk_runtime::gpu::GpuContext;
 use citywalk_runtime::pick::{Pick, PickGeometry, Picker, pixel_ray};
 use citywalk_runtime::plan::SceneFeatures;
-use citywalk_runtime::render::DepthTarget;
 use citywalk_runtime::render::debug::pyramid::GreyRange;
 use citywalk_runtime::render::debug::{
     ClusterView, DepthPyramid, OccluderOverlay, OccluderOverlayMeshes, PyramidView,
 };
+use citywalk_runtime::render::{DepthTarget, OutlineRenderer};
 use citywalk_runtime::runner::{Completion, FrameReport, FrameRunner, FrameTarget};
 use citywalk_runtime::upload::UploadError;
 
@@ -37,6 +37,9 @@ pub struct ViewerScene {
     pub gpu_scene: Option<GpuScene>,
     /// A scene package's streets and ground areas as surfaces (`None`: built from the city).
     pub ground_surfaces: Option<GroundSurfaces>,
+    /// The package the scene was read from, mapped, for what drawing does not decode: a picked
+    /// building's levels and tags ([`PackageFile::building_details`]).
+    pub package: Option<PackageFile>,
 }
 
 impl ViewerScene {
@@ -97,6 +100,8 @@ pub struct FrameDrawer {
     depth_pyramid: DepthPyramid,
     pyramid_view: PyramidView,
     occluder_overlay: OccluderOverlay,
+    /// The picked draw's outline, over every frame.
+    outline: OutlineRenderer,
     /// The drawn geometry on the CPU, for picking: a package's mapping (no resident copy), or
     /// the arrays built from a raw input.
     geometry: GpuScene,
@@ -138,6 +143,7 @@ impl FrameDrawer {
             depth_pyramid: DepthPyramid::new(gpu),
             pyramid_view: PyramidView::new(gpu, format),
             occluder_overlay: OccluderOverlay::new(gpu, format),
+            outline: OutlineRenderer::new(gpu, format),
             geometry,
             picker: None,
             city: scene.city,
@@ -196,9 +202,17 @@ impl FrameDrawer {
         self.geometry.view().building_count
     }
 
-    /// Tints `draw` (a pick) in the frames that follow; `None` clears it.
-    pub fn set_highlight(&mut self, draw: Option<u32>) {
+    /// Tints and outlines `draw` (a pick) in the frames that follow; `None` clears it. Its
+    /// outline is built now from the CPU copy of the geometry; returns its number of edges.
+    pub fn set_highlight(&mut self, gpu: &GpuContext, draw: Option<u32>) -> usize {
         self.runner.set_highlight(draw);
+        let view = self.geometry.view();
+        let geometry = PickGeometry {
+            records: view.records,
+            vertices: view.vertices,
+            indices: view.indices,
+        };
+        self.outline.set(gpu, geometry, draw)
     }
 
     /// The pyramid of the last HZB frame and the newest report read (for the window tests).
@@ -305,6 +319,17 @@ impl FrameDrawer {
         };
         drawn.counts.cpu_ms = start.elapsed().as_secs_f64() * 1e3;
         self.draw_debug(gpu, colour, size, camera, settings, &mut drawn)?;
+        if self.outline.outlined().is_some() {
+            let mut encoder = gpu
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("viewer outline"),
+                });
+            let depth = self.runner.frame_depth(depth);
+            self.outline
+                .encode(gpu, &mut encoder, camera, (colour, depth), size);
+            gpu.queue.submit([encoder.finish()]);
+        }
         Ok(drawn)
     }
 

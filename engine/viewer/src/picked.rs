@@ -2,7 +2,10 @@
 //! its id, source id, height, levels and tags, or the tree node and the buildings it stands
 //! for.
 
+use std::collections::BTreeMap;
+
 use citywalk_scenes::City;
+use citywalk_scenes::package::BuildingDetails;
 
 /// The buildings' source ids, kept when the viewer frees the buildings of a package (one
 /// string and its offsets: ~14 MB at a million buildings, against ~40 MB as strings).
@@ -48,6 +51,53 @@ pub struct Picked {
     pub draw: u32,
     /// (name, value) rows for the panel.
     pub rows: Vec<(String, String)>,
+    /// The building whose levels and tags are still to be read from its package
+    /// ([`Picked::fill_details`] puts them in place of the row saying so).
+    pub details_pending: Option<u32>,
+}
+
+/// The row that stands for a package building's levels and tags until they are read.
+const READING: &str = "reading from the package…";
+
+impl Picked {
+    /// Puts the levels and tags of building `id`, read from its package, in place of the row
+    /// that waited for them (a read that failed says why there); a pick of something else by
+    /// now is left as it is.
+    pub fn fill_details(&mut self, id: u32, read: Result<BuildingDetails, String>) {
+        if self.details_pending != Some(id) {
+            return;
+        }
+        self.details_pending = None;
+        let Some(at) = self.rows.iter().position(|(_, v)| v == READING) else {
+            return;
+        };
+        let rows = match read {
+            Ok(details) => tag_rows(details.levels_tag(), &details.tags),
+            Err(e) => vec![("tags".to_string(), format!("not read: {e}"))],
+        };
+        self.rows.splice(at..=at, rows);
+    }
+}
+
+/// The levels row and the tags rows (at most [`LISTED_TAGS`]).
+fn tag_rows(levels: Option<&str>, tags: &BTreeMap<String, String>) -> Vec<(String, String)> {
+    let mut rows = Vec::new();
+    if let Some(levels) = levels {
+        rows.push(("levels".to_string(), levels.to_string()));
+    }
+    for (k, v) in tags.iter().take(LISTED_TAGS) {
+        rows.push((k.clone(), v.clone()));
+    }
+    if tags.len() > LISTED_TAGS {
+        rows.push((
+            "…".to_string(),
+            format!("{} more tags", tags.len() - LISTED_TAGS),
+        ));
+    }
+    if tags.is_empty() {
+        rows.push(("tags".to_string(), "none".to_string()));
+    }
+    rows
 }
 
 /// What is known of the draw under the cursor.
@@ -64,6 +114,9 @@ pub struct PickFacts<'a> {
     /// The city's buildings, with their tags, where the viewer still holds them (a raw input);
     /// a package opened to draw keeps only their source ids.
     pub city: &'a City,
+    /// The building's levels and tags can be read from the package the scene was opened from
+    /// (they are not in `city`): the panel says they are being read.
+    pub package_details: bool,
 }
 
 /// Buildings of a cluster listed by source id in the panel.
@@ -75,6 +128,7 @@ const LISTED_TAGS: usize = 24;
 /// The panel rows of a pick.
 pub fn describe(f: &PickFacts<'_>) -> Picked {
     let mut rows: Vec<(String, String)> = Vec::new();
+    let mut details_pending = None;
     let mut row = |k: &str, v: String| rows.push((k.to_string(), v));
     let (lo, hi) = f.bounds;
     if f.draw < f.building_count {
@@ -93,15 +147,12 @@ pub fn describe(f: &PickFacts<'_>) -> Picked {
                 "height from",
                 format!("{:?}", b.height_source).to_lowercase(),
             );
-            if let Some(levels) = b.levels_tag() {
-                row("levels", levels.to_string());
+            for (k, v) in tag_rows(b.levels_tag(), &b.tags) {
+                row(&k, v);
             }
-            for (k, v) in b.tags.iter().take(LISTED_TAGS) {
-                row(k, v.clone());
-            }
-            if b.tags.len() > LISTED_TAGS {
-                row("…", format!("{} more tags", b.tags.len() - LISTED_TAGS));
-            }
+        } else if f.package_details {
+            row("tags", READING.into());
+            details_pending = Some(id);
         } else {
             row(
                 "tags",
@@ -126,7 +177,11 @@ pub fn describe(f: &PickFacts<'_>) -> Picked {
         }
     }
     row("distance", format!("{:.1} m", f.distance_m));
-    Picked { draw: f.draw, rows }
+    Picked {
+        draw: f.draw,
+        rows,
+        details_pending,
+    }
 }
 
 #[cfg(test)]
@@ -182,6 +237,7 @@ mod tests {
             covered: &[],
             source_ids: &ids,
             city: &city,
+            package_details: false,
         };
         let rows = describe(&facts).rows;
         let get = |rows: &[(String, String)], k: &str| {
@@ -205,6 +261,44 @@ mod tests {
         .rows;
         assert_eq!(get(&rows, "source id").as_deref(), Some("way/22"));
         assert!(get(&rows, "tags").unwrap().contains("not loaded"));
+        // ... and reads a building's levels and tags from the package on a pick.
+        let mut picked = describe(&PickFacts {
+            draw: 1,
+            city: &empty,
+            package_details: true,
+            ..facts
+        });
+        assert_eq!(picked.details_pending, Some(1));
+        assert!(get(&picked.rows, "tags").unwrap().contains("reading"));
+        let details = BuildingDetails {
+            parts: Vec::new(),
+            tags: BTreeMap::from([
+                ("building".to_string(), "yes".to_string()),
+                ("building:levels".to_string(), "6".to_string()),
+            ]),
+        };
+        let mut other = picked.clone();
+        other.fill_details(0, Ok(details.clone()));
+        assert_eq!(other, picked, "a read for another building changes nothing");
+        picked.fill_details(1, Ok(details));
+        assert_eq!(picked.details_pending, None);
+        assert_eq!(get(&picked.rows, "levels").as_deref(), Some("6"));
+        assert_eq!(get(&picked.rows, "building").as_deref(), Some("yes"));
+        assert_eq!(get(&picked.rows, "tags"), None);
+        assert_eq!(
+            picked.rows.last().map(|(k, _)| k.as_str()),
+            Some("distance"),
+            "the tags stand where the placeholder stood"
+        );
+        let mut failed = describe(&PickFacts {
+            draw: 1,
+            city: &empty,
+            package_details: true,
+            ..facts
+        });
+        let error = citywalk_scenes::package::PackageError::NoSuchBuilding { index: 1, count: 1 };
+        failed.fill_details(1, Err(error.to_string()));
+        assert!(get(&failed.rows, "tags").unwrap().contains("no building 1"));
         // A cluster: its node and its buildings.
         let rows = describe(&PickFacts {
             draw: 2 + 5,

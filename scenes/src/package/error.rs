@@ -47,6 +47,9 @@ pub enum PackageError {
     /// their counts or ranges disagree. `sections` names them.
     #[error("inconsistent package: {sections}: {reason}")]
     Inconsistent { sections: String, reason: String },
+    /// A building asked for by index that the package does not have.
+    #[error("no building {index}: the package has {count}")]
+    NoSuchBuilding { index: usize, count: usize },
     /// The package could not be encoded.
     #[error("cannot encode section {section}: {reason}")]
     Encode { section: String, reason: String },

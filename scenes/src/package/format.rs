@@ -481,14 +481,95 @@ pub fn decode_one<T: DeserializeOwned>(
     Ok(Some(value))
 }
 
-/// One building's entry of [`SectionKind::BuildingDetails`].
-type BuildingDetails = (
+/// One building's entry of [`SectionKind::BuildingDetails`], as it is encoded.
+type DetailsEntry = (
     Vec<crate::BuildingPart>,
     std::collections::BTreeMap<String, String>,
 );
 
-/// [`BuildingDetails`] with the tags read past ([`SkippedTags`]).
+/// [`DetailsEntry`] with the tags read past ([`SkippedTags`]).
 type PartsOnly = (Vec<crate::BuildingPart>, SkippedTags);
+
+/// One building's parts and tags, read alone from a package ([`read_building_details`]).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct BuildingDetails {
+    pub parts: Vec<crate::BuildingPart>,
+    pub tags: std::collections::BTreeMap<String, String>,
+}
+
+impl BuildingDetails {
+    /// The storeys above ground as the tags give them ([`crate::city::levels_tag`]).
+    pub fn levels_tag(&self) -> Option<&str> {
+        crate::city::levels_tag(&self.tags)
+    }
+}
+
+/// Reads the parts and tags of building `index` alone from the [`SectionKind::BuildingDetails`]
+/// section of verified package bytes (a mapping): the entries before it are walked without
+/// allocating ([`SkippedEntry`]), nothing after it is read. postcard has no lengths to jump
+/// over, so the time grows with `index` (the whole section's walk at the last building).
+pub fn read_building_details(
+    bytes: &[u8],
+    entries: &[SectionEntry],
+    index: usize,
+) -> Result<BuildingDetails, PackageError> {
+    let kind = SectionKind::BuildingDetails;
+    let e = entries
+        .iter()
+        .find(|e| e.kind == kind as u32)
+        .ok_or_else(|| PackageError::Malformed(format!("missing section {}", kind.name())))?;
+    let payload = bytes
+        .get(e.offset as usize..(e.offset + e.length) as usize)
+        .ok_or_else(|| PackageError::Decode {
+            section: kind.name().into(),
+            reason: "section outside the file".into(),
+        })?;
+    let mut deserializer = postcard::Deserializer::from_bytes(payload);
+    let found = serde::de::DeserializeSeed::deserialize(NthEntry(index), &mut deserializer)
+        .map_err(|e| PackageError::Decode {
+            section: kind.name().into(),
+            reason: e.to_string(),
+        })?;
+    match found {
+        Ok((parts, tags)) => Ok(BuildingDetails { parts, tags }),
+        Err(count) => Err(PackageError::NoSuchBuilding { index, count }),
+    }
+}
+
+/// Decodes entry `.0` of the details `Vec`, walking past the ones before it; `Err(len)` when
+/// the `Vec` is shorter.
+struct NthEntry(usize);
+
+impl<'de> serde::de::DeserializeSeed<'de> for NthEntry {
+    type Value = Result<DetailsEntry, usize>;
+    fn deserialize<D: serde::Deserializer<'de>>(
+        self,
+        deserializer: D,
+    ) -> Result<Self::Value, D::Error> {
+        deserializer.deserialize_seq(self)
+    }
+}
+
+impl<'de> serde::de::Visitor<'de> for NthEntry {
+    type Value = Result<DetailsEntry, usize>;
+    fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("the buildings' details")
+    }
+    fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> Result<Self::Value, A::Error> {
+        // postcard gives the exact length up front: an index past it is answered unread.
+        if let Some(len) = seq.size_hint()
+            && self.0 >= len
+        {
+            return Ok(Err(len));
+        }
+        for walked in 0..self.0 {
+            if seq.next_element::<SkippedEntry<'de>>()?.is_none() {
+                return Ok(Err(walked));
+            }
+        }
+        Ok(seq.next_element()?.ok_or(self.0))
+    }
+}
 
 /// A building's tags read and dropped: the map's strings are borrowed from the payload as it is
 /// walked, nothing is allocated.
@@ -511,6 +592,51 @@ impl<'de> serde::Deserialize<'de> for SkippedTags {
             }
         }
         deserializer.deserialize_map(Walk)
+    }
+}
+
+/// A [`DetailsEntry`] read past without allocating: the same layout with every string
+/// borrowed from the payload and every `Vec` walked element by element. postcard is not
+/// self-describing (`serde::de::IgnoredAny` is refused), so the skip spells out the layout of
+/// `(Vec<BuildingPart>, BTreeMap<String, String>)`; the round-trip tests hold it to the type.
+#[derive(serde::Deserialize)]
+struct SkippedEntry<'a>(#[serde(borrow)] SkippedSeq<SkippedPart<'a>>, SkippedTags);
+
+/// [`crate::BuildingPart`]: source id, footprint, base, top.
+#[derive(serde::Deserialize)]
+#[expect(dead_code, reason = "read to walk past them, never used")]
+struct SkippedPart<'a>(
+    #[serde(borrow)] &'a str,
+    SkippedSeq<SkippedPolygon>,
+    f32,
+    f32,
+);
+
+/// A `geo::Polygon<f64>`: the exterior ring, then the interior rings (a ring is a newtype of a
+/// `Vec` of coordinates, transparent in postcard).
+#[derive(serde::Deserialize)]
+struct SkippedPolygon(SkippedSeq<(f64, f64)>, SkippedSeq<SkippedSeq<(f64, f64)>>);
+
+/// A sequence whose elements are read as `T` and dropped.
+struct SkippedSeq<T>(std::marker::PhantomData<T>);
+
+impl<'de, T: serde::Deserialize<'de>> serde::Deserialize<'de> for SkippedSeq<T> {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct Walk<T>(std::marker::PhantomData<T>);
+        impl<'de, T: serde::Deserialize<'de>> serde::de::Visitor<'de> for Walk<T> {
+            type Value = SkippedSeq<T>;
+            fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str("a sequence")
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(
+                self,
+                mut seq: A,
+            ) -> Result<SkippedSeq<T>, A::Error> {
+                while seq.next_element::<T>()?.is_some() {}
+                Ok(SkippedSeq(std::marker::PhantomData))
+            }
+        }
+        deserializer.deserialize_seq(Walk(std::marker::PhantomData))
     }
 }
 
@@ -633,7 +759,7 @@ fn decode_with(
                 b.parts = parts;
             },
         )?,
-        Decode::All => attach_details(&mut buildings, bytes, entries, |b, d: BuildingDetails| {
+        Decode::All => attach_details(&mut buildings, bytes, entries, |b, d: DetailsEntry| {
             (b.parts, b.tags) = d;
         })?,
     }

@@ -74,6 +74,12 @@ impl PackageFile {
         format::decode_one(&self.map, &self.sections, kind)
     }
 
+    /// The parts and tags of building `index` alone, read from the mapping
+    /// ([`format::read_building_details`]): for a package decoded without them.
+    pub fn building_details(&self, index: usize) -> Result<format::BuildingDetails, PackageError> {
+        format::read_building_details(&self.map, &self.sections, index)
+    }
+
     /// Decodes the whole package; its GPU scene stays in the mapping (which it keeps alive).
     pub fn decode(&self) -> Result<ScenePackage, PackageError> {
         format::decode_mapped(&self.map, &self.sections, format::Decode::All)

@@ -29,7 +29,7 @@ pub mod gpu_scene;
 mod map;
 
 pub use error::PackageError;
-pub use format::{Decode, FORMAT_VERSION, MAGIC, SectionKind};
+pub use format::{BuildingDetails, Decode, FORMAT_VERSION, MAGIC, SectionKind};
 pub use gpu_scene::{GpuScene, GpuSceneView};
 pub use map::PackageFile;
 

@@ -552,3 +552,73 @@ fn writing_replaces_a_regular_file_and_follows_a_link() {
     assert_eq!(mode & 0o777, 0o640);
     assert_eq!(std::fs::read_dir(dir.path()).expect("list").count(), 2);
 }
+
+#[test]
+fn one_buildings_details_are_read_alone_as_a_full_decode_gives_them() {
+    let mut pkg = small_package();
+    // Building 0: two parts, one a multipolygon with a hole, and several tags; building 1
+    // without parts or tags; building 2 with levels. Reading a building walks past the ones
+    // before it, so every shape of entry is walked past once.
+    let holed = MultiPolygon::new(vec![
+        polygon![
+            exterior: [(x: 0.0, y: 0.0), (x: 8.0, y: 0.0), (x: 8.0, y: 6.0), (x: 0.0, y: 6.0)],
+            interiors: [[(x: 2.0, y: 2.0), (x: 4.0, y: 2.0), (x: 4.0, y: 4.0)]],
+        ],
+        polygon![(x: 10.0, y: 0.0), (x: 12.0, y: 0.0), (x: 12.0, y: 2.0)],
+    ]);
+    pkg.buildings[0].parts.push(BuildingPart {
+        source_id: "way/100".into(),
+        footprint: holed,
+        base_m: 12.5,
+        top_m: 20.0,
+    });
+    pkg.buildings[0]
+        .tags
+        .insert("name".into(), "Torre dos Clérigos".into());
+    pkg.buildings[1].parts.clear();
+    pkg.buildings[1].tags.clear();
+    let mut third = pkg.buildings[0].clone();
+    third.id = BuildingId(2);
+    third.tags.insert("building:levels".into(), "7".into());
+    pkg.buildings.push(third);
+    pkg.blocks.blocks[0].buildings.push(BuildingId(2));
+    pkg.blocks.block_of_building.push(0);
+    pkg.gpu_scene = GpuScene::build(&city_of(&pkg.buildings), None, None);
+
+    let bytes = pkg.to_bytes(WriteOptions::default()).expect("encode");
+    let full = ScenePackage::from_bytes(&bytes).expect("decode all");
+    let entries = format::verify(&bytes).expect("verify");
+    for (i, b) in full.buildings.iter().enumerate() {
+        let details = format::read_building_details(&bytes, &entries, i).expect("read");
+        assert_eq!(details.parts, b.parts, "building {i}");
+        assert_eq!(details.tags, b.tags, "building {i}");
+        assert_eq!(details.levels_tag(), b.levels_tag(), "building {i}");
+    }
+    assert_eq!(
+        format::read_building_details(&bytes, &entries, 2)
+            .expect("read")
+            .levels_tag(),
+        Some("7")
+    );
+    let past = format::read_building_details(&bytes, &entries, 3).expect_err("out of range");
+    assert!(
+        matches!(past, PackageError::NoSuchBuilding { index: 3, count: 3 }),
+        "{past:?}"
+    );
+    assert_eq!(past.to_string(), "no building 3: the package has 3");
+
+    // From a mapped file, as the viewer reads them.
+    let dir = std::env::temp_dir().join(format!("citywalk-details-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let path = dir.join("details.cwk");
+    pkg.write(&path, WriteOptions::default()).expect("write");
+    let file = PackageFile::open(&path).expect("open");
+    let drawn = file.decode_as(Decode::RuntimeWithParts).expect("decode");
+    assert!(drawn.buildings.iter().all(|b| b.tags.is_empty()));
+    assert_eq!(
+        file.building_details(0).expect("read").tags,
+        full.buildings[0].tags
+    );
+    assert!(file.building_details(usize::MAX).is_err());
+    std::fs::remove_dir_all(&dir).ok();
+}

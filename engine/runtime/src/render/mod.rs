@@ -5,12 +5,14 @@ pub mod brute;
 pub mod debug;
 pub(crate) mod draws;
 pub mod ground_surfaces;
+pub mod outline;
 pub mod selected;
 pub mod targets;
 pub mod view;
 
 pub use brute::BruteRenderer;
 pub use ground_surfaces::{GroundSurfacePass, SurfaceMeshes, SurfaceStats};
+pub use outline::OutlineRenderer;
 pub use targets::{DepthTarget, OffscreenTarget, ReadbackError};
 pub use view::{SceneStyle, view_uniforms};
 

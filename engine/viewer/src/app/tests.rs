@@ -127,6 +127,7 @@ fn run_viewer(script: impl FnMut(&mut App, &ActiveEventLoop, u32) -> Next) -> Ap
         blocks: None,
         gpu_scene: None,
         ground_surfaces: None,
+        package: None,
     };
     let options = ViewerOptions {
         mode: Mode::Walk,
