@@ -12,19 +12,25 @@ const PRINTED: usize = 20;
 /// One rejection or warning.
 #[derive(Debug, Serialize)]
 pub struct ReportItem {
-    /// `building` or `street` for a rejection; empty for a warning.
+    /// `building`, `street` or `ground area` for a rejection; empty for a warning.
     pub kind: &'static str,
     pub file: String,
     pub source_id: String,
     pub reason: String,
 }
 
-/// The rejections (buildings, then streets) and the warnings of a load report.
+/// The rejections (buildings, then streets, then ground areas) and the warnings of a load
+/// report.
 pub fn items(report: &LoadReport) -> (Vec<ReportItem>, Vec<ReportItem>) {
     let buildings = report.rejected.iter().map(|r| ("building", r));
     let streets = report.streets_rejected.iter().map(|r| ("street", r));
+    let ground = report
+        .ground_areas_rejected
+        .iter()
+        .map(|r| ("ground area", r));
     let rejected = buildings
         .chain(streets)
+        .chain(ground)
         .map(|(kind, r)| ReportItem {
             kind,
             file: r.file.display().to_string(),
@@ -45,9 +51,8 @@ pub fn items(report: &LoadReport) -> (Vec<ReportItem>, Vec<ReportItem>) {
     (rejected, warnings)
 }
 
-/// Prints `rejected: FILE: building ID: REASON` (or `street ID`) and `load warning: FILE: ID:
-/// MESSAGE` lines,
-/// the first [`PRINTED`] of each.
+/// Prints `rejected: FILE: building ID: REASON` (or `street ID`, `ground area ID`) and `load
+/// warning: FILE: ID: MESSAGE` lines, the first [`PRINTED`] of each.
 pub fn print(rejected: &[ReportItem], warnings: &[ReportItem]) {
     for (label, list) in [("rejected", rejected), ("load warning", warnings)] {
         for item in list.iter().take(PRINTED) {
@@ -55,8 +60,8 @@ pub fn print(rejected: &[ReportItem], warnings: &[ReportItem]) {
                 println!("{label}: {}: {}", item.file, item.reason);
             } else if label == "rejected" {
                 println!(
-                    "{label}: {}: building {}: {}",
-                    item.file, item.source_id, item.reason
+                    "{label}: {}: {} {}: {}",
+                    item.file, item.kind, item.source_id, item.reason
                 );
             } else {
                 println!(

@@ -91,7 +91,7 @@ fn extents(pkg: &ScenePackage, source_id: &str) -> (f64, f64, f32, f32, f64) {
 }
 
 #[test]
-fn y_up_obj_preprocesses_with_its_heights_and_reports_the_terrain() {
+fn y_up_obj_preprocesses_with_its_heights_and_keeps_the_terrain() {
     let dir = temp_dir("obj-y-up");
     let obj = write_city(&dir, "Building_A", "Building_B");
     let package = dir.join("city.cwk");
@@ -110,23 +110,28 @@ fn y_up_obj_preprocesses_with_its_heights_and_reports_the_terrain() {
     let inspected = json(&citywalk(&["inspect", path_str(&package), "--json"]));
     assert_eq!(inspected["buildings"], 2, "{inspected}");
     assert_eq!(inspected["buildings_rejected"], 0, "{inspected}");
-    let warnings = inspected["load_warning_list"]
-        .as_array()
-        .expect("a warning list");
-    assert!(
-        warnings.iter().any(|w| {
-            let reason = w["reason"].as_str().unwrap_or_default();
-            reason.contains("terrain")
-                && reason.contains("Terrain_1")
-                && reason.contains("not loaded")
-        }),
-        "no warning about the terrain class: {warnings:?}"
+    // The terrain is a ground area of class `other` (3dfier's Terrain), kept in the package.
+    assert_eq!(inspected["ground_areas"], 1, "{inspected}");
+    assert_eq!(
+        inspected["ground_areas_by_class"]["other"], 1,
+        "{inspected}"
+    );
+    assert_eq!(
+        inspected["ground_areas_by_class"]["water"], 0,
+        "{inspected}"
     );
     let parameters = inspected["parameters_json"].as_str().expect("parameters");
     assert!(parameters.contains(r#""up_axis":"Y""#), "{parameters}");
 
     // y-up mapped to z-up: file y is the height, file -z is north.
     let pkg = ScenePackage::read(&package).expect("the package reads");
+    // Its plan: the triangle (-20, -20), (60, -20), (60, 40) of 2400 m².
+    let ring = &pkg.ground_areas[0].polygon.0[0].exterior().0;
+    let twice: f64 = ring
+        .windows(2)
+        .map(|w| w[0].x * w[1].y - w[1].x * w[0].y)
+        .sum();
+    assert!((0.5 * twice.abs() - 2400.0).abs() < 1e-3, "{ring:?}");
     let (east_a, north_a, base_a, top_a, south_a) = extents(&pkg, "Building_A");
     let (east_b, north_b, base_b, top_b, south_b) = extents(&pkg, "Building_B");
     let near = |a: f64, b: f64| (a - b).abs() < 1e-3;

@@ -198,8 +198,8 @@ fn read(path: &Path, options: &LoadOptions) -> Result<RawCity, LoadError> {
         });
     }
 
-    // Pass 1: multipolygon relations that are buildings, parts or ground areas. Skipped blocks are told
-    // once, from this pass.
+    // Pass 1: multipolygon relations that are buildings, parts or ground areas. Skipped
+    // blocks are told once, from this pass.
     let mut relations: Vec<Relation> = Vec::new();
     let skipped = pass(path, &mut |e| {
         if let Element::Relation(r) = e {

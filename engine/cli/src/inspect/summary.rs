@@ -6,6 +6,7 @@ use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 use anyhow::Context;
+use citywalk_scenes::GroundClass;
 use citywalk_scenes::package::{PackageFile, ScenePackage, SectionKind};
 use serde::Serialize;
 
@@ -55,6 +56,10 @@ struct Summary {
     buildings_with_mesh: usize,
     streets: usize,
     streets_rejected: usize,
+    ground_areas: usize,
+    ground_areas_rejected: usize,
+    /// Ground areas per class name ([`citywalk_scenes::GroundClass::name`]), every class listed.
+    ground_areas_by_class: BTreeMap<&'static str, usize>,
     blocks: usize,
     blocks_with_street_outline: usize,
     buildings_per_block_min_median_max: Option<(usize, usize, usize)>,
@@ -146,6 +151,11 @@ fn summarise(
             .or_insert(0) += 1;
     }
     let (rejected, load_warning_list) = report_items::items(report);
+    let mut ground_areas_by_class: BTreeMap<&'static str, usize> =
+        GroundClass::ALL.iter().map(|c| (c.name(), 0)).collect();
+    for g in &pkg.ground_areas {
+        *ground_areas_by_class.entry(g.class.name()).or_insert(0) += 1;
+    }
     Summary {
         scene: path.display().to_string(),
         is_package,
@@ -168,6 +178,9 @@ fn summarise(
         buildings_with_mesh: pkg.buildings.iter().filter(|b| b.mesh.is_some()).count(),
         streets: pkg.streets.len(),
         streets_rejected: report.streets_rejected.len(),
+        ground_areas: pkg.ground_areas.len(),
+        ground_areas_rejected: report.ground_areas_rejected.len(),
+        ground_areas_by_class,
         blocks: pkg.blocks.blocks.len(),
         blocks_with_street_outline: pkg
             .blocks
@@ -236,6 +249,17 @@ fn print_summary(s: &Summary) {
     for (reason, n) in &s.rejections_by_reason {
         println!("  rejected {n}: {reason}");
     }
+    let by_class: Vec<String> = s
+        .ground_areas_by_class
+        .iter()
+        .map(|(class, n)| format!("{n} {class}"))
+        .collect();
+    println!(
+        "ground areas: {} ({} rejected): {}",
+        s.ground_areas,
+        s.ground_areas_rejected,
+        by_class.join(", ")
+    );
     report_items::print(&s.rejected, &s.load_warning_list);
     print!(
         "blocks: {} ({} street faces)",
