@@ -142,7 +142,8 @@ impl GroundSurfaces {
                     continue;
                 };
                 let feature = mean_width_m(polygon);
-                if !(feature > 0.0) {
+                // NaN counts as no area.
+                if feature.is_nan() || feature <= 0.0 {
                     skipped.push(SkippedSurface {
                         source_id: area.source_id.clone(),
                         reason: "a polygon of zero area".into(),
@@ -239,7 +240,7 @@ impl GroundSurfaces {
             }
             layer = d.layer;
             let finite = d.min_m.iter().chain(&d.max_m).all(|v| v.is_finite());
-            if !finite || !(d.feature_m > 0.0) {
+            if !finite || !d.feature_m.is_finite() || d.feature_m <= 0.0 {
                 return Err(format!("draw {k}: bounds or feature size not finite"));
             }
         }
@@ -312,7 +313,7 @@ fn chunk_pieces(line: &LineString<f64>) -> Vec<LineString<f64>> {
 
 /// The points within `half_width` of `piece` as valid polygons (round joins and caps).
 fn stroke(piece: &LineString<f64>, half_width: f64) -> Result<Vec<Polygon<f64>>, String> {
-    if !(half_width > 0.0) {
+    if half_width.is_nan() || half_width <= 0.0 {
         return Err(format!("width {} m", 2.0 * half_width));
     }
     // The geometry kernel asserts its own invariants; one bad street must not stop the city.
