@@ -4,8 +4,9 @@
 //! never much slower than the cheapest plan.
 //!
 //! A small bandit over a fixed ladder of plans: brute force (no culling and no LOD, the frame the
-//! others must beat), then CPU frustum culling, with the HZB frame, with occluders, with the
-//! gate, these four with the LOD cut as the caller asks. Every plan is
+//! others must beat), then CPU frustum culling, with the HZB frame (twice: drawing the virtual
+//! occluders on a view jump, and not), with occluders, with the gate, these with the LOD cut as
+//! the caller asks. Every plan is
 //! tried for a few frames first (the first two of each are not counted: its early set is empty
 //! or stale), then the cheapest by a moving average of measured frame cost is run, and every
 //! `PROBE_EVERY` frames one other plan within reach is tried again, so the choice follows the
@@ -55,10 +56,27 @@ const SMOOTHING: f64 = 0.3;
 /// flapping between two plans that cost the same).
 const SWITCH_MARGIN: f64 = 0.9;
 
+/// A rung of the planner's ladder: a plan, and what a frame whose view jumped runs instead.
+///
+/// Whether the virtual occluders pay on a jump depends on the adapter, so the HZB plan without
+/// them is on the ladder twice and the measured costs decide. On lavapipe a street frame of the
+/// generated 1M city that jumped drew 115,000 buildings in 350 ms without them; on an NVIDIA H200
+/// at 1920×1080 drawing them costs 3–6 ms of fill while a stale early set costs about 2, and the
+/// generated 100k city's street path (a jump every frame) ran at 0.74× brute force with them
+/// where the HZB frame alone gave 1.38×.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Candidate {
+    /// The plan of a frame whose view did not jump.
+    pub plan: FramePlan,
+    /// A frame whose view jumped draws the virtual occluders too (an HZB plan without them, in a
+    /// scene that has them).
+    pub occluders_on_jump: bool,
+}
+
 /// The planner: the ladder of candidate plans and their measured costs.
 #[derive(Debug, Clone)]
 pub struct AutoPlanner {
-    candidates: Vec<FramePlan>,
+    candidates: Vec<Candidate>,
     /// Moving average of each candidate's frame cost (ms), `None` until measured.
     cost_ms: Vec<Option<f64>>,
     /// The candidate run now, and how many frames it has run since it was (re)started.
@@ -92,11 +110,19 @@ impl AutoPlanner {
             occluder_gate: true,
             ..occluders
         };
-        let mut candidates: Vec<FramePlan> = Vec::new();
+        let mut candidates: Vec<Candidate> = Vec::new();
         for plan in [FramePlan::NONE, base, hzb, occluders, gated] {
             let plan = plan.resolve(features);
-            if !candidates.contains(&plan) {
-                candidates.push(plan);
+            // The rung with the occluders on a jump first: it keeps the choice on a tie.
+            let rungs = [true, false].map(|occluders_on_jump| Candidate {
+                plan,
+                occluders_on_jump,
+            });
+            let has_jump_variant = jump_variant(plan, features).is_some();
+            for rung in rungs {
+                if (has_jump_variant || !rung.occluders_on_jump) && !candidates.contains(&rung) {
+                    candidates.push(rung);
+                }
             }
         }
         AutoPlanner {
@@ -112,24 +138,29 @@ impl AutoPlanner {
         }
     }
 
-    /// The candidate plans, in ladder order.
-    pub fn candidates(&self) -> &[FramePlan] {
+    /// The rungs of the ladder, in order.
+    pub fn candidates(&self) -> &[Candidate] {
         &self.candidates
     }
 
-    /// The plan chosen now (the rung of the ladder; see [`AutoPlanner::plan_for`]).
-    pub fn plan(&self) -> FramePlan {
+    /// The rung chosen now.
+    pub fn candidate(&self) -> Candidate {
         self.candidates[self.current]
     }
 
+    /// The plan chosen now (the rung's plan; see [`AutoPlanner::plan_for`]).
+    pub fn plan(&self) -> FramePlan {
+        self.candidate().plan
+    }
+
     /// The plan of the next frame, seen from `camera`: the chosen one, but with the virtual
-    /// occluders when it is an HZB plan without them and the view jumped since the last frame.
-    /// Without occluders the pyramid holds only what the early pass drew, last frame's visible
-    /// set: after a jump it hides little, and a street frame of the generated 1M city drew
-    /// 115,000 buildings in 350 ms. The frame of a jump counts as a frame of the chosen plan:
-    /// choosing it means paying for its jumps, so a view that jumps every frame (the bundled
-    /// Chelsea's street path samples a route 24 times) makes it expensive and the planner moves
-    /// on. Not counting them left it blind there: `auto` fell from 1.07× to 0.80× brute force.
+    /// occluders when the chosen rung draws them on a jump and the view jumped since the last
+    /// frame. Without occluders the pyramid holds only what the early pass drew, last frame's
+    /// visible set: after a jump it hides little (see [`Candidate`]). The frame of a jump counts
+    /// as a frame of the chosen rung: choosing it means paying for its jumps, so a view that
+    /// jumps every frame (the bundled Chelsea's street path samples a route 24 times) makes it
+    /// expensive and the planner moves on. Not counting them left it blind there: `auto` fell
+    /// from 1.07× to 0.80× brute force.
     pub fn plan_for(&mut self, camera: &Camera) -> FramePlan {
         let jumped = self
             .last_view
@@ -141,16 +172,12 @@ impl AutoPlanner {
         }
     }
 
-    /// The plan a jump runs instead of the chosen one: the chosen HZB plan with the occluders,
-    /// where it has none and the scene has them.
+    /// The plan a jump runs instead of the chosen one, where the chosen rung has one.
     fn jump_variant(&self) -> Option<FramePlan> {
-        let plan = self.plan();
-        let variant = FramePlan {
-            occluders: true,
-            ..plan
-        }
-        .resolve(self.features);
-        (plan.hzb && variant != plan).then_some(variant)
+        let rung = self.candidate();
+        rung.occluders_on_jump
+            .then(|| jump_variant(rung.plan, self.features))
+            .flatten()
     }
 
     /// Whether the first trials are still running: some candidate has not been measured yet, or
@@ -230,6 +257,16 @@ impl AutoPlanner {
     }
 }
 
+/// `plan` with the virtual occluders: an HZB plan without them, in a scene that has them.
+fn jump_variant(plan: FramePlan, features: SceneFeatures) -> Option<FramePlan> {
+    let variant = FramePlan {
+        occluders: true,
+        ..plan
+    }
+    .resolve(features);
+    (plan.hzb && variant != plan).then_some(variant)
+}
+
 /// Whether the view moved or turned so far from `last` to `now` that last frame's visible set
 /// says little about this one's ([`JUMP_MIN_M`], [`JUMP_HEIGHT_FRACTION`], [`JUMP_TURN_OF_FOV`]).
 fn view_jumped(last: &Camera, now: &Camera) -> bool {
@@ -286,13 +323,28 @@ mod tests {
             AutoPlanner::new(SceneFeatures::ALL, true)
                 .candidates()
                 .len(),
-            5
+            6
         );
+        // The HZB plan without occluders twice: with and without them on a jump.
+        let all = AutoPlanner::new(SceneFeatures::ALL, true);
+        let bare_hzb = |c: &&Candidate| c.plan.hzb && !c.plan.occluders;
+        let rungs: Vec<bool> = all
+            .candidates()
+            .iter()
+            .filter(bare_hzb)
+            .map(|c| c.occluders_on_jump)
+            .collect();
+        assert_eq!(rungs, [true, false]);
         // No occluders: brute force, CPU culling alone and the HZB frame.
         let plain = AutoPlanner::new(SceneFeatures::default(), true);
         assert_eq!(plain.candidates().len(), 3);
-        assert_eq!(plain.candidates()[0], FramePlan::NONE);
-        assert!(plain.candidates().iter().all(|p| !p.lod && !p.occluders));
+        assert_eq!(plain.candidates()[0].plan, FramePlan::NONE);
+        assert!(
+            plain
+                .candidates()
+                .iter()
+                .all(|c| !c.plan.lod && !c.plan.occluders && !c.occluders_on_jump)
+        );
     }
 
     #[test]
@@ -419,31 +471,75 @@ mod tests {
             position: street.position + glam::Vec3::Y * 600.0,
             ..street
         };
+        assert!(planner.candidate().occluders_on_jump);
         let jump = planner.plan_for(&cut);
         assert!(jump.occluders && jump.hzb && jump.lod);
         planner.record(&report(jump, 40.0));
         let chosen = planner
             .candidates()
             .iter()
-            .position(|&c| c == bare)
+            .position(|c| c.plan == bare && c.occluders_on_jump)
             .unwrap();
         assert!(planner.costs_ms()[chosen] > settled[chosen]);
-        // A view that jumps every frame makes the plan dearer than the others: it moves on.
-        let mut at = cut;
-        for _ in 0..20 {
-            at.position += glam::Vec3::X * 600.0;
-            let plan = planner.plan_for(&at);
-            let ms = if plan.hzb && plan.occluders && !plan.occluder_gate && plan.lod {
+        // A view that jumps every frame makes the occluders dearer than the stale early set
+        // they replace (a real GPU paying for their fill): it moves to the rung without them.
+        let ran = jump_every_frame(&mut planner, cut, 40, |plan| {
+            if plan.hzb && plan.occluders && !plan.occluder_gate && plan.lod {
                 // The jump variant (the ungated occluder rung runs the same frame).
                 60.0
             } else if plan.hzb && !plan.occluders {
                 10.0
             } else {
                 30.0
-            };
-            planner.record(&report(plan, ms));
-        }
-        assert_ne!(planner.plan(), bare);
+            }
+        });
+        assert!(!planner.candidate().occluders_on_jump);
+        assert_eq!(planner.plan(), bare);
+        // Past the switch, the jumps go without them (but for a probe of the other rungs).
+        let bare_jumps = ran[20..].iter().filter(|p| !p.occluders).count();
+        assert!(bare_jumps >= 15, "{bare_jumps} of 20");
+    }
+
+    #[test]
+    fn a_jump_keeps_the_occluders_where_the_stale_set_costs_more() {
+        let mut planner = AutoPlanner::new(SceneFeatures::ALL, true);
+        // Steady views: the HZB plan without occluders is the cheapest.
+        simulate(&mut planner, 100, |p| {
+            if p.hzb && !p.occluders { 10.0 } else { 30.0 }
+        });
+        // Then a jump every frame on a software rasteriser: the bare frame after a jump draws
+        // most of the city (the generated 1M street path on lavapipe), the occluders hide it.
+        let start = Camera::new(glam::Vec3::new(0.0, 0.0, 1.7), 0.0, 0.0);
+        let ran = jump_every_frame(&mut planner, start, 200, |plan| {
+            match (plan.hzb, plan.occluders, plan.occluder_gate) {
+                (true, false, _) => 350.0,
+                (true, true, false) => 40.0,
+                (true, true, true) => 45.0,
+                (false, ..) => 600.0,
+            }
+        });
+        // Past the trials of the rung without occluders, the jumps draw them.
+        let with_occluders = ran[100..].iter().filter(|p| p.occluders).count();
+        assert!(with_occluders > 90, "{with_occluders} of 100");
+    }
+
+    /// Runs `frames` frames of a view that jumps 600 m every frame from `from`, where each plan
+    /// run costs `cost(plan)`; returns the plans run.
+    fn jump_every_frame(
+        planner: &mut AutoPlanner,
+        from: Camera,
+        frames: usize,
+        cost: impl Fn(FramePlan) -> f64,
+    ) -> Vec<FramePlan> {
+        let mut at = from;
+        (0..frames)
+            .map(|_| {
+                at.position += glam::Vec3::X * 600.0;
+                let plan = planner.plan_for(&at);
+                planner.record(&report(plan, cost(plan)));
+                plan
+            })
+            .collect()
     }
 
     #[test]
