@@ -1,5 +1,5 @@
 //! Streets and ground areas as flat surfaces on the ground plane: the triangles a frame draws
-//! over the ground, grouped in draws by layer and chunk for the distance LOD.
+//! over the ground, grouped in draws by layer, width band and chunk for the distance LOD.
 //!
 //! * A street becomes the set of points within half its width of its centre line (the
 //!   Minkowski sum of the line and a disc, round joins and caps), cut into pieces of at most
@@ -11,10 +11,12 @@
 //! * Polygons are triangulated by ear clipping (`geo::TriangulateEarcut`).
 //! * Layers are drawn in order, later ones on top: ground areas by [`GroundClass`], then
 //!   streets from footways up to major roads, so the wider road shows at a crossing.
-//! * LOD: each draw keeps its narrowest feature (a street's width; an area's mean width
-//!   2·area/perimeter, the width of a long strip and half the side of a square). The runtime
-//!   skips a draw whose narrowest feature projects below a pixel threshold at the nearest point
-//!   of its bounds, so far away only the major roads and large areas remain.
+//! * LOD: each draw holds features of one width band (widths within a factor of two: a street's
+//!   width; an area's mean width 2·area/perimeter, the width of a long strip and half the side
+//!   of a square) and keeps its narrowest. The runtime skips a draw whose narrowest feature
+//!   projects below a pixel threshold at the nearest point of its bounds, so far away only the
+//!   major roads and large areas remain; the band keeps a garden from taking the park beside
+//!   it along.
 //!
 //! A piece that cannot be made into triangles (a degenerate line, a geometry kernel failure) is
 //! counted in [`GroundSurfaces::skipped`] with its source id, never dropped silently.
@@ -43,6 +45,9 @@ const STREET_ORDER: [StreetClass; 6] = [
     StreetClass::Major,
 ];
 
+// The shader colours a surface by its layer from a table of this size.
+const _: () = assert!(SurfaceLayer::COUNT == citywalk_shaders::constants::SURFACE_LAYER_COUNT);
+
 /// What a draw shows: a class of ground area or of street.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub enum SurfaceLayer {
@@ -51,7 +56,7 @@ pub enum SurfaceLayer {
 }
 
 impl SurfaceLayer {
-    /// Number of layers.
+    /// Number of layers (the shader's colour table has one entry each).
     pub const COUNT: u32 = (GroundClass::ALL.len() + STREET_ORDER.len()) as u32;
 
     /// The layer's place in the draw order, `0..COUNT` (also what the shader colours by).
@@ -133,7 +138,8 @@ impl GroundSurfaces {
 
     /// The surfaces of `streets` and `areas`.
     pub fn of(streets: &[Street], areas: &[GroundArea]) -> GroundSurfaces {
-        let mut pieces: BTreeMap<(u32, (i64, i64)), ChunkPieces> = BTreeMap::new();
+        // Keyed by layer first: the draws come out in draw order.
+        let mut pieces: BTreeMap<(u32, i32, (i64, i64)), ChunkPieces> = BTreeMap::new();
         let mut skipped = Vec::new();
         for area in areas {
             let layer = SurfaceLayer::Area(area.class).index();
@@ -151,7 +157,7 @@ impl GroundSurfaces {
                     continue;
                 }
                 pieces
-                    .entry((layer, chunk_of(rect.center())))
+                    .entry((layer, width_band(feature), chunk_of(rect.center())))
                     .or_default()
                     .push(polygon.clone(), feature);
             }
@@ -163,7 +169,8 @@ impl GroundSurfaces {
                 let chunk = chunk_of(piece.0[piece.0.len() / 2]);
                 match stroke(&piece, half_width) {
                     Ok(polygons) => {
-                        let entry = pieces.entry((layer, chunk)).or_default();
+                        let band = width_band(2.0 * half_width);
+                        let entry = pieces.entry((layer, band, chunk)).or_default();
                         for polygon in polygons {
                             entry.push(polygon, 2.0 * half_width);
                         }
@@ -179,7 +186,7 @@ impl GroundSurfaces {
             skipped,
             ..GroundSurfaces::default()
         };
-        for ((layer, _), chunk) in pieces {
+        for ((layer, ..), chunk) in pieces {
             surfaces.push_draw(layer, chunk);
         }
         surfaces.vertices.shrink_to_fit();
@@ -229,6 +236,13 @@ impl GroundSurfaces {
         if let Some(i) = self.indices.iter().find(|&&i| i >= vertices) {
             return Err(format!("index {i} beyond {vertices} vertices"));
         }
+        if let Some(k) = self
+            .vertices
+            .iter()
+            .position(|v| !v.iter().all(|c| c.is_finite()))
+        {
+            return Err(format!("vertex {k} not finite"));
+        }
         let mut layer = 0;
         for (k, d) in self.draws.iter().enumerate() {
             let end = d.first_index as u64 + d.index_count as u64;
@@ -242,6 +256,9 @@ impl GroundSurfaces {
             let finite = d.min_m.iter().chain(&d.max_m).all(|v| v.is_finite());
             if !finite || !d.feature_m.is_finite() || d.feature_m <= 0.0 {
                 return Err(format!("draw {k}: bounds or feature size not finite"));
+            }
+            if d.min_m.iter().zip(&d.max_m).any(|(lo, hi)| lo > hi) {
+                return Err(format!("draw {k}: bounds' minimum above their maximum"));
             }
         }
         Ok(())
@@ -264,6 +281,12 @@ impl ChunkPieces {
         };
         self.polygons.push(polygon);
     }
+}
+
+/// The width band of a feature `width_m` wide: widths in one band differ by less than a factor
+/// of two, so a draw's narrowest feature speaks for all of them.
+fn width_band(width_m: f64) -> i32 {
+    width_m.log2().floor().clamp(-32.0, 32.0) as i32
 }
 
 /// The chunk containing `c`.
@@ -437,6 +460,40 @@ mod tests {
             let x = x as f32;
             assert!(s.draws.iter().any(|d| d.min_m[0] <= x && x <= d.max_m[0]));
         }
+    }
+
+    #[test]
+    fn a_small_area_does_not_take_a_large_one_of_its_chunk_along() {
+        let square = |x: f64, side: f64| {
+            Polygon::new(
+                LineString::from(vec![
+                    (x, 0.0),
+                    (x + side, 0.0),
+                    (x + side, side),
+                    (x, side),
+                    (x, 0.0),
+                ]),
+                vec![],
+            )
+        };
+        let park = |id: &str, polygon| GroundArea {
+            source_id: id.into(),
+            class: GroundClass::Park,
+            polygon: MultiPolygon::new(vec![polygon]),
+        };
+        // One chunk, one class: a 200 m park and a 10 m garden.
+        let s = GroundSurfaces::of(
+            &[],
+            &[
+                park("park", square(0.0, 200.0)),
+                park("garden", square(210.0, 10.0)),
+            ],
+        );
+        let mut features: Vec<f32> = s.draws.iter().map(|d| d.feature_m).collect();
+        features.sort_by(f32::total_cmp);
+        // Mean widths: half the side of a square.
+        assert_eq!(features, [5.0, 100.0]);
+        s.check().unwrap();
     }
 
     #[test]

@@ -137,7 +137,7 @@ impl SceneGeometry {
         let (lo, hi) = self.bounds;
         let centre = (lo + hi) * 0.5;
         let half_m = ((hi - lo).truncate().max_element() * 0.5).max(100.0) * 50.0 + 5_000.0;
-        let z = lo.z.min(0.0);
+        let z = ground_plane_z(lo.z);
         let base_vertex = self.vertices.len() as i32;
         for (dx, dy) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
             self.vertices.push(SceneVertex {
@@ -179,6 +179,13 @@ impl SceneGeometry {
             self.ground,
         )
     }
+}
+
+/// The height of the ground plane under a scene whose lowest point is at `min_z` (metres): sea
+/// level, or lower where the scene goes below it. The ground quad and the surfaces laid over it
+/// read it here.
+pub fn ground_plane_z(min_z: f32) -> f32 {
+    min_z.min(0.0)
 }
 
 /// Checks a scene layout: index ranges are contiguous, in record order, inside the index array,

@@ -582,7 +582,8 @@ fn issue14_small_geojson_with_bom_loads() {
 }
 
 /// Issue 16: polygons that are not buildings and carry OSM area tags are ground areas, with
-/// the OSM loader's classes; a building tagged `landuse` stays a building; a bad ground area is
+/// the OSM loader's classes; a building tagged `landuse`, or a polygon with a height or storeys of
+/// its own, stays a building; a bad ground area is
 /// rejected with its id; a street area without `area=yes` is still skipped.
 #[test]
 fn ground_areas_load_by_class() {
@@ -596,6 +597,11 @@ fn ground_areas_load_by_class() {
             f("house", json!([ring(0.0, 0.0, 10.0)]),
               json!({"building": "yes", "landuse": "retail", "height": 9})),
             f("untagged", json!([ring(20.0, 0.0, 10.0)]), json!({})),
+            // A footprint dataset's building with a land-use attribute and a height of its own.
+            f("footprint", json!([ring(40.0, 0.0, 10.0)]),
+              json!({"landuse": "residential", "height": 12})),
+            f("storeys", json!([ring(60.0, 0.0, 10.0)]),
+              json!({"landuse": "commercial", "building:levels": 4})),
             f("pond", json!([ring(100.0, 0.0, 40.0)]), json!({"natural": "water"})),
             f("park", json!([ring(200.0, 0.0, 30.0), ring(210.0, 10.0, 5.0)]),
               json!({"tags": {"leisure": "park", "name": "Green"}})),
@@ -619,7 +625,7 @@ fn ground_areas_load_by_class() {
         .iter()
         .map(|b| b.source_id.as_str())
         .collect();
-    assert_eq!(ids, ["house", "untagged"]);
+    assert_eq!(ids, ["house", "untagged", "footprint", "storeys"]);
     assert_eq!((r.ground_areas_found, r.ground_areas_loaded), (6, 5), "{r}");
     use geo::Area;
     let got: Vec<(&str, GroundClass, f64)> = city

@@ -11,6 +11,11 @@ pub const GROUND_ID: u32 = u32::MAX;
 /// building; drawn by the ground-surface pass only.
 pub const SURFACE_ID_BASE: u32 = GROUND_ID - 64;
 
+/// Ground-surface layers (`citywalk_scenes::ground_surfaces::SurfaceLayer::COUNT`, which asserts
+/// it): the size of the shader's colour table. At most the 64 ids above [`SURFACE_ID_BASE`].
+pub const SURFACE_LAYER_COUNT: u32 = 12;
+const _: () = assert!(SURFACE_LAYER_COUNT <= GROUND_ID - SURFACE_ID_BASE);
+
 /// Value of an id-buffer pixel that shows no building (sky or ground). A building with id `i`
 /// writes `i + ID_OFFSET`.
 pub const ID_BACKGROUND: u32 = 0;
@@ -142,6 +147,7 @@ pub const OUTLINE_DEPTH_BIAS_REL: f32 = 0.003;
 pub const WGSL_U32: &[(&str, u32)] = &[
     ("GROUND_ID", GROUND_ID),
     ("SURFACE_ID_BASE", SURFACE_ID_BASE),
+    ("SURFACE_LAYER_COUNT", SURFACE_LAYER_COUNT),
     ("ID_BACKGROUND", ID_BACKGROUND),
     ("ID_OFFSET", ID_OFFSET),
     ("HZB_BUILD_WORKGROUP", HZB_BUILD_WORKGROUP),

@@ -43,7 +43,7 @@ fn facade_colour(id: u32) -> vec3<f32> {
 // (other land, grass, forest, park, paved, water), then streets from minor to major (other,
 // footway, service, residential, minor, major): asphalt darkens with the road's rank.
 fn surface_colour(layer: u32) -> vec3<f32> {
-    var palette = array<vec3<f32>, 12>(
+    var palette = array<vec3<f32>, SURFACE_LAYER_COUNT>(
         vec3<f32>(0.62, 0.60, 0.52), // other land
         vec3<f32>(0.52, 0.64, 0.40), // grass
         vec3<f32>(0.30, 0.46, 0.28), // forest
@@ -57,7 +57,7 @@ fn surface_colour(layer: u32) -> vec3<f32> {
         vec3<f32>(0.39, 0.39, 0.41), // minor road
         vec3<f32>(0.35, 0.35, 0.37), // major road
     );
-    return srgb_to_linear(palette[min(layer, 11u)]);
+    return srgb_to_linear(palette[min(layer, SURFACE_LAYER_COUNT - 1u)]);
 }
 
 fn roof_colour(id: u32) -> vec3<f32> {

@@ -72,8 +72,7 @@ impl DrawableScene {
         gpu: &GpuContext,
         surfaces: &GroundSurfaces,
     ) -> Result<DrawableScene, UploadError> {
-        // The ground plane's height (`SceneGeometry`'s ground quad).
-        let ground_z = self.buildings.bounds.0.z.min(0.0);
+        let ground_z = citywalk_scenes::scene_geometry::ground_plane_z(self.buildings.bounds.0.z);
         self.surfaces = SurfaceMeshes::upload(gpu, surfaces, ground_z)?;
         Ok(self)
     }

@@ -336,11 +336,6 @@ impl CullingRenderer {
     /// The pyramid the last frame culled against last (its early depth, with the selected
     /// occluders when the pre-pass ran), for debug views; `None` until a frame has made its
     /// targets.
-    /// The depth of the last HZB frame (`None` before the first).
-    pub fn depth_target(&self) -> Option<&crate::render::DepthTarget> {
-        self.targets.as_ref().map(|t| &t.depth)
-    }
-
     pub fn pyramid(&self) -> Option<&HzbPyramid> {
         self.targets.as_ref().map(|t| &t.pyramid)
     }

@@ -439,7 +439,7 @@ impl FrameRunner {
         camera: &Camera,
         target: FrameTarget<'_>,
     ) -> SurfaceStats {
-        let (Some(meshes), Some(depth)) = (scene.surfaces, self.culling.depth_target()) else {
+        let (Some(meshes), Some(depth)) = (scene.surfaces, self.culling.depth()) else {
             return SurfaceStats::default();
         };
         let mut encoder = gpu

@@ -38,6 +38,10 @@ pub enum UploadError {
         bytes: u64,
         message: String,
     },
+    /// Arrays that contradict each other (an index past the vertices, a range past the
+    /// indices): uploading them would draw garbage or fault on the GPU.
+    #[error("the scene's {what} are inconsistent: {message}")]
+    Inconsistent { what: String, message: String },
 }
 
 /// `bytes` in the largest binary unit that keeps a whole number before the point:

@@ -549,9 +549,13 @@ impl Sink<'_> {
         let is_no = |v: &Value| v.is_null() || v.as_str() == Some("no");
         let part = properties.get("building:part").is_some_and(|v| !is_no(v));
         let building = properties.get("building").is_some_and(|v| !is_no(v));
+        let heights = self.heights(&tags);
+        // Footprint datasets often carry land-use attributes on their buildings: a polygon with
+        // a height or storeys of its own is a building whatever else it is tagged with.
+        let has_height = heights.top_m.is_some() || heights.top_from_levels_m.is_some();
         let ground = match properties.get("kind").and_then(Value::as_str) {
             Some("building" | "building:part") => None,
-            _ if part || building => None,
+            _ if part || building || has_height => None,
             _ => GroundClass::from_osm_tags(|k| tags.get(k).map(String::as_str)),
         };
         match (geometry_kind, highway) {
@@ -603,7 +607,6 @@ impl Sink<'_> {
             _ if part && !building => AreaKind::Part,
             _ => AreaKind::Building,
         };
-        let heights = self.heights(&tags);
         let part_of = properties.get("part_of").and_then(value_string);
         let link_ids = feature_id.into_iter().chain(id_property).collect();
         self.areas.push(RawArea {

@@ -104,6 +104,13 @@ impl SurfaceMeshes {
         if surfaces.draws.is_empty() {
             return Ok(None);
         }
+        // A package's section was checked when it was read; a caller's own surfaces may not be.
+        surfaces
+            .check()
+            .map_err(|message| UploadError::Inconsistent {
+                what: "ground surfaces".into(),
+                message,
+            })?;
         // Each vertex takes the layer of the draw it belongs to (draws never share vertices).
         let mut vertices: Vec<SceneVertex> = surfaces
             .vertices
