@@ -888,29 +888,13 @@ impl CullingRenderer {
             return;
         }
         let targets = self.targets.as_ref().expect("fit_targets ran");
-        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("late_pass"),
-            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: colour,
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Load,
-                    store: wgpu::StoreOp::Store,
-                },
-            })],
-            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                view: &targets.depth.view,
-                depth_ops: Some(wgpu::Operations {
-                    load: wgpu::LoadOp::Load,
-                    store: wgpu::StoreOp::Store,
-                }),
-                stencil_ops: None,
-            }),
-            timestamp_writes: self.timer.render_pass_writes("late"),
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
+        let mut pass = crate::render::overlay_pass(
+            encoder,
+            "late_pass",
+            colour,
+            &targets.depth.view,
+            self.timer.render_pass_writes("late"),
+        );
         pass.set_pipeline(&self.scene_pipeline);
         pass.set_bind_group(0, &self.view_group, &[]);
         scene.bind(&mut pass);

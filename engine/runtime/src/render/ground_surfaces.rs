@@ -289,29 +289,7 @@ impl GroundSurfacePass {
         let uniforms = view_uniforms(camera, depth.width, depth.height, style);
         gpu.queue
             .write_buffer(&self.view_buffer, 0, bytemuck::bytes_of(&uniforms));
-        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("ground surfaces"),
-            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: colour,
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Load,
-                    store: wgpu::StoreOp::Store,
-                },
-            })],
-            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                view: &depth.view,
-                depth_ops: Some(wgpu::Operations {
-                    load: wgpu::LoadOp::Load,
-                    store: wgpu::StoreOp::Store,
-                }),
-                stencil_ops: None,
-            }),
-            timestamp_writes: None,
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
+        let mut pass = super::overlay_pass(encoder, "ground surfaces", colour, &depth.view, None);
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &self.view_group, &[]);
         pass.set_vertex_buffer(0, meshes.vertex_buffer.slice(..));

@@ -224,6 +224,40 @@ pub(crate) fn begin_scene_pass<'e>(
     )
 }
 
+/// Begins a render pass that draws over a frame already drawn: `colour` and `depth` both loaded
+/// and kept (the late pass, the ground surfaces, the picked building's outline).
+pub(crate) fn overlay_pass<'e>(
+    encoder: &'e mut wgpu::CommandEncoder,
+    label: &str,
+    colour: &wgpu::TextureView,
+    depth: &wgpu::TextureView,
+    timestamp_writes: Option<wgpu::RenderPassTimestampWrites<'_>>,
+) -> wgpu::RenderPass<'e> {
+    encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+        label: Some(label),
+        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+            view: colour,
+            depth_slice: None,
+            resolve_target: None,
+            ops: wgpu::Operations {
+                load: wgpu::LoadOp::Load,
+                store: wgpu::StoreOp::Store,
+            },
+        })],
+        depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+            view: depth,
+            depth_ops: Some(wgpu::Operations {
+                load: wgpu::LoadOp::Load,
+                store: wgpu::StoreOp::Store,
+            }),
+            stencil_ops: None,
+        }),
+        timestamp_writes,
+        occlusion_query_set: None,
+        multiview_mask: None,
+    })
+}
+
 /// Begins an untimed render pass into `colour`, loaded or cleared as `load` and stored, with
 /// `depth` (cleared to reversed-Z infinity) when given.
 pub(crate) fn begin_colour_pass<'e>(
