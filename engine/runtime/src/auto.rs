@@ -114,13 +114,13 @@ impl AutoPlanner {
         for plan in [FramePlan::NONE, base, hzb, occluders, gated] {
             let plan = plan.resolve(features);
             // The rung with the occluders on a jump first: it keeps the choice on a tie.
-            let rungs = [true, false].map(|occluders_on_jump| Candidate {
-                plan,
-                occluders_on_jump,
-            });
-            let has_jump_variant = jump_variant(plan, features).is_some();
-            for rung in rungs {
-                if (has_jump_variant || !rung.occluders_on_jump) && !candidates.contains(&rung) {
+            let with_jumps = jump_variant(plan, features).map(|_| true);
+            for occluders_on_jump in with_jumps.into_iter().chain([false]) {
+                let rung = Candidate {
+                    plan,
+                    occluders_on_jump,
+                };
+                if !candidates.contains(&rung) {
                     candidates.push(rung);
                 }
             }

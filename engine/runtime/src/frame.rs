@@ -892,7 +892,7 @@ impl CullingRenderer {
             encoder,
             "late_pass",
             colour,
-            &targets.depth.view,
+            &targets.depth,
             self.timer.render_pass_writes("late"),
         );
         pass.set_pipeline(&self.scene_pipeline);

@@ -289,7 +289,7 @@ impl GroundSurfacePass {
         let uniforms = view_uniforms(camera, depth.width, depth.height, style);
         gpu.queue
             .write_buffer(&self.view_buffer, 0, bytemuck::bytes_of(&uniforms));
-        let mut pass = super::overlay_pass(encoder, "ground surfaces", colour, &depth.view, None);
+        let mut pass = super::overlay_pass(encoder, "ground surfaces", colour, depth, None);
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &self.view_group, &[]);
         pass.set_vertex_buffer(0, meshes.vertex_buffer.slice(..));

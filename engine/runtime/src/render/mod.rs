@@ -219,7 +219,7 @@ pub(crate) fn begin_scene_pass<'e>(
         label,
         colour,
         wgpu::LoadOp::Clear(clear),
-        Some(depth),
+        Some(depth.attachment()),
         timestamp_writes,
     )
 }
@@ -230,32 +230,17 @@ pub(crate) fn overlay_pass<'e>(
     encoder: &'e mut wgpu::CommandEncoder,
     label: &str,
     colour: &wgpu::TextureView,
-    depth: &wgpu::TextureView,
+    depth: &DepthTarget,
     timestamp_writes: Option<wgpu::RenderPassTimestampWrites<'_>>,
 ) -> wgpu::RenderPass<'e> {
-    encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-        label: Some(label),
-        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-            view: colour,
-            depth_slice: None,
-            resolve_target: None,
-            ops: wgpu::Operations {
-                load: wgpu::LoadOp::Load,
-                store: wgpu::StoreOp::Store,
-            },
-        })],
-        depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-            view: depth,
-            depth_ops: Some(wgpu::Operations {
-                load: wgpu::LoadOp::Load,
-                store: wgpu::StoreOp::Store,
-            }),
-            stencil_ops: None,
-        }),
+    colour_pass(
+        encoder,
+        label,
+        colour,
+        wgpu::LoadOp::Load,
+        Some(depth.loaded_attachment()),
         timestamp_writes,
-        occlusion_query_set: None,
-        multiview_mask: None,
-    })
+    )
 }
 
 /// Begins an untimed render pass into `colour`, loaded or cleared as `load` and stored, with
@@ -267,7 +252,14 @@ pub(crate) fn begin_colour_pass<'e>(
     load: wgpu::LoadOp<wgpu::Color>,
     depth: Option<&DepthTarget>,
 ) -> wgpu::RenderPass<'e> {
-    colour_pass(encoder, label, colour, load, depth, None)
+    colour_pass(
+        encoder,
+        label,
+        colour,
+        load,
+        depth.map(DepthTarget::attachment),
+        None,
+    )
 }
 
 fn colour_pass<'e>(
@@ -275,7 +267,7 @@ fn colour_pass<'e>(
     label: &str,
     colour: &wgpu::TextureView,
     load: wgpu::LoadOp<wgpu::Color>,
-    depth: Option<&DepthTarget>,
+    depth: Option<wgpu::RenderPassDepthStencilAttachment<'_>>,
     timestamp_writes: Option<wgpu::RenderPassTimestampWrites<'_>>,
 ) -> wgpu::RenderPass<'e> {
     encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
@@ -289,7 +281,7 @@ fn colour_pass<'e>(
                 store: wgpu::StoreOp::Store,
             },
         })],
-        depth_stencil_attachment: depth.map(DepthTarget::attachment),
+        depth_stencil_attachment: depth,
         timestamp_writes,
         occlusion_query_set: None,
         multiview_mask: None,

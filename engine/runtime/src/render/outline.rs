@@ -196,7 +196,7 @@ impl OutlineRenderer {
         let uniforms = super::view_uniforms(camera, width, height, &SceneStyle::default());
         gpu.queue
             .write_buffer(&self.view_buffer, 0, bytemuck::bytes_of(&uniforms));
-        let mut pass = super::overlay_pass(encoder, "outline", colour, &depth.view, None);
+        let mut pass = super::overlay_pass(encoder, "outline", colour, depth, None);
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &self.view_group, &[]);
         pass.set_vertex_buffer(0, lines.buffer.slice(..));

@@ -75,6 +75,17 @@ impl DepthTarget {
             stencil_ops: None,
         }
     }
+
+    /// The attachment that keeps the depth drawn so far (a pass over a frame already drawn).
+    pub fn loaded_attachment(&self) -> wgpu::RenderPassDepthStencilAttachment<'_> {
+        wgpu::RenderPassDepthStencilAttachment {
+            depth_ops: Some(wgpu::Operations {
+                load: wgpu::LoadOp::Load,
+                store: wgpu::StoreOp::Store,
+            }),
+            ..self.attachment()
+        }
+    }
 }
 
 /// An offscreen colour + depth target that can be read back (PNG frames, the oracle, tests).
