@@ -137,6 +137,8 @@ use crate::scene_gpu::SceneGpu;
 use candidates::{Candidates, LodSource};
 use grow_buffer::GrowBuffer;
 pub use occluders::{OccluderDraw, OccluderMeshes};
+/// Frames a report may arrive after its own.
+pub use report_ring::SLOTS as REPORT_LAG_FRAMES;
 use report_ring::{ReadSlot, ReportRing, SlotLayout};
 use targets::Targets;
 pub use visibility::Visibility;

@@ -12,8 +12,9 @@ use crate::frame::grow_buffer::GrowBuffer;
 use crate::gpu::GpuContext;
 use crate::render::targets::ReadbackError;
 
-/// Slots in the ring: the frame being recorded, one the GPU works on, one being read.
-const SLOTS: usize = 3;
+/// Slots in the ring: the frame being recorded, one the GPU works on, one being read. A report
+/// arrives at most this many frames after its frame ([`crate::auto`] counts on it).
+pub const SLOTS: usize = 3;
 
 const FREE: u8 = 0;
 const IN_FLIGHT: u8 = 1;
