@@ -7,10 +7,13 @@
 //! uploads them straight from the mapping. The runtime computes the same for inputs loaded on
 //! the fly, so both paths draw the same occluders.
 
+use std::collections::HashMap;
+
 use bytemuck::{Pod, Zeroable};
 use citywalk_shaders::SceneVertex;
 use glam::Vec3;
 
+use crate::TriangleMesh;
 use crate::occluder::OccluderSet;
 
 /// One drawable occluder: indices `first_index .. first_index + index_count` of the index
@@ -51,8 +54,14 @@ impl OccluderArrays {
     /// The occluders of `set` with at least one whole triangle and a finite box; triangles with
     /// an index outside their mesh are left out (the set's invariants forbid both, but a set
     /// built in memory is not checked).
+    ///
+    /// Each occluder's vertices are welded: a facade's walls are quads of their own, so every
+    /// corner came twice (24.6 M vertices for 12.3 M distinct ones in the generated 1M city,
+    /// 188 MiB of GPU memory). Only bit-identical positions are merged, so every triangle keeps
+    /// exactly its corners.
     pub fn of(set: &OccluderSet) -> OccluderArrays {
         let mut out = OccluderArrays::default();
+        let mut welded = Welder::default();
         for o in &set.occluders {
             let Some((lo, hi)) = o.mesh.bounds() else {
                 continue;
@@ -60,20 +69,15 @@ impl OccluderArrays {
             if !(lo.is_finite() && hi.is_finite()) {
                 continue;
             }
-            let n = o.mesh.positions.len() as u32;
             let first_index = out.indices.len() as u32;
-            for t in o.mesh.indices.chunks_exact(3) {
-                if t.iter().all(|&v| v < n) {
-                    out.indices.extend_from_slice(t);
-                }
-            }
+            welded.weld(&o.mesh, &mut out.indices);
             let index_count = out.indices.len() as u32 - first_index;
             if index_count == 0 {
                 continue;
             }
             let base_vertex = out.vertices.len() as u32;
             out.vertices
-                .extend(o.mesh.positions.iter().map(|p| SceneVertex {
+                .extend(welded.positions.iter().map(|p| SceneVertex {
                     position_m: p.to_array(),
                     building_id: o.building.0,
                 }));
@@ -82,7 +86,7 @@ impl OccluderArrays {
                 first_index,
                 index_count,
                 base_vertex,
-                vertex_count: n,
+                vertex_count: welded.positions.len() as u32,
                 bounds_min_m: lo.to_array(),
                 bounds_max_m: hi.to_array(),
             });
@@ -95,6 +99,40 @@ impl OccluderArrays {
             vertices: &self.vertices,
             indices: &self.indices,
             records: &self.records,
+        }
+    }
+}
+
+/// Welds one mesh at a time, reusing its buffers.
+#[derive(Debug, Default)]
+struct Welder {
+    /// The last mesh's distinct positions, in order of first use.
+    positions: Vec<Vec3>,
+    slot_of: HashMap<[u32; 3], u32>,
+}
+
+impl Welder {
+    /// Appends to `indices` the whole triangles of `mesh` (every index inside it), numbered over
+    /// the distinct positions they use, which are left in `positions`.
+    fn weld(&mut self, mesh: &TriangleMesh, indices: &mut Vec<u32>) {
+        self.positions.clear();
+        self.slot_of.clear();
+        let n = mesh.positions.len();
+        for t in mesh.indices.chunks_exact(3) {
+            if t.iter().any(|&v| v as usize >= n) {
+                continue;
+            }
+            for &v in t {
+                let p = mesh.positions[v as usize];
+                let slot = *self
+                    .slot_of
+                    .entry(p.to_array().map(f32::to_bits))
+                    .or_insert_with(|| {
+                        self.positions.push(p);
+                        self.positions.len() as u32 - 1
+                    });
+                indices.push(slot);
+            }
         }
     }
 }
@@ -144,5 +182,100 @@ impl OccluderArraysView<'_> {
             }
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use geo::MultiPolygon;
+
+    use super::*;
+    use crate::BuildingId;
+    use crate::occluder::{FacadeKind, Occluder};
+
+    /// An open facade as the occluder stage builds it: one quad of its own per footprint edge.
+    fn open_facade(corners: &[(f32, f32)], base_m: f32, top_m: f32) -> TriangleMesh {
+        let mut mesh = TriangleMesh::default();
+        for (k, &(ax, ay)) in corners.iter().enumerate() {
+            let (bx, by) = corners[(k + 1) % corners.len()];
+            let i = mesh.positions.len() as u32;
+            mesh.positions.extend_from_slice(&[
+                Vec3::new(ax, ay, base_m),
+                Vec3::new(bx, by, base_m),
+                Vec3::new(bx, by, top_m),
+                Vec3::new(ax, ay, top_m),
+            ]);
+            mesh.indices
+                .extend_from_slice(&[i, i + 1, i + 2, i, i + 2, i + 3]);
+        }
+        mesh
+    }
+
+    fn corners_of(positions: &[Vec3], indices: &[u32]) -> Vec<[Vec3; 3]> {
+        indices
+            .chunks_exact(3)
+            .map(|t| [0, 1, 2].map(|k| positions[t[k] as usize]))
+            .collect()
+    }
+
+    #[test]
+    fn facades_are_welded_and_keep_every_triangle() {
+        let square = [(0.0, 0.0), (10.0, 0.0), (10.0, 8.0), (0.0, 8.0)];
+        let mut broken = open_facade(&[(20.0, 0.0), (30.0, 0.0), (25.0, 5.0)], 0.0, 6.0);
+        // A triangle past the mesh is left out, as before.
+        broken.indices.extend_from_slice(&[0, 1, 99]);
+        let set = OccluderSet {
+            occluders: [open_facade(&square, 0.0, 12.0), broken]
+                .into_iter()
+                .enumerate()
+                .map(|(i, mesh)| Occluder {
+                    building: BuildingId(i as u32 + 3),
+                    level: 0,
+                    kind: FacadeKind::Open,
+                    z_m: 12.0,
+                    base_m: 0.0,
+                    footprint: MultiPolygon::new(Vec::new()),
+                    mesh,
+                })
+                .collect(),
+            ..OccluderSet::default()
+        };
+        let arrays = OccluderArrays::of(&set);
+        assert_eq!(arrays.records.len(), 2);
+        // Four corners twice (base and top) instead of four per wall.
+        assert_eq!(
+            arrays
+                .records
+                .iter()
+                .map(|r| r.vertex_count)
+                .collect::<Vec<_>>(),
+            [8, 6]
+        );
+        for (record, occluder) in arrays.records.iter().zip(&set.occluders) {
+            let vertices =
+                &arrays.vertices[record.base_vertex as usize..][..record.vertex_count as usize];
+            assert!(vertices.iter().all(|v| v.building_id == record.building));
+            let positions: Vec<Vec3> = vertices
+                .iter()
+                .map(|v| Vec3::from_array(v.position_m))
+                .collect();
+            let indices =
+                &arrays.indices[record.first_index as usize..][..record.index_count as usize];
+            let whole = &occluder.mesh.indices[..occluder.mesh.indices.len() / 3 * 3];
+            let kept: Vec<u32> = whole
+                .chunks_exact(3)
+                .filter(|t| {
+                    t.iter()
+                        .all(|&v| (v as usize) < occluder.mesh.positions.len())
+                })
+                .flatten()
+                .copied()
+                .collect();
+            assert_eq!(
+                corners_of(&positions, indices),
+                corners_of(&occluder.mesh.positions, &kept)
+            );
+        }
+        assert_eq!(arrays.view().check_invariants(5), Ok(()));
     }
 }

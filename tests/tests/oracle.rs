@@ -3,7 +3,8 @@
 use citywalk_runtime::camera::Camera;
 use citywalk_runtime::oracle::{Oracle, VisibleSet};
 use citywalk_runtime::scene_gpu::{SceneGeometry, SceneGpu};
-use citywalk_scenes::BuildingId;
+use citywalk_scenes::extrude::building_mesh;
+use citywalk_scenes::{BuildingId, TriangleMesh};
 use citywalk_tests::city_builder::boxes;
 use citywalk_tests::gpu::gpu_or_skip;
 use glam::Vec3;
@@ -152,4 +153,41 @@ fn chelsea_overview_sees_many_buildings() {
     // or cover less than a pixel.
     assert!(set.len() > n / 4, "only {} of {n} visible", set.len());
     assert!(set.len() < n, "every building visible from the overview");
+}
+
+#[test]
+fn a_mesh_past_16_bit_indices_draws_as_the_same_mesh_within_them() {
+    let Some(gpu) = gpu_or_skip("oracle_index_formats") else {
+        return;
+    };
+    let city = boxes(&[
+        (20.0, -5.0, 30.0, 5.0, 20.0),
+        (40.0, -20.0, 50.0, -8.0, 30.0),
+    ]);
+    let meshes: Vec<TriangleMesh> = city.buildings.iter().map(building_mesh).collect();
+    let bounds: Vec<(Vec3, Vec3)> = city.buildings.iter().map(|b| b.bounds()).collect();
+    // The same triangles, but the second building's vertex range past 16-bit indices (copies
+    // of one of its corners, which no triangle uses, so its box is unchanged).
+    let mut padded = meshes.clone();
+    let corner = padded[1].positions[0];
+    padded[1].positions.resize(70_000, corner);
+    let within = SceneGeometry::from_meshes(&meshes, &bounds);
+    let past = SceneGeometry::from_meshes(&padded, &bounds);
+    let within = SceneGpu::upload(&gpu, &within).expect("the scene fits the GPU");
+    let past = SceneGpu::upload(&gpu, &past).expect("the scene fits the GPU");
+    assert_eq!(within.index_format, wgpu::IndexFormat::Uint16);
+    assert_eq!(past.index_format, wgpu::IndexFormat::Uint32);
+    let oracle = Oracle::new(&gpu);
+    // Both buildings are seen from the street and from above.
+    let above = Camera::new(Vec3::new(-40.0, -8.0, 60.0), 0.0, -35f32.to_radians());
+    for camera in [eye_east(), above] {
+        let a = oracle
+            .visible_set(&gpu, &within, &camera, 320, 240)
+            .expect("oracle");
+        let b = oracle
+            .visible_set(&gpu, &past, &camera, 320, 240)
+            .expect("oracle");
+        assert_eq!(a.visible, [BuildingId(0), BuildingId(1)]);
+        assert_eq!((a.visible, a.pixel_counts), (b.visible, b.pixel_counts));
+    }
 }

@@ -36,8 +36,10 @@ pub const SCENE_VERTEX_LAYOUT: wgpu::VertexBufferLayout<'static> = wgpu::VertexB
 pub struct SceneGpu {
     /// [`SceneVertex`] array ([`SCENE_VERTEX_LAYOUT`]).
     pub vertex_buffer: wgpu::Buffer,
-    /// `u32` indices, relative to each range's `base_vertex`.
+    /// Indices relative to each range's `base_vertex`, in [`SceneGpu::index_format`].
     pub index_buffer: wgpu::Buffer,
+    /// `Uint16` when every record's vertex range fits 16 bits ([`scene_index_format`]).
+    pub index_format: wgpu::IndexFormat,
     /// [`CullPart`] array the records name (storage, read-only); at least one part long.
     pub parts_buffer: wgpu::Buffer,
     /// The records and the brute-force draw list on the GPU, which the cull of every building
@@ -121,7 +123,7 @@ impl SceneGpu {
             &geometry.indices[..],
             &geometry.parts[..],
         );
-        let geometry_buffers = GeometryBuffers::upload(gpu, arrays, &|_| {})?;
+        let geometry_buffers = GeometryBuffers::upload(gpu, arrays, &geometry.records, &|_| {})?;
         Self::with_records(
             gpu,
             geometry_buffers,
@@ -148,7 +150,9 @@ impl SceneGpu {
         release(bytemuck::cast_slice(view.records));
         let parts: Arc<[CullPart]> = view.parts.into();
         let arrays = (view.vertices, view.indices, view.parts);
-        let geometry_buffers = GeometryBuffers::upload(gpu, arrays, &release)?;
+        // Every draw id's record (the whole array behind the buildings' prefix): the cluster
+        // meshes share the index buffer.
+        let geometry_buffers = GeometryBuffers::upload(gpu, arrays, &records.array, &release)?;
         let bounds = records_bounds(&records);
         Self::with_records(gpu, geometry_buffers, records, parts, view.ground, bounds)
     }
@@ -160,6 +164,7 @@ impl SceneGpu {
         SceneGpu {
             vertex_buffer: shared.vertex_buffer.clone(),
             index_buffer: shared.index_buffer.clone(),
+            index_format: shared.index_format,
             parts_buffer: shared.parts_buffer.clone(),
             all: None,
             triangle_count: triangles(&records),
@@ -206,6 +211,7 @@ impl SceneGpu {
         Ok(SceneGpu {
             vertex_buffer: buffers.vertex_buffer,
             index_buffer: buffers.index_buffer,
+            index_format: buffers.index_format,
             parts_buffer: buffers.parts_buffer,
             all: Some(AllDraws {
                 records_buffer,
@@ -241,7 +247,7 @@ impl SceneGpu {
     /// Binds the vertex and index buffers to `pass`.
     pub fn bind<'a>(&'a self, pass: &mut wgpu::RenderPass<'a>) {
         pass.set_vertex_buffer(0, self.vertex_buffer.slice(..));
-        pass.set_index_buffer(self.index_buffer.slice(..), wgpu::IndexFormat::Uint32);
+        pass.set_index_buffer(self.index_buffer.slice(..), self.index_format);
     }
 
     /// Draws every building and the ground with one multi-draw over
@@ -279,24 +285,76 @@ impl SceneGpu {
 struct GeometryBuffers {
     vertex_buffer: wgpu::Buffer,
     index_buffer: wgpu::Buffer,
+    index_format: wgpu::IndexFormat,
     parts_buffer: wgpu::Buffer,
 }
 
 impl GeometryBuffers {
-    /// Uploads vertices, indices and cull parts (each at least one zeroed item long, so it can
-    /// always be bound), handing their bytes to `release` as they reach the GPU.
+    /// Uploads vertices, indices (in the [`scene_index_format`] of `records`, every record that
+    /// indexes them) and cull parts (each at least one zeroed item long, so it can always be
+    /// bound), handing their bytes to `release` as they reach the GPU.
     fn upload(
         gpu: &GpuContext,
         (vertices, indices, parts): (&[SceneVertex], &[u32], &[CullPart]),
+        records: &[BuildingRecord],
         release: &dyn Fn(&[u8]),
     ) -> Result<GeometryBuffers, UploadError> {
         use wgpu::BufferUsages as U;
+        let index_format = scene_index_format(records);
+        let index_buffer = match index_format {
+            wgpu::IndexFormat::Uint16 => short_index_buffer(gpu, indices, release)?,
+            wgpu::IndexFormat::Uint32 => {
+                array_buffer(gpu, "scene indices", indices, U::INDEX, release)?
+            }
+        };
         Ok(GeometryBuffers {
             vertex_buffer: array_buffer(gpu, "scene vertices", vertices, U::VERTEX, release)?,
-            index_buffer: array_buffer(gpu, "scene indices", indices, U::INDEX, release)?,
+            index_buffer,
+            index_format,
             parts_buffer: array_buffer(gpu, "building cull parts", parts, U::STORAGE, release)?,
         })
     }
+}
+
+/// The index format of a scene whose draws are `records` (and the ground's quad): `Uint16` when
+/// every record's vertices fit 16-bit indices relative to its base vertex, as every building
+/// and cluster mesh of the generated cities does (3,160 vertices at most in the 1M city), which
+/// halves the index buffer (177 MiB there); `Uint32` otherwise.
+pub fn scene_index_format(records: &[BuildingRecord]) -> wgpu::IndexFormat {
+    let short = usize::from(u16::MAX) + 1;
+    if records.iter().all(|r| r.vertex_count as usize <= short) {
+        wgpu::IndexFormat::Uint16
+    } else {
+        wgpu::IndexFormat::Uint32
+    }
+}
+
+/// The scene's indices as `u16`, made chunk by chunk from the `u32` array. Every index of a
+/// record is below its vertex count ([`scene_index_format`]); one that is not (a damaged
+/// package) is clamped, and draws some vertex of the scene, as it would have drawn a wrong one
+/// in 32 bits.
+fn short_index_buffer(
+    gpu: &GpuContext,
+    indices: &[u32],
+    release: &dyn Fn(&[u8]),
+) -> Result<wgpu::Buffer, UploadError> {
+    const U16: usize = size_of::<u16>();
+    let len = indices.len().max(1) * U16;
+    buffer_from_chunks(
+        gpu,
+        "scene indices",
+        len,
+        wgpu::BufferUsages::INDEX,
+        |bytes, out| {
+            let range = bytes.start / U16..bytes.end / U16;
+            let source = indices.get(range).unwrap_or(&[]);
+            let out: &mut [u16] = bytemuck::cast_slice_mut(out);
+            for (short, &index) in out.iter_mut().zip(source) {
+                *short = u16::try_from(index).unwrap_or(u16::MAX);
+            }
+            release(bytemuck::cast_slice(source));
+        },
+    )
 }
 
 /// Triangles of `records`.
