@@ -128,6 +128,24 @@ fn preprocessing_round_trips_through_a_package_and_is_deterministic() {
 }
 
 #[test]
+fn the_package_is_the_same_on_one_thread_and_on_four() {
+    // Enough buildings for several chunks of the parallel occluder stage.
+    let city = generated(9_000, 5);
+    let params = PreprocessParams::default();
+    let on = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("a thread pool");
+        let package = pool
+            .install(|| preprocess(city.clone(), &params, &NoProgress))
+            .expect("preprocess");
+        package.to_bytes(WriteOptions::default()).expect("encode")
+    };
+    assert!(on(1) == on(4), "1 and 4 threads gave different packages");
+}
+
+#[test]
 fn a_city_without_streets_takes_its_blocks_from_the_cluster_tree() {
     let mut city = generated(400, 5);
     city.streets.clear();

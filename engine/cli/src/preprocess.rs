@@ -39,6 +39,10 @@ pub struct Args {
     /// reproducible).
     #[arg(long)]
     store_timings: bool,
+    /// Threads for the stages that run in parallel (occluders, cluster meshes; 0: one per
+    /// core). The package is the same for every count.
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
 }
 
 /// One spinner per stage.
@@ -95,6 +99,8 @@ struct Summary {
     quadtree_nodes: usize,
     quadtree_leaves: usize,
     quadtree_depth: u32,
+    /// Threads the parallel stages ran on.
+    threads: usize,
     load_seconds: f64,
     stage_seconds: Vec<(String, f64)>,
     write_seconds: f64,
@@ -116,6 +122,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let start = Instant::now();
     // Refuse a device, a folder or a read-only file before minutes of work, not after.
     check_output_path(&args.output).context("cannot write the package")?;
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(args.threads)
+        .build_global()
+        .context("cannot start the worker threads")?;
     let load_options = args.input.load_options(&args.inputs)?;
     let load = ProgressBar::new_spinner();
     if let Ok(style) = ProgressStyle::with_template("{spinner} {msg} {elapsed}") {
@@ -188,6 +198,7 @@ fn summarise(
         quadtree_nodes: package.quadtree.nodes.len(),
         quadtree_leaves: package.quadtree.leaf_count(),
         quadtree_depth: package.quadtree.max_depth(),
+        threads: rayon::current_num_threads(),
         load_seconds,
         stage_seconds: package
             .timings

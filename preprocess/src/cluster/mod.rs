@@ -28,6 +28,7 @@ use citywalk_scenes::cluster_tree::{
     ClusterNode, ClusterStats, ClusterTree, HullSimplify, MergeFallback,
 };
 use citywalk_scenes::extrude::extrude_polygon;
+use rayon::prelude::*;
 
 use geom::{convex_hull, ring_bounds, signed_area};
 use leaves::{LeafKind, VertexStore};
@@ -261,11 +262,12 @@ pub fn build_meshes(
                 .fold(f32::INFINITY, f32::min)
         };
     }
-    for (id, n) in nodes.iter_mut().enumerate() {
+    // Each node's mesh is its own: made on rayon's threads, each into its node's slot.
+    nodes.par_iter_mut().enumerate().for_each(|(id, n)| {
         if !n.is_leaf() {
             n.mesh = cluster_mesh(verts, &n.footprint[0], base[id].min(n.height_m), n.height_m);
         }
-    }
+    });
 }
 
 /// The binary merge tree with its hulls (stage 3).

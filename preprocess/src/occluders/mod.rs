@@ -69,6 +69,7 @@ pub mod zlevels;
 use citywalk_scenes::occluder::{FacadeKind, Occluder, OccluderOutcome, OccluderSet};
 use citywalk_scenes::{Building, City, TriangleMesh};
 use geo::MultiPolygon;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use self::footprint::MeshRegions;
@@ -178,52 +179,17 @@ pub struct BuildingOccluders {
 /// without an occluder gets a reason in its [`OccluderOutcome`].
 pub fn build_occluders(city: &City, params: &OccluderParams) -> OccluderSet {
     let mut set = OccluderSet::default();
-    for building in &city.buildings {
-        // The geometry kernels underneath (boolean operations, relate) are third-party code;
-        // should one of them panic on some degenerate input, that building is reported with
-        // the reason instead of taking the whole city down.
-        let built = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-            occluders_for_building(building, params)
-        }))
-        .unwrap_or_else(|panic| {
-            let what = panic
-                .downcast_ref::<&str>()
-                .map(|s| (*s).to_owned())
-                .or_else(|| panic.downcast_ref::<String>().cloned())
-                .unwrap_or_else(|| "unknown".to_owned());
-            tracing::warn!(building = %building.source_id, %what, "occluder generation panicked");
-            BuildingOccluders {
-                occluders: Vec::new(),
-                source_polygons: 0,
-                decisions: Vec::new(),
-                reason_if_none: Some(format!("geometry kernel failed: {what}")),
-            }
-        });
-        let start = set.occluders.len() as u32;
-        let occluder_polygons = built
-            .occluders
-            .iter()
-            .map(|o| o.mesh.triangle_count() as u32)
-            .sum();
-        set.occluders.extend(built.occluders);
-        let end = set.occluders.len() as u32;
-        let reason_if_none = if start == end {
-            let reason = built
-                .reason_if_none
-                .unwrap_or_else(|| "no occluder was produced".to_owned());
-            // Bad input is named where it is met: the building's source id and the reason.
-            tracing::warn!(building = %building.source_id, %reason, "no occluder");
-            Some(reason)
-        } else {
-            None
-        };
-        set.per_building.push(OccluderOutcome {
-            building: building.id,
-            occluder_range: start..end,
-            source_polygons: built.source_polygons,
-            occluder_polygons,
-            reason_if_none,
-        });
+    // Buildings are independent: each chunk is built on rayon's threads, then appended in
+    // building order, so the set is the same for every thread count and only one chunk's
+    // results wait at a time.
+    for chunk in city.buildings.chunks(BUILDINGS_PER_CHUNK) {
+        let built: Vec<BuildingOccluders> = chunk
+            .par_iter()
+            .map(|building| occluders_or_reason(building, params))
+            .collect();
+        for (building, built) in chunk.iter().zip(built) {
+            append_building(&mut set, building, built);
+        }
     }
     tracing::debug!(
         buildings = city.buildings.len(),
@@ -231,6 +197,62 @@ pub fn build_occluders(city: &City, params: &OccluderParams) -> OccluderSet {
         "built virtual occluders"
     );
     set
+}
+
+/// Buildings built in parallel before their occluders are appended to the set.
+const BUILDINGS_PER_CHUNK: usize = 4096;
+
+/// [`occluders_for_building`], or, should a geometry kernel underneath (boolean operations,
+/// relate: third-party code) panic on some degenerate input, no occluder and the reason, instead
+/// of taking the whole city down.
+fn occluders_or_reason(building: &Building, params: &OccluderParams) -> BuildingOccluders {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        occluders_for_building(building, params)
+    }))
+    .unwrap_or_else(|panic| {
+        let what = panic
+            .downcast_ref::<&str>()
+            .map(|s| (*s).to_owned())
+            .or_else(|| panic.downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "unknown".to_owned());
+        tracing::warn!(building = %building.source_id, %what, "occluder generation panicked");
+        BuildingOccluders {
+            occluders: Vec::new(),
+            source_polygons: 0,
+            decisions: Vec::new(),
+            reason_if_none: Some(format!("geometry kernel failed: {what}")),
+        }
+    })
+}
+
+/// Appends to `set` the occluders `built` for `building` and its outcome (a building without
+/// any is named with the reason where it is met).
+fn append_building(set: &mut OccluderSet, building: &Building, built: BuildingOccluders) {
+    let start = set.occluders.len() as u32;
+    let occluder_polygons = built
+        .occluders
+        .iter()
+        .map(|o| o.mesh.triangle_count() as u32)
+        .sum();
+    set.occluders.extend(built.occluders);
+    let end = set.occluders.len() as u32;
+    let reason_if_none = if start == end {
+        let reason = built
+            .reason_if_none
+            .unwrap_or_else(|| "no occluder was produced".to_owned());
+        // Bad input is named where it is met: the building's source id and the reason.
+        tracing::warn!(building = %building.source_id, %reason, "no occluder");
+        Some(reason)
+    } else {
+        None
+    };
+    set.per_building.push(OccluderOutcome {
+        building: building.id,
+        occluder_range: start..end,
+        source_polygons: built.source_polygons,
+        occluder_polygons,
+        reason_if_none,
+    });
 }
 
 /// Builds the occluders of one building (mesh buildings through Z-levels, 2.5D buildings one

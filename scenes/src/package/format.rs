@@ -46,7 +46,10 @@ pub const MAGIC: [u8; 4] = *b"CWK\0";
 /// - 7: streets carry their tagged width (`Street::tagged_width_m`); ground areas (water,
 ///   parks, squares) in a section of their own ([`SectionKind::GroundAreas`]); streets and
 ///   ground areas as drawn triangles ([`SectionKind::GroundSurfaces`]).
-pub const FORMAT_VERSION: u32 = 7;
+/// - 8: the drawable occluders' vertices are welded per occluder (the corners a facade's walls
+///   share are stored once: half the occluder vertices); a package of format 7 would still
+///   draw, but fails its check against the arrays rebuilt from its buildings.
+pub const FORMAT_VERSION: u32 = 8;
 /// Sections start at multiples of this (a cache line, and enough for any scalar type).
 pub const SECTION_ALIGN: u64 = 64;
 /// The most sections a package may have.

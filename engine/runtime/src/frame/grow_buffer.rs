@@ -42,6 +42,7 @@ impl GrowBuffer {
         }
         let size = bytes.next_power_of_two().max(256);
         self.buffer = Self::make(device, self.label, self.usage, size);
+        tracing::debug!(label = self.label, bytes = size, "buffer grown");
         true
     }
 }
