@@ -37,10 +37,13 @@ pub struct DeviceLost {
     pub reason: String,
 }
 
-/// The optional features citywalk uses when the adapter has them.
+/// The optional features citywalk uses when the adapter has them. `MAPPABLE_PRIMARY_BUFFERS`
+/// only on a software adapter, whose GPU memory is process memory: the scene's arrays are
+/// written straight into their buffers there ([`crate::upload`]).
 pub const WANTED_FEATURES: wgpu::Features = wgpu::Features::TIMESTAMP_QUERY
     .union(wgpu::Features::INDIRECT_FIRST_INSTANCE)
-    .union(wgpu::Features::MULTI_DRAW_INDIRECT_COUNT);
+    .union(wgpu::Features::MULTI_DRAW_INDIRECT_COUNT)
+    .union(wgpu::Features::MAPPABLE_PRIMARY_BUFFERS);
 
 /// Everything needed to talk to one GPU.
 #[derive(Debug)]
@@ -177,7 +180,11 @@ impl GpuContext {
         limits: Option<wgpu::Limits>,
     ) -> Result<GpuContext, GpuError> {
         let adapter_info = adapter.get_info();
-        let features = adapter.features() & WANTED_FEATURES & wanted;
+        let mut features = adapter.features() & WANTED_FEATURES & wanted;
+        if adapter_info.device_type != wgpu::DeviceType::Cpu {
+            // On a GPU of its own, mappable vertex and index buffers would live in slow memory.
+            features.remove(wgpu::Features::MAPPABLE_PRIMARY_BUFFERS);
+        }
         let limits = match limits {
             Some(limits) => limits.or_worse_values_from(&adapter.limits()),
             None => adapter.limits(),
