@@ -24,6 +24,7 @@ use citywalk_scenes::City;
 use citywalk_scenes::city::Building;
 use citywalk_scenes::cluster_tree::ClusterNode;
 use geo::Intersects;
+use rayon::prelude::*;
 use rstar::RTree;
 use rstar::primitives::{GeomWithData, Line, Rectangle};
 
@@ -209,33 +210,38 @@ pub fn fill_errors(
         .map(|b| heights(&city.buildings[b.index()]))
         .collect();
     let fp = Footprints::new(city, building_order);
+    // Each node's own error is independent of the others' (rayon's threads); the maximum with
+    // the children's then runs bottom-up.
+    let own: Vec<(f32, f32)> = nodes
+        .par_iter()
+        .map(|node| {
+            if node.is_leaf() {
+                return (0.0, 0.0);
+            }
+            let (s, e) = node.buildings;
+            let mine = &per_building[s as usize..e as usize];
+            let base = mine.iter().map(|h| h.base_m).fold(f32::INFINITY, f32::min);
+            // The mesh's base, as `build_meshes` extrudes it.
+            let base = base.min(node.height_m);
+            let vertical = mine
+                .iter()
+                .map(|h| {
+                    (node.height_m - h.lowest_top_m)
+                        .max(h.top_m - node.height_m)
+                        .max(h.base_m - base)
+                })
+                .fold(0.0f32, f32::max);
+            let plan = node
+                .footprint
+                .first()
+                .map_or(0.0, |ring| plan_error_m(&fp, verts, ring, (s, e)));
+            let colour = mine.iter().map(|h| h.colour_m).fold(0.0f32, f32::max);
+            (f64::from(vertical).hypot(plan) as f32, colour)
+        })
+        .collect();
     for id in (0..nodes.len()).rev() {
-        if nodes[id].is_leaf() {
-            nodes[id].geometric_error_m = 0.0;
-            nodes[id].colour_error_m = 0.0;
-            continue;
-        }
-        let node = &nodes[id];
-        let (s, e) = node.buildings;
-        let mine = &per_building[s as usize..e as usize];
-        let base = mine.iter().map(|h| h.base_m).fold(f32::INFINITY, f32::min);
-        // The mesh's base, as `build_meshes` extrudes it.
-        let base = base.min(node.height_m);
-        let vertical = mine
-            .iter()
-            .map(|h| {
-                (node.height_m - h.lowest_top_m)
-                    .max(h.top_m - node.height_m)
-                    .max(h.base_m - base)
-            })
-            .fold(0.0f32, f32::max);
-        let plan = node
-            .footprint
-            .first()
-            .map_or(0.0, |ring| plan_error_m(&fp, verts, ring, (s, e)));
-        let colour = mine.iter().map(|h| h.colour_m).fold(0.0f32, f32::max);
-        let (mut geometric, mut colour) = (f64::from(vertical).hypot(plan) as f32, colour);
-        for &c in &node.children {
+        let (mut geometric, mut colour) = own[id];
+        for &c in &nodes[id].children {
             geometric = geometric.max(nodes[c as usize].geometric_error_m);
             colour = colour.max(nodes[c as usize].colour_error_m);
         }

@@ -32,6 +32,7 @@ use std::cmp::Ordering;
 use std::collections::{BinaryHeap, HashMap};
 
 use citywalk_scenes::cluster_tree::ClusterDistance;
+use rayon::prelude::*;
 use spade::{DelaunayTriangulation, HasPosition, Point2, Triangulation};
 
 use super::ClusterError;
@@ -426,20 +427,28 @@ pub fn single_link(
             ClusterDistance::YangAdjacent => adjacent_distance(verts, &lx.ring, &ly.ring, lambda),
         }
     };
+    // The blocks' triangulations and the pairs' distances are independent: they run on rayon's
+    // threads; the pairs are then sorted and taken in order, as on one thread.
+    let with_distances =
+        |pairs: &[(u32, u32)]| -> Vec<f64> { pairs.par_iter().map(|&(x, y)| base(x, y)).collect() };
     // Phase 1: inside each block.
     let mut by_block: Vec<u32> = (0..n).collect();
     by_block.sort_by_key(|&i| (blocks[i as usize], i));
-    let mut pairs = Vec::new();
     let groups: Vec<&[u32]> = by_block
         .chunk_by(|&x, &y| blocks[x as usize] == blocks[y as usize])
         .collect();
-    for g in &groups {
-        delaunay_pairs(sites_of(leaves, verts, g, mode), &mut pairs)?;
-    }
+    let per_block: Vec<Vec<(u32, u32)>> = groups
+        .par_iter()
+        .map(|g| {
+            let mut pairs = Vec::new();
+            delaunay_pairs(sites_of(leaves, verts, g, mode), &mut pairs).map(|()| pairs)
+        })
+        .collect::<Result<_, _>>()?;
+    let mut pairs: Vec<(u32, u32)> = per_block.into_iter().flatten().collect();
     pairs.sort_unstable();
     pairs.dedup();
-    for &(x, y) in &pairs {
-        ag.add_pair(x, y, base(x, y));
+    for (&(x, y), d) in pairs.iter().zip(with_distances(&pairs)) {
+        ag.add_pair(x, y, d);
     }
     ag.run();
     for g in &groups {
@@ -452,8 +461,8 @@ pub fn single_link(
         cross.retain(|&(x, y)| blocks[x as usize] != blocks[y as usize]);
         cross.sort_unstable();
         cross.dedup();
-        for &(x, y) in &cross {
-            ag.add_pair(x, y, base(x, y));
+        for (&(x, y), d) in cross.iter().zip(with_distances(&cross)) {
+            ag.add_pair(x, y, d);
         }
         ag.run();
         ag.join_rest(&by_block, leaves);
