@@ -108,8 +108,6 @@ pub struct AutoPlanner {
     /// Moving average of the running candidate's steady frames in this run (ms): what the
     /// others' estimates drift with ([`AutoPlanner::measure`]).
     steady_ms: Option<f64>,
-    /// The running candidate is the best one, returned to after another's trial.
-    returning: bool,
     /// Every candidate was tried once ([`AutoPlanner::exploring`]).
     explored: bool,
 }
@@ -160,7 +158,6 @@ impl AutoPlanner {
             last_view: None,
             since_jump: u32::MAX,
             steady_ms: None,
-            returning: false,
             explored: false,
         }
     }
@@ -284,7 +281,6 @@ impl AutoPlanner {
     }
 
     fn start(&mut self, candidate: usize) {
-        self.returning = candidate == self.best;
         self.current = candidate;
         self.run_frames = 0;
         self.steady_ms = None;
@@ -314,7 +310,7 @@ impl AutoPlanner {
         } else {
             self.steady_ms = Some(ms);
             estimate
-                .filter(|_| first && self.returning)
+                .filter(|_| first && self.current == self.best)
                 .map(|before| ms / before)
         };
         self.cost_ms[self.current] = Some(match estimate {
