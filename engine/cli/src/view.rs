@@ -138,6 +138,7 @@ fn start_settings(args: &Args) -> RenderSettings {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    let started = std::time::Instant::now();
     let load = args.input.load_options(std::slice::from_ref(&args.scene))?;
     let scene = load_scene(&args.scene, &load)?;
     let city = &scene.city;
@@ -169,6 +170,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         play,
         overlay: !args.no_overlay,
         settings,
+        started,
     };
     citywalk_viewer::run(scene, options).context("citywalk view")
 }

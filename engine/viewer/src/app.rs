@@ -521,6 +521,12 @@ impl App {
         }
         gfx.surface.window.pre_present_notify();
         gfx.surface.gpu.queue.present(frame);
+        if self.frames_drawn == 1 {
+            tracing::info!(
+                seconds = self.options.started.elapsed().as_secs_f64(),
+                "first frame presented"
+            );
+        }
 
         if let Some(fps) = self.fps.tick(now) {
             self.last_fps = Some(fps);

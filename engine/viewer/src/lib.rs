@@ -49,6 +49,9 @@ pub struct ViewerOptions {
     /// The culling stages, LOD criterion and debug view at start (the overlay and the keys
     /// change them).
     pub settings: RenderSettings,
+    /// When the command started: the first frame's log line says how long it took to show
+    /// (issue 13's "first frame" time).
+    pub started: std::time::Instant,
 }
 
 /// `--play PATH [--loop]`.

@@ -146,6 +146,7 @@ fn run_viewer(script: impl FnMut(&mut App, &ActiveEventLoop, u32) -> Next) -> Ap
             auto: false,
             ..RenderSettings::default()
         },
+        started: Instant::now(),
     };
     let event_loop = EventLoop::builder()
         .with_any_thread(true)
