@@ -29,13 +29,19 @@ pub enum UploadError {
         limit_name: &'static str,
         limit: u64,
     },
+    /// The GPU's memory ran out: the budget it reached is what was allocated on the adapter
+    /// then (wgpu reports no heap size; a software adapter's heap is host memory).
     #[error(
-        "out of GPU memory for the scene's {what} ({bytes} bytes, {}): {message}",
-        binary_size(*bytes)
+        "out of GPU memory for the scene's {what} ({bytes} bytes, {}) on {adapter}, with {} \
+         already allocated there: {message}",
+        binary_size(*bytes),
+        allocated.map_or_else(|| "an unknown amount".to_owned(), binary_size)
     )]
     OutOfMemory {
         what: String,
         bytes: u64,
+        adapter: String,
+        allocated: Option<u64>,
         message: String,
     },
     /// The buffer mapped at its creation could not be written (a wgpu error, not the data's).
@@ -119,6 +125,11 @@ pub fn buffer_from_chunks(
         return Err(UploadError::OutOfMemory {
             what: label.to_owned(),
             bytes: size as u64,
+            adapter: gpu.adapter_info.name.clone(),
+            allocated: gpu
+                .device
+                .generate_allocator_report()
+                .map(|report| report.total_allocated_bytes),
             message: error.to_string(),
         });
     }
