@@ -12,6 +12,8 @@
 
 use geo::{Area, Coord, LineString, MultiPolygon, Polygon, TriangulateEarcut};
 use glam::DVec3;
+use rstar::primitives::Rectangle;
+use rstar::{RTree, RTreeObject};
 
 use crate::city::TriangleMesh;
 use crate::report::RejectReason;
@@ -25,6 +27,13 @@ pub const MIN_FACE_NORMAL_Z: f64 = 0.05;
 /// Projected faces smaller than this (square metres) are skipped: they add nothing to the
 /// outline and only slow the union down.
 const MIN_FACE_AREA_M2: f64 = 1e-6;
+
+/// Projected faces narrower than this (metres: twice the area over the longest edge) are
+/// skipped too. A sliver adds at most its width to the outline, and long near-collinear slivers
+/// are what makes the overlay's segment splitting explode: 24 faces, a few of them 15 km long
+/// and 0.1 mm wide, took i_overlay 20 s and 68,974 pieces (a fuzzer's GLB, kept in
+/// `tests/fuzz/regressions/glb/sliver_faces`).
+const MIN_FACE_WIDTH_M: f64 = 0.01;
 
 /// Holes smaller than this (square metres) in the union are gaps between adjacent faces left by
 /// rounding, not courtyards, and are closed.
@@ -63,6 +72,13 @@ pub fn footprint_from_mesh(mesh: &TriangleMesh) -> Result<CleanFootprint, Reject
         if normal.z.abs() * 0.5 < MIN_FACE_AREA_M2 {
             continue;
         }
+        let longest_edge = [(a, b), (b, c), (c, a)]
+            .iter()
+            .map(|(p, q)| (p.truncate() - q.truncate()).length())
+            .fold(0.0, f64::max);
+        if normal.z.abs() / longest_edge < MIN_FACE_WIDTH_M {
+            continue;
+        }
         // Every face counter-clockwise seen from above: unary_union picks its fill rule from
         // the first ring's winding, so the windings must agree.
         let ring = if normal.z > 0.0 { [a, b, c] } else { [a, c, b] };
@@ -74,7 +90,7 @@ pub fn footprint_from_mesh(mesh: &TriangleMesh) -> Result<CleanFootprint, Reject
     if faces.is_empty() {
         return Err(RejectReason::ZeroArea);
     }
-    let union = geo::unary_union(&faces);
+    let union = union_or_reject(&faces)?;
     clean_footprint(&multipolygon_rings(&union, MIN_HOLE_AREA_M2))
 }
 
@@ -86,8 +102,68 @@ pub fn union_footprints<'a>(
     if polygons.is_empty() {
         return Err(RejectReason::MissingGeometry("no footprint".into()));
     }
-    let union = geo::unary_union(polygons);
+    let union = union_or_reject(polygons)?;
     clean_footprint(&multipolygon_rings(&union, MIN_HOLE_AREA_M2))
+}
+
+/// The union's work budget: pairs of pieces whose bounding boxes overlap, a fixed allowance
+/// plus this many per piece. Faces of a real shell touch their neighbours and the ground
+/// surface under them, a few pairs per face; a malformed mesh whose faces all cross each
+/// other has pairs quadratic in its size, and so has the overlay's output, which no input
+/// file may make unbounded.
+const UNION_PAIRS_PER_PIECE: usize = 16;
+const UNION_PAIRS_ALLOWANCE: usize = 1_000_000;
+
+/// `geo::unary_union` of `polygons`, rejecting what it cannot do in bounded time or without
+/// panicking: pieces whose bounding boxes overlap in more pairs than the budget above, and a
+/// panic inside the overlay (i_overlay's OGC extraction can panic on self-touching slivers: a
+/// debug assertion, and an index out of bounds in release builds; iShape-Rust/iOverlay#78 and
+/// #79). One hostile shape must not take the whole load down.
+fn union_or_reject<'a>(
+    polygons: impl IntoIterator<Item = &'a Polygon<f64>>,
+) -> Result<MultiPolygon<f64>, RejectReason> {
+    let polygons: Vec<&Polygon<f64>> = polygons.into_iter().collect();
+    let budget = UNION_PAIRS_ALLOWANCE + UNION_PAIRS_PER_PIECE * polygons.len();
+    let pairs = overlapping_box_pairs(&polygons, budget);
+    if pairs > budget {
+        return Err(RejectReason::InvalidGeometry(format!(
+            "its {} footprint pieces overlap each other in over {budget} pairs: a malformed \
+             mesh whose union would take unbounded time",
+            polygons.len()
+        )));
+    }
+    std::panic::catch_unwind(|| geo::unary_union(polygons.iter().copied())).map_err(|panic| {
+        let why = panic
+            .downcast_ref::<&str>()
+            .map(|s| (*s).to_owned())
+            .or_else(|| panic.downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "no message".to_owned());
+        RejectReason::InvalidGeometry(format!(
+            "the footprint union failed inside i_overlay: {why}"
+        ))
+    })
+}
+
+/// How many pairs of `polygons` have overlapping bounding boxes, counted with an R-tree of
+/// the boxes and stopped once past `cap`: the count, or `cap + 1`. About O(n log n + cap).
+fn overlapping_box_pairs(polygons: &[&Polygon<f64>], cap: usize) -> usize {
+    let boxes: Vec<Rectangle<[f64; 2]>> = polygons
+        .iter()
+        .filter_map(|p| geo::BoundingRect::bounding_rect(*p))
+        .map(|r| Rectangle::from_corners([r.min().x, r.min().y], [r.max().x, r.max().y]))
+        .collect();
+    let tree = RTree::bulk_load(boxes.clone());
+    // Each pair is met twice (once from each side) and each box meets itself once.
+    let mut meetings = 0;
+    for b in &boxes {
+        for _ in tree.locate_in_envelope_intersecting(b.envelope()) {
+            meetings += 1;
+            if meetings > boxes.len() + 2 * cap {
+                return cap + 1;
+            }
+        }
+    }
+    (meetings - boxes.len()) / 2
 }
 
 /// A multipolygon as rings for [`clean_footprint`], dropping holes under `min_hole_area_m2`
@@ -420,5 +496,88 @@ mod tests {
             triangulate_planar_polygon(&[vec![DVec3::ZERO, DVec3::X, DVec3::NAN]]),
             Err(TriangulateError::NonFinite)
         );
+    }
+
+    /// A mesh of `n` flat triangles (z = 5): a fan of thin wedges through one centre, every
+    /// one crossing every other in plan.
+    fn crossing_star(n: usize) -> TriangleMesh {
+        let mut mesh = TriangleMesh::default();
+        for i in 0..n {
+            let angle = std::f32::consts::PI * i as f32 / n as f32;
+            let (s, c) = angle.sin_cos();
+            let base = mesh.positions.len() as u32;
+            mesh.positions.extend([
+                Vec3::new(-50.0 * c, -50.0 * s, 5.0),
+                Vec3::new(50.0 * c + 0.5 * s, 50.0 * s - 0.5 * c, 5.0),
+                Vec3::new(50.0 * c - 0.5 * s, 50.0 * s + 0.5 * c, 5.0),
+            ]);
+            mesh.indices.extend([base, base + 1, base + 2]);
+        }
+        mesh
+    }
+
+    /// Faces that all cross each other are over the union's budget: rejected, quickly, saying
+    /// why (the fuzzers found GLBs whose union ran for minutes); a few of them still union.
+    #[test]
+    fn faces_crossing_each_other_past_the_budget_are_rejected_quickly() {
+        let start = std::time::Instant::now();
+        let rejected = footprint_from_mesh(&crossing_star(2_000));
+        assert!(
+            start.elapsed() < std::time::Duration::from_secs(5),
+            "{:?}",
+            start.elapsed()
+        );
+        match rejected {
+            Err(RejectReason::InvalidGeometry(why)) => {
+                assert!(why.contains("2000 footprint pieces overlap"), "{why}")
+            }
+            other => panic!("expected a rejection, got {other:?}"),
+        }
+        let few = footprint_from_mesh(&crossing_star(12)).expect("12 wedges union");
+        assert!(few.footprint.unsigned_area() > 100.0);
+    }
+
+    /// A finely triangulated roof (80,000 faces on a 200 m × 100 m grid, plus its floor) is
+    /// within the budget: the budget grows with the faces, and neighbours only touch.
+    #[test]
+    fn a_finely_triangulated_roof_is_within_the_union_budget() {
+        let (nx, ny) = (200, 100);
+        let mut mesh = TriangleMesh::default();
+        for z in [0.0, 8.0] {
+            let base = mesh.positions.len() as u32;
+            for j in 0..=ny {
+                for i in 0..=nx {
+                    mesh.positions.push(Vec3::new(i as f32, j as f32, z));
+                }
+            }
+            let at = |i: u32, j: u32| base + j * (nx + 1) + i;
+            for j in 0..ny {
+                for i in 0..nx {
+                    mesh.indices
+                        .extend([at(i, j), at(i + 1, j), at(i + 1, j + 1)]);
+                    mesh.indices
+                        .extend([at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
+                }
+            }
+        }
+        let footprint = footprint_from_mesh(&mesh).expect("a regular roof unions");
+        assert!((footprint.footprint.unsigned_area() - 20_000.0).abs() < 1.0);
+    }
+
+    /// A face narrower than a centimetre adds nothing to the outline and is left out: a
+    /// 100 m long, 1 mm wide face beside a roof does not stretch the footprint.
+    #[test]
+    fn a_face_narrower_than_a_centimetre_is_left_out() {
+        let square = vec![(0.0, 0.0), (10.0, 0.0), (10.0, 10.0), (0.0, 10.0)];
+        let mut mesh = extrude(&[square], 0.0, 6.0);
+        let base = mesh.positions.len() as u32;
+        mesh.positions.extend([
+            Vec3::new(5.0, 5.0, 6.0),
+            Vec3::new(105.0, 5.0, 6.0),
+            Vec3::new(105.0, 5.001, 6.0),
+        ]);
+        mesh.indices.extend([base, base + 1, base + 2]);
+        let footprint = footprint_from_mesh(&mesh).expect("the roof unions");
+        assert!((footprint.footprint.unsigned_area() - 100.0).abs() < 0.01);
     }
 }

@@ -27,6 +27,12 @@ pub const MIN_AREA_M2: f64 = 0.01;
 pub const MAX_HEIGHT_M: f32 = 1_000.0;
 /// Lowest base accepted (metres below the frame's ground), for terrain and NAP offsets.
 pub const MIN_BASE_M: f32 = -500.0;
+
+/// The least extent (metres) a building or part has from base to top. Less is not a building,
+/// and it keeps the extent positive when a mesh source's heights are shifted onto the ground
+/// later in `f32`: a fuzzed b3dm with a part one unit in the last place tall came out of the
+/// shift with its top equal to its base.
+pub const MIN_HEIGHT_EXTENT_M: f32 = 0.01;
 /// A self-intersecting ring is repaired only if the repair keeps this share of its area
 /// (shoelace area of the original ring vs. area of the re-noded polygon).
 const MIN_REPAIR_AREA_RATIO: f64 = 0.5;
@@ -181,9 +187,9 @@ pub fn check_heights(base_m: f32, top_m: f32) -> Result<(), RejectReason> {
             "non-finite ({base_m}..{top_m})"
         )));
     }
-    if top_m <= base_m {
+    if top_m - base_m < MIN_HEIGHT_EXTENT_M {
         return Err(RejectReason::AbsurdHeight(format!(
-            "top {top_m} m not above base {base_m} m"
+            "top {top_m} m not {MIN_HEIGHT_EXTENT_M} m above base {base_m} m"
         )));
     }
     if top_m > MAX_HEIGHT_M || base_m < MIN_BASE_M {
@@ -352,6 +358,9 @@ mod tests {
     fn heights() {
         assert!(check_heights(0.0, 10.0).is_ok());
         assert!(check_heights(10.0, 10.0).is_err());
+        // One unit in the last place is not a building (a fuzzed b3dm part).
+        assert!(check_heights(103.500_244, 103.500_275).is_err());
+        assert!(check_heights(103.5, 103.52).is_ok());
         assert!(check_heights(0.0, 5_000.0).is_err());
         assert!(check_heights(0.0, f32::NAN).is_err());
     }
