@@ -115,8 +115,8 @@ fn load_gltf_bounded(
 /// `glb`, run 5, 62 "hangs" from one source: a mutated Amsterdam tile whose misread vertices
 /// project to faces 15 km long and 0.1 mm wide along one line. i_overlay split those 24 faces
 /// into 68,974 pieces over 21 s (84 s in the AFL build), then panicked on an index out of
-/// bounds. Faces under a centimetre wide are now left out of footprints and the union has a
-/// work budget (`mesh_footprint`); both buildings load in milliseconds.
+/// bounds. Needle faces (within `f32` precision of collinear) are now left out of footprints
+/// and the union has a work budget (`mesh_footprint`); both buildings load in milliseconds.
 #[test]
 fn glb_kilometre_long_sliver_faces_load_in_bounded_time() {
     for name in ["sliver_faces", "sliver_faces_2"] {
