@@ -54,6 +54,25 @@ pub const CULL_FLAG_DRAW_IDS: u32 = 1;
 /// the draw ids are bound.
 pub const CULL_FLAG_VISIBILITY: u32 = 2;
 
+/// Candidate frame's cull report (`wgsl/hzb_cull.wgsl`, binding 23), header words: candidates
+/// the cull found occluded. Those outside the frustum are the rest: every candidate gets one of
+/// three statuses, so the GPU counts only the two small groups and never touches a word per
+/// culled candidate on the CPU's side.
+pub const CULL_R_OCCLUDED: u32 = 0;
+
+/// Cull report: candidates visible last frame that the occluder gate kept out.
+pub const CULL_R_GATE_CULLED: u32 = 1;
+
+/// Cull report: length of the kept list (candidates the cull found visible).
+pub const CULL_R_KEPT: u32 = 2;
+
+/// Cull report: length of the early list (candidates the early pass drew).
+pub const CULL_R_EARLY: u32 = 3;
+
+/// Cull report: header words before the kept list; the early list follows the kept list, each
+/// with room for every candidate the buffer was sized for.
+pub const CULL_R_WORDS: u32 = 4;
+
 /// Parent of a draw id with none (a root, or a building of a scene without a cluster tree).
 pub const NO_PARENT: u32 = u32::MAX;
 
@@ -158,6 +177,11 @@ pub const WGSL_U32: &[(&str, u32)] = &[
     ("CULL_NOT_EARLY", CULL_NOT_EARLY),
     ("CULL_FLAG_DRAW_IDS", CULL_FLAG_DRAW_IDS),
     ("CULL_FLAG_VISIBILITY", CULL_FLAG_VISIBILITY),
+    ("CULL_R_OCCLUDED", CULL_R_OCCLUDED),
+    ("CULL_R_GATE_CULLED", CULL_R_GATE_CULLED),
+    ("CULL_R_KEPT", CULL_R_KEPT),
+    ("CULL_R_EARLY", CULL_R_EARLY),
+    ("CULL_R_WORDS", CULL_R_WORDS),
     ("NO_PARENT", NO_PARENT),
     ("HZB_FINE_SPAN", HZB_FINE_SPAN),
     ("TREE_CRITERION_CHANG", TREE_CRITERION_CHANG),

@@ -68,6 +68,10 @@ struct HzbCullParams {
 @group(0) @binding(8) var<storage, read> draw_ids: array<u32>;
 @group(0) @binding(9) var<storage, read_write> stamps: array<u32>;
 @group(0) @binding(10) var<storage, read> parents: array<u32>;
+// The frame's report (engine `frame::candidates`): the occluded and gate-culled counts, then
+// the kept list and the early list of candidate indices, each with room for every candidate, so
+// that the CPU reads what was drawn, never a word per candidate.
+@group(0) @binding(23) var<storage, read_write> cull_report: array<atomic<u32>>;
 
 // Where a box lands: status CULL_VISIBLE with `rect` valid only when `has_rect`.
 struct Projection {
@@ -290,6 +294,20 @@ fn record_outcome(record: BuildingRecord, in_range: bool) -> u32 {
     return outcome;
 }
 
+// Room in each of the report's two lists.
+fn report_capacity() -> u32 {
+    return (arrayLength(&cull_report) - CULL_R_WORDS) / 2u;
+}
+
+// Appends candidate `index` to the report list whose length is header word `length_word` and
+// whose entries start at word `first` (a list that is full counts on, and the CPU sees it).
+fn report_push(length_word: u32, first: u32, index: u32) {
+    let slot = atomicAdd(&cull_report[length_word], 1u);
+    if slot < report_capacity() {
+        atomicStore(&cull_report[first + slot], index);
+    }
+}
+
 // Appends the draw of `record`.
 fn append_draw(record: BuildingRecord) {
     let slot = atomicAdd(&draw_count, 1u);
@@ -361,6 +379,9 @@ fn early_record(index: u32, occlusion: bool) {
         if index < arrayLength(&drawn_early) {
             drawn_early[index] = 1u;
         }
+        report_push(CULL_R_EARLY, CULL_R_WORDS + report_capacity(), index);
+    } else {
+        atomicAdd(&cull_report[CULL_R_GATE_CULLED], 1u);
     }
 }
 
@@ -385,11 +406,16 @@ fn cull(@builtin(global_invocation_id) id: vec3<u32>) {
     let in_range = index < params.box_count;
     let record = record_of(index);
     let outcome = record_outcome(record, in_range);
-    if in_range {
-        status[index] = outcome;
+    if !in_range {
+        return;
+    }
+    status[index] = outcome;
+    if outcome == CULL_OCCLUDED {
+        atomicAdd(&cull_report[CULL_R_OCCLUDED], 1u);
     }
     let drawn = index < arrayLength(&drawn_early) && drawn_early[index] != 0u;
     if outcome == CULL_VISIBLE {
+        report_push(CULL_R_KEPT, CULL_R_WORDS, index);
         if !drawn {
             append_draw(record);
         }

@@ -18,6 +18,9 @@ use citywalk_runtime::hzb::reference::{
 use citywalk_runtime::hzb::{CullResults, HzbCull, HzbPyramid};
 use citywalk_runtime::render::targets::map_read;
 use citywalk_runtime::render::{float_texture_entry, fullscreen_pipeline};
+use citywalk_shaders::constants::{
+    CULL_R_EARLY, CULL_R_GATE_CULLED, CULL_R_KEPT, CULL_R_OCCLUDED, CULL_R_WORDS,
+};
 use citywalk_shaders::{BuildingRecord, CullPart, DrawIndexedIndirectArgs};
 use citywalk_tests::gpu::gpu_or_skip;
 use citywalk_tests::rng::Rng;
@@ -679,6 +682,66 @@ fn read_words(gpu: &GpuContext, buffer: &wgpu::Buffer) -> Vec<u32> {
     bytemuck::pod_collect_to_vec(&map_read(gpu, &read).expect("words"))
 }
 
+/// The reports of one frame's early entry (`early_words`) and main cull (`cull_words`) say what
+/// their statuses say: the early list holds the boxes the early entry drew, the kept list those
+/// the cull found visible (each once, in any order), the counts the occluded and the gate-culled
+/// boxes.
+fn check_report(
+    early_words: &[u32],
+    cull_words: &[u32],
+    (early_status, status): (&[u32], &[u32]),
+    what: &str,
+) {
+    let list = |words: &[u32], length_word: u32, first: usize| -> Vec<u32> {
+        let capacity = (words.len() - CULL_R_WORDS as usize) / 2;
+        let length = words[length_word as usize] as usize;
+        assert!(
+            length <= capacity,
+            "{what}: list of {length} past {capacity}"
+        );
+        let mut ids = words[first..first + length].to_vec();
+        ids.sort_unstable();
+        ids
+    };
+    let visible = |statuses: &[u32]| -> Vec<u32> {
+        (0..statuses.len() as u32)
+            .filter(|&j| statuses[j as usize] == CULL_VISIBLE)
+            .collect()
+    };
+    let early_first = CULL_R_WORDS as usize + (early_words.len() - CULL_R_WORDS as usize) / 2;
+    assert_eq!(
+        list(early_words, CULL_R_EARLY, early_first),
+        visible(early_status),
+        "{what}: early list"
+    );
+    assert_eq!(
+        list(cull_words, CULL_R_KEPT, CULL_R_WORDS as usize),
+        visible(status),
+        "{what}: kept list"
+    );
+    let count = |statuses: &[u32], f: &dyn Fn(u32) -> bool| {
+        statuses.iter().filter(|&&s| f(s)).count() as u32
+    };
+    assert_eq!(
+        cull_words[CULL_R_OCCLUDED as usize],
+        count(status, &|s| s == CULL_OCCLUDED),
+        "{what}: occluded"
+    );
+    assert_eq!(
+        early_words[CULL_R_GATE_CULLED as usize],
+        count(early_status, &|s| s != CULL_VISIBLE && s != CULL_NOT_EARLY),
+        "{what}: gate-culled"
+    );
+    assert_eq!(
+        early_words[CULL_R_KEPT as usize], 0,
+        "{what}: the early entry keeps none"
+    );
+    assert_eq!(
+        cull_words[CULL_R_EARLY as usize], 0,
+        "{what}: the cull draws none early"
+    );
+}
+
 /// The early entry points and the GPU-resident visibility (`engine::frame`): box `j` stands for
 /// draw id `7·j mod n` (records read by draw id), the stamps say which draw ids the last frame
 /// kept (stamp 9 of frame 10; stale stamps 8 and 0 do not count), and a cluster draw id above
@@ -687,7 +750,8 @@ fn read_words(gpu: &GpuContext, buffer: &wgpu::Buffer) -> Vec<u32> {
 /// (which follows the CPU reference with the usual rule), drawing and marking the visible ones;
 /// `early` (frustum only) draws and marks every box it takes; the main cull, reading the marks,
 /// writes the plain status, appends the draws of the visible unmarked boxes only, and stamps
-/// every visible draw id with 10, leaving the others and the cluster as they were. Two cameras,
+/// every visible draw id with 10, leaving the others and the cluster as they were; the two
+/// passes' reports list and count what their statuses say ([`check_report`]). Two cameras,
 /// 1280 × 720 and 1001 × 777.
 #[test]
 fn early_entries_read_the_stamps_and_the_cull_marks_them() {
@@ -755,6 +819,8 @@ fn early_entries_read_the_stamps_and_the_cull_marks_them() {
                 .device
                 .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
             encoder.clear_buffer(&flags, 0, None);
+            early.clear_report(&mut encoder);
+            main.clear_report(&mut encoder);
             for (cull, e) in [(&mut early, entry), (&mut main, CullEntry::Cull)] {
                 cull.encode_entry(
                     &gpu,
@@ -771,6 +837,12 @@ fn early_entries_read_the_stamps_and_the_cull_marks_them() {
             let culled = main.read_back(&gpu, n).expect("cull readback");
             let marked: Vec<bool> = read_words(&gpu, &flags).iter().map(|&f| f != 0).collect();
             let after = read_words(&gpu, &stamps_buffer);
+            check_report(
+                &read_words(&gpu, early.report_buffer()),
+                &read_words(&gpu, main.report_buffer()),
+                (&taken.status, &culled.status),
+                &format!("camera {c} {entry:?}"),
+            );
             let mut expected_early = Vec::new();
             for j in 0..n as usize {
                 let d = ids[j];

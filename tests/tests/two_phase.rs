@@ -16,7 +16,7 @@ use citywalk_preprocess::pipeline::{NoProgress, PreprocessParams, preprocess};
 use citywalk_runtime::camera::Camera;
 use citywalk_runtime::drawable::DrawableScene;
 use citywalk_runtime::frame::{
-    CullingOptions, CullingRenderer, FrameOutput, OccluderMeshes, Visibility,
+    CullingOptions, CullingRenderer, FrameOutput, FrameScene, OccluderMeshes, Visibility,
 };
 use citywalk_runtime::gpu::GpuContext;
 use citywalk_runtime::lod::LodCriterion;
@@ -1362,7 +1362,7 @@ fn a_polled_tree_report_is_whole_or_none() {
     // Polled, with a one-entry report: the first frame's report is dropped and grows the
     // slot; the second is read whole.
     let mut renderer = CullingRenderer::new(&h.gpu, BruteRenderer::PNG_FORMAT);
-    renderer.set_tree_report_entries(1);
+    renderer.set_report_entries(1);
     let mut visibility = Visibility::default();
     let polled: Vec<Option<FrameOutput>> = cameras
         .iter()
@@ -1387,7 +1387,7 @@ fn a_polled_tree_report_is_whole_or_none() {
         })
         .collect();
     assert!(polled[0].is_none(), "a report of one entry read in part");
-    assert!(renderer.tree_report_entries() as usize >= kept);
+    assert!(renderer.report_entries() as usize >= kept);
     let second = polled[1].as_ref().expect("the grown report is read");
     let w = &waited[1];
     assert_eq!(second.drawn, w.drawn);
@@ -1397,5 +1397,115 @@ fn a_polled_tree_report_is_whole_or_none() {
     assert_eq!(
         (second.stats.cull_kept, second.stats.triangles),
         (w.stats.cull_kept, w.stats.triangles)
+    );
+}
+
+/// The same for a candidate frame (every building culled, its kept and early lists written by
+/// the cull passes): a polled report whose lists outgrew its slot gives no output and grows
+/// the next; the next frame's polled output equals the same frame waited for. A frame that
+/// waits reads lists of any length whole, even from a one-entry slot.
+#[test]
+fn a_polled_candidate_report_is_whole_or_none() {
+    let Some((mut h, scene)) = harness("two_phase polled candidate report", generated) else {
+        return;
+    };
+    let size = (320, 200);
+    let target =
+        OffscreenTarget::new(&h.gpu, size.0, size.1, BruteRenderer::PNG_FORMAT).expect("target");
+    let options = CullingOptions {
+        occluders: true,
+        occluder_gate: true,
+        ..CullingOptions::default()
+    };
+    let camera = aerial_camera(&mut Rng(0x5eed_0303), &scene.scene);
+    let cameras = [camera, camera];
+    let frames = |renderer: &mut CullingRenderer| -> Vec<FrameOutput> {
+        let mut visibility = Visibility::default();
+        cameras
+            .iter()
+            .map(|camera| {
+                renderer
+                    .render(
+                        &h.gpu,
+                        &scene.scene,
+                        Some(&scene.occluders),
+                        &options,
+                        &mut visibility,
+                        camera,
+                        &target.colour_view,
+                        size,
+                    )
+                    .expect("candidate frame")
+            })
+            .collect()
+    };
+    let waited = frames(&mut h.renderer);
+    let kept = waited[0].stats.cull_kept as usize;
+    assert!(kept > 1, "the first frame keeps {kept}");
+    assert!(
+        waited[1].stats.early_drawn > 1,
+        "the second frame draws early"
+    );
+    // Waited for through a one-entry slot: read whole all the same.
+    let mut small = CullingRenderer::new(&h.gpu, BruteRenderer::PNG_FORMAT);
+    small.set_report_entries(1);
+    let whole = frames(&mut small);
+    for (w, s) in waited.iter().zip(&whole) {
+        assert_eq!((&s.drawn, &s.drawn_early), (&w.drawn, &w.drawn_early));
+        assert_eq!(s.stats.cull_kept, w.stats.cull_kept);
+    }
+    // Polled from a one-entry slot: none, then whole.
+    let mut renderer = CullingRenderer::new(&h.gpu, BruteRenderer::PNG_FORMAT);
+    renderer.set_report_entries(1);
+    let mut visibility = Visibility::default();
+    let polled: Vec<Option<FrameOutput>> = cameras
+        .iter()
+        .map(|camera| {
+            renderer
+                .submit(
+                    &h.gpu,
+                    FrameScene::Buildings(&scene.scene),
+                    Some(&scene.occluders),
+                    &options,
+                    &mut visibility,
+                    camera,
+                    &target.colour_view,
+                    size,
+                )
+                .expect("candidate frame");
+            h.gpu.wait_idle();
+            renderer
+                .poll_report(&h.gpu, (&scene.scene, None))
+                .expect("poll")
+        })
+        .collect();
+    assert!(polled[0].is_none(), "a report of one entry read in part");
+    assert!(renderer.report_entries() as usize >= kept);
+    let second = polled[1].as_ref().expect("the grown report is read");
+    let w = &waited[1];
+    assert_eq!(second.drawn, w.drawn);
+    assert_eq!(second.drawn_early, w.drawn_early);
+    let (a, b) = (&second.stats, &w.stats);
+    assert_eq!(
+        (
+            a.candidates,
+            a.cull_kept,
+            a.occlusion_culled,
+            a.frustum_culled
+        ),
+        (
+            b.candidates,
+            b.cull_kept,
+            b.occlusion_culled,
+            b.frustum_culled
+        )
+    );
+    assert_eq!(
+        (a.early_drawn, a.late_drawn, a.gate_culled, a.triangles),
+        (b.early_drawn, b.late_drawn, b.gate_culled, b.triangles)
+    );
+    assert_eq!(
+        a.candidates,
+        a.cull_kept + a.occlusion_culled + a.frustum_culled
     );
 }

@@ -449,9 +449,10 @@ pub fn summary_markdown(report: &BenchReport) -> String {
     out.push_str(
         "\nFrame ms is CPU wall time from recording to the GPU's completion; p95 and p99 are \
          nearest-rank percentiles over the path's frames. CPU ms is the engine's own thread CPU \
-         time per frame (selection, recording, submission; not the wait for the GPU). Bound \
-         violations: of the pixels differing from brute force, the share farther than the LOD \
-         tolerance + 1 px from every edge (colour or id step) of the brute-force frame.\n",
+         time per frame (selection, recording, submission, reading its report; not the wait for \
+         the GPU). Bound violations: of the pixels differing from brute force, the share farther \
+         than the LOD tolerance + 1 px from every edge (colour or id step) of the brute-force \
+         frame.\n",
     );
     if report.entries.iter().any(|e| e.mode == Mode::Oracle.name()) {
         out.push_str(

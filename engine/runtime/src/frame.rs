@@ -120,7 +120,9 @@ use std::time::Instant;
 
 use citywalk_scenes::frustum::Frustum;
 use citywalk_shaders::SCENE_WGSL;
-use citywalk_shaders::constants::NO_PARENT;
+use citywalk_shaders::constants::{
+    CULL_R_EARLY, CULL_R_GATE_CULLED, CULL_R_KEPT, CULL_R_OCCLUDED, CULL_R_WORDS, NO_PARENT,
+};
 use glam::Mat4;
 use wgpu::util::DeviceExt;
 
@@ -134,12 +136,12 @@ use crate::render::targets::ReadbackError;
 use crate::render::view::{SceneStyle, view_uniforms};
 use crate::scene_gpu::SceneGpu;
 
-use candidates::{Candidates, LodSource};
+use candidates::{Candidates, CullLists, LodSource};
 use grow_buffer::GrowBuffer;
 pub use occluders::{OccluderDraw, OccluderMeshes};
 /// Frames a report may arrive after its own.
 pub use report_ring::SLOTS as REPORT_LAG_FRAMES;
-use report_ring::{ReadSlot, ReportRing, SlotLayout};
+use report_ring::{ListSources, ReadSlot, ReportRing, SlotLayout, read_lists};
 use targets::Targets;
 pub use visibility::Visibility;
 
@@ -300,6 +302,8 @@ struct PendingFrame {
     started: Instant,
     /// A tree frame's lists ([`CullingRenderer::submit_tree`]).
     tree: Option<tree_frame::TreePending>,
+    /// A candidate frame's kept and early lists on the GPU (the cull passes' reports).
+    lists: Option<ListSources>,
 }
 
 /// The two-phase culling renderer: pipelines, the cull pass, draw lists and targets.
@@ -322,8 +326,8 @@ pub struct CullingRenderer {
     occluder_draws: GrowBuffer,
     /// The GPU's LOD cut with hierarchical occlusion ([`CullingRenderer::submit_tree`]).
     tree_cull: crate::hzb::tree_cull::TreeCull,
-    /// Kept and early ids a tree frame's report copies (grown when a frame needs more).
-    tree_report_entries: u32,
+    /// Kept and early ids a frame's report copies (grown when a frame needs more).
+    report_entries: u32,
     reports: ReportRing<PendingFrame>,
     frames: u64,
     targets: Option<Targets>,
@@ -340,6 +344,18 @@ impl CullingRenderer {
     /// targets.
     pub fn pyramid(&self) -> Option<&HzbPyramid> {
         self.targets.as_ref().map(|t| &t.pyramid)
+    }
+
+    /// Kept and early ids the next frame's report copies.
+    pub fn report_entries(&self) -> u32 {
+        self.report_entries
+    }
+
+    /// Sets the kept and early ids the next frame's report copies (at least 1; a frame that
+    /// lists more grows it again). More up front spares a viewer the first polled reports of a
+    /// wide view, which are dropped until the report holds the lists whole.
+    pub fn set_report_entries(&mut self, entries: u32) {
+        self.report_entries = entries.max(1);
     }
 
     /// The depth the last frame drew into; `None` until a frame has made its targets.
@@ -385,7 +401,7 @@ impl CullingRenderer {
             targets: None,
             multi_draw_count: gpu.has(wgpu::Features::MULTI_DRAW_INDIRECT_COUNT),
             tree_cull: crate::hzb::tree_cull::TreeCull::new(gpu),
-            tree_report_entries: tree_frame::FIRST_REPORT_ENTRIES,
+            report_entries: report_ring::FIRST_LIST_ENTRIES,
             timer: GpuTimer::new(gpu, "frame timer", FRAME_PHASES),
             style: SceneStyle::default(),
         }
@@ -489,6 +505,8 @@ impl CullingRenderer {
             });
         self.timer.begin_frame();
         encoder.clear_buffer(&self.drawn_early.buffer, 0, Some(flag_bytes));
+        self.early.clear_report(&mut encoder);
+        self.cull.clear_report(&mut encoder);
         let draw_ids = frame.lod_ids.map(|_| self.draw_ids.buffer.clone());
         let drawn_early = self.drawn_early.buffer.clone();
         let links = CullLinks {
@@ -555,6 +573,16 @@ impl CullingRenderer {
                 cpu_ms: clock.elapsed_ms(),
                 started,
                 tree: None,
+                lists: Some(ListSources {
+                    kept: (
+                        self.cull.report_buffer().clone(),
+                        u64::from(CULL_R_WORDS) * 4,
+                    ),
+                    early: (
+                        self.early.report_buffer().clone(),
+                        u64::from(CULL_R_WORDS + self.early.list_capacity()) * 4,
+                    ),
+                }),
             };
             self.reports.submitted(ticket, layout, pending);
         }
@@ -608,41 +636,87 @@ impl CullingRenderer {
         (scene, lod): (&SceneGpu, Option<&LodScene>),
         visibility: Option<&mut Visibility>,
     ) -> Result<Option<FrameOutput>, FrameError> {
-        if slot.pending.tree.is_some() {
-            return match lod {
+        // Reading the report is the frame's CPU work too (a frame or more late).
+        let clock = crate::cpu_clock::CpuClock::start();
+        let mut output = if slot.pending.tree.is_some() {
+            match lod {
                 Some(lod) if lod.building_count as usize == slot.pending.buildings => {
-                    self.read_tree_report(gpu, slot, lod, visibility)
+                    self.read_tree_report(gpu, slot, lod, visibility)?
                 }
-                _ => Ok(None),
-            };
+                _ => None,
+            }
+        } else {
+            self.read_candidate_report(gpu, slot, (scene, lod), visibility)?
+        };
+        if let Some(output) = &mut output {
+            output.stats.cpu_ms += clock.elapsed_ms();
         }
+        Ok(output)
+    }
+
+    /// A candidate frame's output from its read report slot (as
+    /// [`CullingRenderer::read_report`]).
+    fn read_candidate_report(
+        &mut self,
+        gpu: Option<&GpuContext>,
+        slot: ReadSlot<PendingFrame>,
+        (scene, lod): (&SceneGpu, Option<&LodScene>),
+        visibility: Option<&mut Visibility>,
+    ) -> Result<Option<FrameOutput>, FrameError> {
         let ReadSlot {
             bytes,
             layout,
             pending,
         } = slot;
-        let n = layout.candidates as usize;
-        let words = |at: u64| -> Vec<u32> {
-            let at = at as usize;
-            bytemuck::pod_collect_to_vec(&bytes[at..at + n * 4])
-        };
         // The frame's time to GPU completion (as close as this read gets), before the CPU
         // works on its statistics.
         let frame_ms = pending.started.elapsed().as_secs_f64() * 1e3;
-        let (status, early) = (words(layout.status_at()), words(layout.early_at()));
+        let n = pending.lod_ids.as_ref().map_or(pending.buildings, Vec::len);
+        let header: Vec<u32> = bytemuck::pod_collect_to_vec(
+            &bytes[layout.header_at() as usize..layout.status_at() as usize],
+        );
+        let (early_header, cull_header) = header.split_at(CULL_R_WORDS as usize);
+        let listed = |word: u32, header: &[u32]| (header[word as usize] as usize).min(n);
+        let counts = (
+            listed(CULL_R_KEPT, cull_header),
+            listed(CULL_R_EARLY, early_header),
+        );
+        let sources = pending.lists.as_ref().expect("a candidate frame's lists");
+        let Some((kept, early)) = read_lists(
+            (&bytes, layout),
+            counts,
+            sources,
+            gpu,
+            &mut self.report_entries,
+        )?
+        else {
+            tracing::debug!(
+                frame = pending.number,
+                kept = counts.0,
+                early = counts.1,
+                "frame report dropped: its lists outgrew the report"
+            );
+            return Ok(None);
+        };
+        let lists = CullLists::new(
+            early,
+            kept,
+            cull_header[CULL_R_OCCLUDED as usize],
+            early_header[CULL_R_GATE_CULLED as usize],
+        );
         let candidates = match (&pending.lod_ids, lod) {
             (None, _) if scene.building_count() == pending.buildings => {
-                Candidates::all_buildings(&scene.records, &early)
+                Candidates::all_buildings(&scene.records, lists)
             }
             (Some(ids), Some(lod)) if lod.building_count as usize == pending.buildings => {
-                Candidates::lod(LodSource::of(lod), ids, &early)
+                Candidates::lod(LodSource::of(lod), ids, lists)
             }
             _ => return Ok(None),
         };
         if let Some(visibility) = visibility {
-            candidates.update_visibility(visibility, &status);
+            candidates.update_visibility(visibility);
         }
-        let mut output = candidates.statistics(&status, !self.multi_draw_count);
+        let mut output = candidates.statistics(!self.multi_draw_count);
         let stats = &mut output.stats;
         stats.occluders_drawn = pending.occluders.len() as u32;
         stats.occluder_triangles = pending.occluder_triangles;
@@ -903,37 +977,39 @@ impl CullingRenderer {
         self.indirect_draws(&mut pass, draws, n);
     }
 
-    /// Copies the frame's timestamps, cull status and early status into a free report slot
-    /// (`None`, and no copies, when every slot is in flight).
+    /// Copies the frame's timestamps, the two cull passes' report headers and the first
+    /// [`CullingRenderer::report_entries`] of the kept and early lists into a free report slot
+    /// (`None`, and no copies, when every slot is in flight): O(what was drawn) bytes, never a
+    /// word per candidate.
     fn record_report(
         &mut self,
         gpu: &GpuContext,
         encoder: &mut wgpu::CommandEncoder,
         n: usize,
     ) -> Option<(report_ring::SlotTicket, SlotLayout, TimedPhases)> {
+        let entries = self.report_entries.min(n as u32);
         let layout = SlotLayout {
             timestamps_bytes: self.timer.resolved_bytes(),
-            header_words: 0,
-            candidates: n as u64,
+            header_words: u64::from(2 * CULL_R_WORDS),
+            candidates: u64::from(entries),
         };
         let (ticket, buffer) = self.reports.reserve(gpu, layout)?;
         let timed = self.timer.resolve_to(encoder, buffer, 0);
-        if n > 0 {
-            let bytes = n as u64 * 4;
-            encoder.copy_buffer_to_buffer(
-                self.cull.status_buffer(),
-                0,
-                buffer,
-                layout.status_at(),
-                bytes,
-            );
-            encoder.copy_buffer_to_buffer(
-                self.early.status_buffer(),
-                0,
-                buffer,
-                layout.early_at(),
-                bytes,
-            );
+        let header_bytes = u64::from(CULL_R_WORDS) * 4;
+        let (early, cull) = (self.early.report_buffer(), self.cull.report_buffer());
+        encoder.copy_buffer_to_buffer(early, 0, buffer, layout.header_at(), header_bytes);
+        encoder.copy_buffer_to_buffer(
+            cull,
+            0,
+            buffer,
+            layout.header_at() + header_bytes,
+            header_bytes,
+        );
+        if entries > 0 {
+            let bytes = u64::from(entries) * 4;
+            encoder.copy_buffer_to_buffer(cull, header_bytes, buffer, layout.status_at(), bytes);
+            let early_list_at = u64::from(CULL_R_WORDS + self.early.list_capacity()) * 4;
+            encoder.copy_buffer_to_buffer(early, early_list_at, buffer, layout.early_at(), bytes);
         }
         Some((ticket, layout, timed))
     }

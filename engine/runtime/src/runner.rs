@@ -118,7 +118,8 @@ pub struct FrameReport {
     pub draw_calls: u32,
     /// CPU wall time of the CPU culling and the LOD cut (ms).
     pub select_ms: f64,
-    /// Thread CPU time of the frame's own work: selection, recording, submission (ms).
+    /// Thread CPU time of the frame's own work: selection, recording, submission, reading its
+    /// report (ms).
     pub cpu_ms: f64,
     /// Wall time to GPU completion (ms; [`Completion::Wait`] only, else 0).
     pub frame_ms: f64,

@@ -1,7 +1,8 @@
 //! What one frame culled, as its report reads it: the candidates (every building of a scene,
-//! or the buildings and cluster meshes of a LOD cut), which of them the early pass drew (the
-//! early entry point's status, from the GPU), and how the cull's status of each candidate becomes
-//! the frame's statistics and the CPU copy of the visible buildings.
+//! or the buildings and cluster meshes of a LOD cut), the lists the GPU wrote of them (those the
+//! early entry point drew, those the cull kept) with its counts of the rest, and how they become
+//! the frame's statistics and the CPU copy of the visible buildings. Everything here is
+//! O(what was drawn): a frame of a million candidates that draws thirty reads and walks thirty.
 //!
 //! **Visibility across LOD cuts.** A candidate kept by the cull makes every building it covers
 //! (a building itself; a cluster, every building under it) visible for the next frame: on the
@@ -18,10 +19,9 @@ use citywalk_scenes::cluster_tree::ClusterTree;
 use citywalk_shaders::BuildingRecord;
 
 use crate::frame::{FrameOutput, FrameStats, Visibility};
-use crate::hzb::cull::{CULL_FRUSTUM_OUTSIDE, CULL_NOT_EARLY, CULL_OCCLUDED, CULL_VISIBLE};
 use crate::lod::scene::{LodScene, covered_by};
 
-/// What the candidates of a LOD cut need of its scene ([`LodScene`]).
+/// What a LOD cut's candidates need of its scene ([`LodScene`]).
 #[derive(Debug, Clone, Copy)]
 pub(super) struct LodSource<'a> {
     /// Buildings of the scene; draw id `building_count + n` is cluster node `n`.
@@ -42,16 +42,43 @@ impl<'a> LodSource<'a> {
     }
 }
 
-/// The candidates of one frame, with what the early entry point did with each.
+/// The cull's report of one frame ([`crate::hzb::HzbCull::report_buffer`]): candidate indices
+/// the early entry point drew and the cull kept, and the counts of those it hid.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub(super) struct CullLists {
+    /// Candidates the early pass drew, ascending.
+    pub early: Vec<u32>,
+    /// Candidates the cull found visible, ascending.
+    pub kept: Vec<u32>,
+    /// Candidates the cull found occluded (the others it did not keep lie outside the frustum).
+    pub occluded: u32,
+    /// Candidates visible last frame that the occluder gate kept out of the early pass (0
+    /// without the gate: the frustum-only entry draws all it takes).
+    pub gate_culled: u32,
+}
+
+impl CullLists {
+    /// The lists as the GPU appended them (in any order): sorted, each index once.
+    pub fn new(mut early: Vec<u32>, mut kept: Vec<u32>, occluded: u32, gate_culled: u32) -> Self {
+        for list in [&mut early, &mut kept] {
+            list.sort_unstable();
+            list.dedup();
+        }
+        CullLists {
+            early,
+            kept,
+            occluded,
+            gate_culled,
+        }
+    }
+}
+
+/// The candidates of one frame, with what the GPU's report says of them.
 #[derive(Debug)]
 pub(super) struct Candidates<'a> {
     /// Records by draw id: the scene's buildings, or a LOD scene's cull records.
     records: &'a [BuildingRecord],
-    /// Per candidate: drawn by the early pass.
-    pub early: Vec<bool>,
-    /// Candidates visible last frame that the early entry did not draw: the occluder gate kept
-    /// them out (0 without the gate: the frustum-only entry draws all it takes).
-    pub gate_culled: u32,
+    lists: CullLists,
     /// The LOD scene and the draw id of each candidate, for a LOD cut; `None`: candidate `i` is
     /// building `i`.
     lod: Option<(LodSource<'a>, &'a [u32])>,
@@ -59,46 +86,36 @@ pub(super) struct Candidates<'a> {
 }
 
 impl<'a> Candidates<'a> {
-    /// Every building of a scene (`records`), with the early entry's `early_status` (one per
-    /// building).
-    pub fn all_buildings(records: &'a [BuildingRecord], early_status: &[u32]) -> Candidates<'a> {
-        let mut c = Candidates {
+    /// Every building of a scene (`records`), with the frame's `lists`.
+    pub fn all_buildings(records: &'a [BuildingRecord], lists: CullLists) -> Candidates<'a> {
+        Candidates {
             records,
-            early: Vec::new(),
-            gate_culled: 0,
+            lists,
             lod: None,
             building_count: records.len(),
-        };
-        c.take_early(early_status);
-        c
+        }
+        .within_range()
     }
 
     /// The buildings and clusters of a LOD cut, `draw_ids`
-    /// ([`crate::lod::scene::LodFrame::draw_ids`]), with the early entry's `early_status`.
-    pub fn lod(lod: LodSource<'a>, draw_ids: &'a [u32], early_status: &[u32]) -> Candidates<'a> {
-        let mut c = Candidates {
+    /// ([`crate::lod::scene::LodFrame::draw_ids`]), with the frame's `lists`.
+    pub fn lod(lod: LodSource<'a>, draw_ids: &'a [u32], lists: CullLists) -> Candidates<'a> {
+        Candidates {
             records: lod.records,
-            early: Vec::new(),
-            gate_culled: 0,
+            lists,
             lod: Some((lod, draw_ids)),
             building_count: lod.building_count as usize,
-        };
-        c.take_early(early_status);
-        c
+        }
+        .within_range()
     }
 
-    /// Early: the early entry drew the candidate (`CULL_VISIBLE`); a candidate it took but did
-    /// not draw was kept out by the gate.
-    fn take_early(&mut self, early_status: &[u32]) {
-        let n = self.len();
-        self.early = (0..n)
-            .map(|i| early_status.get(i) == Some(&CULL_VISIBLE))
-            .collect();
-        self.gate_culled = early_status
-            .iter()
-            .take(n)
-            .filter(|&&s| s != CULL_VISIBLE && s != CULL_NOT_EARLY)
-            .count() as u32;
+    /// Drops listed indices past the candidates (the GPU lists none; a report of another frame
+    /// shape must not index out of range).
+    fn within_range(mut self) -> Self {
+        let n = self.len() as u32;
+        self.lists.early.retain(|&i| i < n);
+        self.lists.kept.retain(|&i| i < n);
+        self
     }
 
     pub fn len(&self) -> usize {
@@ -109,143 +126,143 @@ impl<'a> Candidates<'a> {
     }
 
     /// The draw id of candidate `i`.
-    fn draw_id(&self, i: usize) -> u32 {
+    fn draw_id(&self, i: u32) -> u32 {
         match &self.lod {
-            None => i as u32,
-            Some((_, ids)) => ids[i],
+            None => i,
+            Some((_, ids)) => ids[i as usize],
         }
     }
 
     /// The record the cull tested for candidate `i` (zeroed for a draw id out of range: the
     /// shader clamps such an id, and it draws nothing the report should count).
-    fn record(&self, i: usize) -> BuildingRecord {
+    fn record(&self, i: u32) -> BuildingRecord {
         self.records
             .get(self.draw_id(i) as usize)
             .copied()
             .unwrap_or_else(bytemuck::Zeroable::zeroed)
     }
 
-    /// Calls `f` with every building candidate `i` covers.
-    fn for_each_covered(&self, i: usize, f: impl FnMut(u32)) {
+    /// Appends to `out` every building candidate `i` covers.
+    fn push_covered(&self, i: u32, out: &mut Vec<u32>) {
         match &self.lod {
-            None => std::iter::once(i as u32).for_each(f),
-            Some((lod, ids)) => covered_by(lod.tree, lod.building_count, ids[i]).for_each(f),
+            None => out.push(i),
+            Some((lod, ids)) => {
+                out.extend(covered_by(lod.tree, lod.building_count, ids[i as usize]))
+            }
         }
     }
 
     /// The cluster node of candidate `i` when it is a cluster mesh (a LOD cut's inner node).
-    fn cluster_node(&self, i: usize) -> Option<u32> {
+    fn cluster_node(&self, i: u32) -> Option<u32> {
         let (lod, ids) = self.lod.as_ref()?;
-        ids[i].checked_sub(lod.building_count)
+        ids[i as usize].checked_sub(lod.building_count)
     }
 
-    /// The CPU copy of the buildings visible for the next frame, from this frame's cull
-    /// `status` (one per candidate): what the GPU's stamps say, per building.
-    pub fn update_visibility(&self, visibility: &mut Visibility, status: &[u32]) {
-        if self.lod.is_none() {
-            visibility.mirror_status(status);
-            return;
-        }
-        let mut visible = vec![false; self.building_count];
-        for (i, _) in status
-            .iter()
-            .enumerate()
-            .filter(|&(_, &s)| s == CULL_VISIBLE)
-        {
-            self.for_each_covered(i, |b| {
-                if let Some(v) = visible.get_mut(b as usize) {
-                    *v = true;
-                }
-            });
-        }
-        visibility.mirror_set(visible);
+    /// Buildings that are real (below the building count), ascending, each once.
+    fn buildings(&self, mut ids: Vec<u32>) -> Vec<u32> {
+        ids.retain(|&b| (b as usize) < self.building_count);
+        ids.sort_unstable();
+        ids.dedup();
+        ids
     }
 
-    /// The frame's counts and drawn buildings from the cull `status` (one per candidate);
-    /// `late_commands_all`: the late pass walks every candidate's command (no draw count).
-    pub fn statistics(&self, status: &[u32], late_commands_all: bool) -> FrameOutput {
-        let early_drawn = self.early.iter().filter(|&&d| d).count() as u32;
+    /// The CPU copy of the buildings visible for the next frame: those the kept candidates
+    /// cover, as the GPU's stamps say.
+    pub fn update_visibility(&self, visibility: &mut Visibility) {
+        let mut visible = Vec::with_capacity(self.lists.kept.len());
+        for &i in &self.lists.kept {
+            self.push_covered(i, &mut visible);
+        }
+        visibility.mirror_ids(self.buildings(visible));
+    }
+
+    /// The frame's counts and drawn buildings; `late_commands_all`: the late pass walks every
+    /// candidate's command (no draw count).
+    pub fn statistics(&self, late_commands_all: bool) -> FrameOutput {
+        let CullLists {
+            early,
+            kept,
+            occluded,
+            gate_culled,
+        } = &self.lists;
+        let candidates = self.len() as u32;
+        let cull_kept = kept.len() as u32;
+        let occlusion_culled = (*occluded).min(candidates - cull_kept);
+        let early_drawn = early.len() as u32;
         let mut stats = FrameStats {
             building_count: self.building_count as u32,
-            candidates: self.len() as u32,
+            candidates,
             early_drawn,
-            gate_culled: self.gate_culled,
+            gate_culled: *gate_culled,
+            cull_kept,
+            occlusion_culled,
+            frustum_culled: candidates - cull_kept - occlusion_culled,
             // The ground and the early draws.
             draw_calls: 1 + early_drawn,
             ..FrameStats::default()
         };
+        // The drawn candidates: early, then kept ones the early pass did not draw (late).
+        let late = kept
+            .iter()
+            .copied()
+            .filter(|i| early.binary_search(i).is_err());
+        let drawn_candidates: Vec<(u32, bool)> = early
+            .iter()
+            .map(|&i| (i, true))
+            .chain(late.map(|i| (i, false)))
+            .collect();
         // Per building: drawn itself, drawn through a cluster.
-        let mut itself = vec![false; self.building_count];
-        let mut through_cluster = vec![false; self.building_count];
+        let mut itself = Vec::new();
+        let mut through_cluster = Vec::new();
         let mut clusters = Vec::new();
-        for (i, &s) in status.iter().enumerate().take(self.len()) {
+        let mut drawn_early = Vec::new();
+        for &(i, was_early) in &drawn_candidates {
             let r = self.record(i);
-            let was_early = self.early[i];
-            match s {
-                CULL_FRUSTUM_OUTSIDE => stats.frustum_culled += 1,
-                CULL_OCCLUDED => stats.occlusion_culled += 1,
-                _ => {
-                    stats.cull_kept += 1;
-                    if !was_early {
-                        stats.late_drawn += 1;
-                        if r.index_count > 0 {
-                            stats.draw_calls += 1;
-                        }
+            let cluster = self.cluster_node(i);
+            if !was_early {
+                stats.late_drawn += 1;
+                if r.index_count > 0 {
+                    stats.draw_calls += 1;
+                }
+            }
+            // A cluster with an empty mesh shows none of its buildings: counting them as drawn
+            // would hide a false cull from the benchmark.
+            if cluster.is_some() && r.index_count == 0 {
+                continue;
+            }
+            stats.triangles += u64::from(r.index_count / 3);
+            match cluster {
+                Some(node) => {
+                    clusters.push(node);
+                    self.push_covered(i, &mut through_cluster);
+                }
+                None => {
+                    self.push_covered(i, &mut itself);
+                    if was_early {
+                        drawn_early.push(self.draw_id(i));
                     }
                 }
             }
-            // A cluster with an empty mesh shows none of its buildings, kept or not: counting
-            // them as drawn would hide a false cull from the benchmark.
-            let cluster = self.cluster_node(i);
-            let drawn =
-                (was_early || s == CULL_VISIBLE) && (cluster.is_none() || r.index_count > 0);
-            if drawn {
-                stats.triangles += u64::from(r.index_count / 3);
-            }
-            if drawn && let Some(node) = cluster {
-                clusters.push(node);
-            }
-            if drawn {
-                let marks = if cluster.is_some() {
-                    &mut through_cluster
-                } else {
-                    &mut itself
-                };
-                self.for_each_covered(i, |b| {
-                    if let Some(mark) = marks.get_mut(b as usize) {
-                        *mark = true;
-                    }
-                });
-            }
         }
-        let drawn: Vec<u32> = (0..self.building_count)
-            .filter(|&b| itself[b] || through_cluster[b])
-            .map(|b| b as u32)
-            .collect();
+        let itself = self.buildings(itself);
+        let through_cluster = self.buildings(through_cluster);
+        let mut drawn = itself.clone();
+        drawn.extend_from_slice(&through_cluster);
+        let drawn = self.buildings(drawn);
         stats.drawn = drawn.len() as u32;
         stats.clusters_drawn = clusters.len() as u32;
-        stats.buildings_through_clusters = (0..self.building_count)
-            .filter(|&b| through_cluster[b] && !itself[b])
-            .count() as u32;
+        stats.buildings_through_clusters = (drawn.len() - itself.len()) as u32;
         stats.late_commands = if late_commands_all {
             stats.candidates
         } else {
             stats.cull_kept
         };
         clusters.sort_unstable();
-        let mut drawn_early: Vec<u32> = (0..self.len())
-            .filter(|&i| self.early[i] && self.cluster_node(i).is_none())
-            .map(|i| self.draw_id(i))
-            .collect();
         drawn_early.sort_unstable();
-        let drawn_themselves: Vec<u32> = (0..self.building_count)
-            .filter(|&b| itself[b])
-            .map(|b| b as u32)
-            .collect();
         FrameOutput {
             drawn,
             drawn_early,
-            drawn_themselves,
+            drawn_themselves: itself,
             lod_cut: self.lod.is_some(),
             occluders: Vec::new(),
             clusters,
@@ -260,6 +277,27 @@ mod tests {
     use citywalk_scenes::cluster_tree::{ClusterNode, ClusterParams, ClusterStats};
 
     use super::*;
+    use crate::hzb::cull::{CULL_FRUSTUM_OUTSIDE, CULL_NOT_EARLY, CULL_OCCLUDED, CULL_VISIBLE};
+
+    /// The report the GPU writes for a frame whose early entry gave `early_status` and whose
+    /// cull gave `status` (one per candidate), listed in reverse as atomics may append them.
+    fn report(early_status: &[u32], status: &[u32]) -> CullLists {
+        let listed = |statuses: &[u32]| -> Vec<u32> {
+            (0..statuses.len() as u32)
+                .rev()
+                .filter(|&i| statuses[i as usize] == CULL_VISIBLE)
+                .collect()
+        };
+        let count = |statuses: &[u32], f: fn(u32) -> bool| -> u32 {
+            statuses.iter().filter(|&&s| f(s)).count() as u32
+        };
+        CullLists::new(
+            listed(early_status),
+            listed(status),
+            count(status, |s| s == CULL_OCCLUDED),
+            count(early_status, |s| s != CULL_VISIBLE && s != CULL_NOT_EARLY),
+        )
+    }
 
     /// A 10 m cube record at `x` metres along the view axis.
     fn record(x: f32) -> BuildingRecord {
@@ -341,13 +379,17 @@ mod tests {
         // Coarse cut: cluster 2 (buildings 2 and 0) and building 1. Nothing seen yet: nothing
         // early.
         let coarse = [1, 3 + 2];
-        let c = Candidates::lod(lod, &coarse, &[CULL_NOT_EARLY, CULL_NOT_EARLY]);
+        let status = [CULL_OCCLUDED, CULL_VISIBLE];
+        let c = Candidates::lod(
+            lod,
+            &coarse,
+            report(&[CULL_NOT_EARLY, CULL_NOT_EARLY], &status),
+        );
         assert_eq!(c.len(), 2);
-        assert_eq!(c.early, vec![false, false]);
-        let status = vec![CULL_OCCLUDED, CULL_VISIBLE];
-        c.update_visibility(&mut visibility, &status);
+        assert!(c.lists.early.is_empty());
+        c.update_visibility(&mut visibility);
         assert_eq!(visibility.visible_ids(), vec![0, 2]);
-        let out = c.statistics(&status, false);
+        let out = c.statistics(false);
         assert_eq!(out.drawn, vec![0, 2]);
         assert_eq!(out.clusters, vec![2]);
         assert!(out.drawn_early.is_empty());
@@ -359,12 +401,16 @@ mod tests {
         // The cut refines the cluster; the GPU drew buildings 0 and 2 early (seen through the
         // cluster). Building 2 turned out hidden: drawn (early) this frame, not visible next.
         let fine = [0, 1, 2];
-        let c = Candidates::lod(lod, &fine, &[CULL_VISIBLE, CULL_NOT_EARLY, CULL_VISIBLE]);
-        assert_eq!(c.early, vec![true, false, true]);
-        let status = vec![CULL_VISIBLE, CULL_VISIBLE, CULL_OCCLUDED];
-        c.update_visibility(&mut visibility, &status);
+        let status = [CULL_VISIBLE, CULL_VISIBLE, CULL_OCCLUDED];
+        let c = Candidates::lod(
+            lod,
+            &fine,
+            report(&[CULL_VISIBLE, CULL_NOT_EARLY, CULL_VISIBLE], &status),
+        );
+        assert_eq!(c.lists.early, vec![0, 2]);
+        c.update_visibility(&mut visibility);
         assert_eq!(visibility.visible_ids(), vec![0, 1]);
-        let out = c.statistics(&status, true);
+        let out = c.statistics(true);
         assert_eq!(out.drawn, vec![0, 1, 2]);
         assert_eq!(out.drawn_early, vec![0, 2]);
         assert!(out.clusters.is_empty());
@@ -389,14 +435,14 @@ mod tests {
         let c = Candidates::lod(
             lod,
             &cut,
-            &[CULL_VISIBLE, CULL_NOT_EARLY, CULL_OCCLUDED, CULL_VISIBLE],
+            report(
+                &[CULL_VISIBLE, CULL_NOT_EARLY, CULL_OCCLUDED, CULL_VISIBLE],
+                &[CULL_VISIBLE, CULL_OCCLUDED, CULL_VISIBLE, CULL_OCCLUDED],
+            ),
         );
-        assert_eq!(c.early, vec![true, false, false, true]);
-        assert_eq!(c.gate_culled, 1);
-        let out = c.statistics(
-            &[CULL_VISIBLE, CULL_OCCLUDED, CULL_VISIBLE, CULL_OCCLUDED],
-            false,
-        );
+        assert_eq!(c.lists.early, vec![0, 3]);
+        assert_eq!(c.lists.gate_culled, 1);
+        let out = c.statistics(false);
         let s = &out.stats;
         assert_eq!((s.early_drawn, s.late_drawn, s.drawn), (2, 1, 3));
         assert_eq!(s.gate_culled, 1);
@@ -409,16 +455,36 @@ mod tests {
     fn every_building_is_a_candidate_without_a_cut() {
         let (_, records) = scene();
         let scene_records = &records[..3];
-        let c =
-            Candidates::all_buildings(scene_records, &[CULL_VISIBLE, CULL_NOT_EARLY, CULL_VISIBLE]);
+        let status = [CULL_VISIBLE, CULL_FRUSTUM_OUTSIDE, CULL_OCCLUDED];
+        let c = Candidates::all_buildings(
+            scene_records,
+            report(&[CULL_VISIBLE, CULL_NOT_EARLY, CULL_VISIBLE], &status),
+        );
         let mut visibility = Visibility::default();
-        let status = vec![CULL_VISIBLE, CULL_FRUSTUM_OUTSIDE, CULL_OCCLUDED];
-        c.update_visibility(&mut visibility, &status);
+        c.update_visibility(&mut visibility);
         assert_eq!(visibility.visible_ids(), vec![0]);
-        let out = c.statistics(&status, false);
+        let out = c.statistics(false);
         assert_eq!(out.drawn, vec![0, 2]);
         assert_eq!(out.drawn_early, vec![0, 2]);
-        assert_eq!(out.stats.frustum_culled, 1);
-        assert_eq!(out.stats.buildings_through_clusters, 0);
+        let s = &out.stats;
+        assert_eq!(
+            (s.frustum_culled, s.occlusion_culled, s.cull_kept),
+            (1, 1, 1)
+        );
+        assert_eq!(s.buildings_through_clusters, 0);
+    }
+
+    /// A report naming candidates past the frame's (another frame's shape) counts none of them
+    /// and never indexes out of range.
+    #[test]
+    fn listed_indices_past_the_candidates_are_ignored() {
+        let (_, records) = scene();
+        let lists = CullLists::new(vec![7, 0], vec![0, 9, u32::MAX], 1, 0);
+        let c = Candidates::all_buildings(&records[..3], lists);
+        let out = c.statistics(false);
+        assert_eq!(out.drawn, vec![0]);
+        let s = &out.stats;
+        assert_eq!((s.candidates, s.cull_kept, s.occlusion_culled), (3, 1, 1));
+        assert_eq!((s.frustum_culled, s.early_drawn, s.late_drawn), (1, 1, 0));
     }
 }

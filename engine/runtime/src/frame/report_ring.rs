@@ -10,7 +10,7 @@ use std::sync::atomic::{AtomicU8, Ordering};
 
 use crate::frame::grow_buffer::GrowBuffer;
 use crate::gpu::GpuContext;
-use crate::render::targets::ReadbackError;
+use crate::render::targets::{ReadbackError, map_read_prefix};
 
 /// Slots in the ring: the frame being recorded, one the GPU works on, one being read. A report
 /// arrives at most this many frames after its frame ([`crate::auto`] counts on it).
@@ -21,15 +21,18 @@ const IN_FLIGHT: u8 = 1;
 const MAPPED: u8 = 2;
 const FAILED: u8 = 3;
 
+/// Ids of each list a report copies at first ([`ReportRing`]'s slots grow when a frame lists
+/// more).
+pub(super) const FIRST_LIST_ENTRIES: u32 = 4096;
+
 /// Where a frame's data lie in its slot (bytes).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) struct SlotLayout {
     pub timestamps_bytes: u64,
-    /// Words after the timestamps, before the two arrays (a tree frame's counters and list
-    /// header; 0 otherwise).
+    /// Words after the timestamps, before the two lists (the frame's counters and list
+    /// lengths).
     pub header_words: u64,
-    /// Candidates: the cull's and the early entry's status, `u32` each (a tree frame: its kept
-    /// ids and early ids, up to this many each).
+    /// Entries copied of each list, `u32` each: the kept ids, then the early ids.
     pub candidates: u64,
 }
 
@@ -200,4 +203,76 @@ impl<T> ReportRing<T> {
         }
         Ok(out)
     }
+}
+
+/// Where a frame's kept and early lists lie on the GPU: buffer and byte offset of each.
+#[derive(Debug)]
+pub(super) struct ListSources {
+    pub kept: (wgpu::Buffer, u64),
+    pub early: (wgpu::Buffer, u64),
+}
+
+/// A frame's kept ids and early ids.
+pub(super) type KeptAndEarly = (Vec<u32>, Vec<u32>);
+
+/// A frame's kept and early lists, `kept_count` and `early_count` long, from its read `slot`
+/// (`bytes` in `layout`) when the slot holds them whole; else read whole from `sources` when
+/// `gpu` is given (a frame waited for right after its submission: nothing has written the
+/// lists since); else `None`, never a part of a list, which would undercount what was drawn.
+/// `entries` (what later reports copy) grows to hold them.
+pub(super) fn read_lists(
+    (bytes, layout): (&[u8], SlotLayout),
+    (kept_count, early_count): (usize, usize),
+    sources: &ListSources,
+    gpu: Option<&GpuContext>,
+    entries: &mut u32,
+) -> Result<Option<KeptAndEarly>, ReadbackError> {
+    let needed = kept_count.max(early_count);
+    if needed as u64 > u64::from(*entries) {
+        *entries = (needed as u32).saturating_mul(2).next_power_of_two();
+    }
+    let words = |at: u64, n: usize| -> Vec<u32> {
+        let at = at as usize;
+        bytemuck::pod_collect_to_vec(&bytes[at..at + n * 4])
+    };
+    if needed as u64 <= layout.candidates {
+        return Ok(Some((
+            words(layout.status_at(), kept_count),
+            words(layout.early_at(), early_count),
+        )));
+    }
+    let Some(gpu) = gpu else {
+        return Ok(None);
+    };
+    Ok(Some((
+        read_words(gpu, &sources.kept, kept_count)?,
+        read_words(gpu, &sources.early, early_count)?,
+    )))
+}
+
+/// `n` words of `buffer` from byte `at`, through a staging copy (waits for the GPU).
+fn read_words(
+    gpu: &GpuContext,
+    (buffer, at): &(wgpu::Buffer, u64),
+    n: usize,
+) -> Result<Vec<u32>, ReadbackError> {
+    if n == 0 {
+        return Ok(Vec::new());
+    }
+    let bytes = n as u64 * 4;
+    let staging = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("frame report lists"),
+        size: bytes,
+        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+        mapped_at_creation: false,
+    });
+    let mut encoder = gpu
+        .device
+        .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("frame report lists"),
+        });
+    encoder.copy_buffer_to_buffer(buffer, *at, &staging, 0, bytes);
+    gpu.queue.submit([encoder.finish()]);
+    let read = map_read_prefix(gpu, &staging, bytes)?;
+    Ok(bytemuck::pod_collect_to_vec(&read))
 }

@@ -14,7 +14,7 @@
 //!
 //! The CPU's work is the same for any city: two uniform blocks, the occluder selection, and a
 //! fixed number of dispatches (the tree's levels plus two). Its report is O(what was drawn): the
-//! kept and early lists, up to [`CullingRenderer::tree_report_entries`] each (grown when a frame
+//! kept and early lists, up to [`CullingRenderer::report_entries`] each (grown when a frame
 //! keeps more). A frame waited for is read whole; a polled report whose lists outgrew it is
 //! dropped, never read in part.
 
@@ -27,7 +27,7 @@ use citywalk_shaders::constants::{
     TREE_EARLY_NONE, TREE_LIST_HEADER, TREE_MAX_LEVELS,
 };
 
-use super::report_ring::{ReadSlot, SlotLayout};
+use super::report_ring::{ListSources, ReadSlot, SlotLayout, read_lists};
 use super::{
     CullingOptions, CullingRenderer, FrameError, FrameOutput, FrameStats, FrameTicket,
     IndirectDraws, OccluderMeshes, PendingFrame, Visibility, occluder_triangles, select_occluders,
@@ -38,11 +38,7 @@ use crate::hzb::tree_cull::TreeInputs;
 use crate::lod::gpu_tree::tree_params;
 use crate::lod::scene::LodScene;
 use crate::lod::{LodCriterion, LodView};
-use crate::render::targets::map_read_prefix;
 use crate::render::view::view_uniforms;
-
-/// Kept and early ids a tree frame's report copies at first.
-pub(super) const FIRST_REPORT_ENTRIES: u32 = 4096;
 
 /// What a submitted tree frame keeps until its report is read.
 #[derive(Debug)]
@@ -60,18 +56,6 @@ impl CullingRenderer {
     /// levels.
     pub fn runs_tree(&self, lod: &LodScene) -> bool {
         self.multi_draw_count && lod.tree_gpu.levels <= TREE_MAX_LEVELS
-    }
-
-    /// Kept and early ids the next tree frame's report copies.
-    pub fn tree_report_entries(&self) -> u32 {
-        self.tree_report_entries
-    }
-
-    /// Sets the kept and early ids the next tree frame's report copies (at least 1; a frame
-    /// that keeps more grows it again). More up front spares a viewer the first polled reports
-    /// of a wide cut, which are dropped until the report holds the lists whole.
-    pub fn set_tree_report_entries(&mut self, entries: u32) {
-        self.tree_report_entries = entries.max(1);
     }
 
     /// Records and submits one LOD frame of `lod` whose cut the GPU computes under `criterion`
@@ -210,6 +194,7 @@ impl CullingRenderer {
                     capacity,
                     early_ids: self.tree_cull.early_ids().clone(),
                 }),
+                lists: None,
             };
             self.reports.submitted(ticket, layout, pending);
         }
@@ -247,7 +232,7 @@ impl CullingRenderer {
     }
 
     /// Copies the timestamps, the counters, the lists' header and the first
-    /// [`CullingRenderer::tree_report_entries`] kept and early ids into a free report slot.
+    /// [`CullingRenderer::report_entries`] kept and early ids into a free report slot.
     fn record_tree_report(
         &mut self,
         gpu: &GpuContext,
@@ -259,7 +244,7 @@ impl CullingRenderer {
         SlotLayout,
         crate::gpu_timer::TimedPhases,
     )> {
-        let entries = self.tree_report_entries.min(capacity);
+        let entries = self.report_entries.min(capacity);
         let layout = SlotLayout {
             timestamps_bytes: self.timer.resolved_bytes(),
             header_words: u64::from(TREE_C_WORDS + TREE_LIST_HEADER),
@@ -318,33 +303,29 @@ impl CullingRenderer {
         let kept_count = (header[tree.half as usize] as usize).min(tree.capacity as usize);
         let early_count =
             (counters[TREE_C_EARLY_LISTED as usize] as usize).min(tree.capacity as usize);
-        let copied = layout.candidates as usize;
-        let needed = kept_count.max(early_count);
-        if needed as u32 > self.tree_report_entries {
-            self.tree_report_entries = (needed as u32).saturating_mul(2).next_power_of_two();
-        }
-        let (kept, early) = match gpu {
-            _ if needed <= copied => (
-                words(layout.status_at(), kept_count),
-                words(layout.early_at(), early_count),
+        let header_bytes = u64::from(TREE_LIST_HEADER) * 4;
+        let sources = ListSources {
+            kept: (
+                tree.lists.clone(),
+                header_bytes + u64::from(tree.half) * u64::from(tree.capacity) * 4,
             ),
-            Some(gpu) => {
-                let header_bytes = u64::from(TREE_LIST_HEADER) * 4;
-                let half_at = header_bytes + u64::from(tree.half) * u64::from(tree.capacity) * 4;
-                (
-                    read_words(gpu, &tree.lists, half_at, kept_count)?,
-                    read_words(gpu, &tree.early_ids, 0, early_count)?,
-                )
-            }
-            None => {
-                tracing::debug!(
-                    frame = pending.number,
-                    needed,
-                    copied,
-                    "tree report dropped: its lists outgrew the report"
-                );
-                return Ok(None);
-            }
+            early: (tree.early_ids.clone(), 0),
+        };
+        let Some((kept, early)) = read_lists(
+            (&bytes, layout),
+            (kept_count, early_count),
+            &sources,
+            gpu,
+            &mut self.report_entries,
+        )?
+        else {
+            tracing::debug!(
+                frame = pending.number,
+                kept_count,
+                early_count,
+                "tree report dropped: its lists outgrew the report"
+            );
+            return Ok(None);
         };
         if counters[TREE_C_OVERFLOW as usize] != 0 {
             tracing::error!(
@@ -377,34 +358,6 @@ impl CullingRenderer {
         output.lod_cut = true;
         Ok(Some(output))
     }
-}
-
-/// `n` words of `buffer` from byte `at`, through a staging copy (waits for the GPU).
-fn read_words(
-    gpu: &GpuContext,
-    buffer: &wgpu::Buffer,
-    at: u64,
-    n: usize,
-) -> Result<Vec<u32>, FrameError> {
-    if n == 0 {
-        return Ok(Vec::new());
-    }
-    let bytes = n as u64 * 4;
-    let staging = gpu.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("tree report"),
-        size: bytes,
-        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-        mapped_at_creation: false,
-    });
-    let mut encoder = gpu
-        .device
-        .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-            label: Some("tree report"),
-        });
-    encoder.copy_buffer_to_buffer(buffer, at, &staging, 0, bytes);
-    gpu.queue.submit([encoder.finish()]);
-    let read = map_read_prefix(gpu, &staging, bytes)?;
-    Ok(bytemuck::pod_collect_to_vec(&read))
 }
 
 /// The frame's output from its kept draw ids, early building ids and counters: O(what was

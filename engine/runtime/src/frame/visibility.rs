@@ -6,8 +6,6 @@
 //! frustum turned) expires by itself instead of needing a clear: a draw id counts as visible
 //! last frame only when its stamp is exactly last frame's.
 
-use citywalk_shaders::constants::CULL_VISIBLE;
-
 use crate::gpu::GpuContext;
 
 /// The stamp of the first frame: last frame's (1) is newer than the zeroed buffer's 0.
@@ -125,21 +123,6 @@ impl Visibility {
         (&stamps.buffer, self.stamp)
     }
 
-    /// Sets the CPU copy from a cull status (`CULL_VISIBLE` = visible), one per building.
-    pub(super) fn mirror_status(&mut self, status: &[u32]) {
-        self.mirror.clear();
-        self.mirror
-            .extend((0..status.len() as u32).filter(|&b| status[b as usize] == CULL_VISIBLE));
-    }
-
-    /// Sets the CPU copy to `visible` (one per building): for a frame whose candidates are not
-    /// the buildings themselves (a LOD cut), the caller maps candidates to buildings.
-    pub(super) fn mirror_set(&mut self, visible: Vec<bool>) {
-        self.mirror.clear();
-        self.mirror
-            .extend((0..visible.len() as u32).filter(|&b| visible[b as usize]));
-    }
-
     /// Sets the CPU copy to the buildings `ids`, ascending.
     pub(super) fn mirror_ids(&mut self, ids: Vec<u32>) {
         self.mirror = ids;
@@ -185,16 +168,15 @@ impl Visibility {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::hzb::cull::{CULL_FRUSTUM_OUTSIDE, CULL_OCCLUDED};
 
     #[test]
-    fn the_mirror_follows_the_status_and_a_reset_clears_it() {
+    fn the_mirror_follows_the_ids_and_a_reset_clears_it() {
         let mut v = Visibility::default();
         assert!(!v.is_visible(0));
-        v.mirror_status(&[CULL_VISIBLE, CULL_OCCLUDED, CULL_VISIBLE]);
+        v.mirror_ids(vec![0, 2]);
         assert_eq!(v.visible_ids(), vec![0, 2]);
         assert!(v.is_visible(2) && !v.is_visible(1) && !v.is_visible(7));
-        v.mirror_status(&[CULL_FRUSTUM_OUTSIDE, CULL_VISIBLE]);
+        v.mirror_ids(vec![1]);
         assert_eq!(v.visible_ids(), vec![1]);
         v.reset();
         assert!(!v.is_visible(1));

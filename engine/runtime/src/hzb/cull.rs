@@ -18,6 +18,11 @@
 //! visible candidate's draw id in the visibility buffer that the next frame's early entry reads
 //! ([`CullVisibility`]). Nothing of it passes through the CPU.
 //!
+//! **The report.** What the CPU needs of a frame is O(what was drawn): the entry points list the
+//! candidates the early pass drew and those the cull kept, and count the occluded and the
+//! gate-culled ones, in [`HzbCull::report_buffer`] (`CULL_R_*` words, then the two lists). The
+//! per-candidate status stays on the GPU ([`HzbCull::read_back`] for tests).
+//!
 //! The command buffer is cleared before each cull, so it can be drawn either with
 //! `multi_draw_indexed_indirect_count` (count from [`HzbCull::count_buffer`], when
 //! `MULTI_DRAW_INDIRECT_COUNT` is available) or with `multi_draw_indexed_indirect` of
@@ -29,7 +34,7 @@
 //! software adapter take 0.4–2.5 s each on a cold shader cache.
 
 use citywalk_shaders::constants::HZB_CULL_WORKGROUP;
-use citywalk_shaders::constants::{CULL_FLAG_DRAW_IDS, CULL_FLAG_VISIBILITY};
+use citywalk_shaders::constants::{CULL_FLAG_DRAW_IDS, CULL_FLAG_VISIBILITY, CULL_R_WORDS};
 pub use citywalk_shaders::constants::{
     CULL_FRUSTUM_OUTSIDE, CULL_NOT_EARLY, CULL_OCCLUDED, CULL_VISIBLE, HZB_FINE_SPAN,
     HZB_ROUNDING_REL, NO_PARENT,
@@ -124,6 +129,9 @@ pub struct HzbCull {
     status: wgpu::Buffer,
     commands: wgpu::Buffer,
     count: wgpu::Buffer,
+    /// The frame's report: `CULL_R_WORDS` header words, then the kept and the early list of
+    /// `capacity` candidate indices each.
+    report: wgpu::Buffer,
     /// One zeroed part, bound when the records name none.
     no_parts: wgpu::Buffer,
     /// One word each, bound when the frame gives none: the drawn-early flags, the draw ids, the
@@ -183,6 +191,7 @@ impl HzbCull {
                 buffer_entry(8, wgpu::BufferBindingType::Storage { read_only: true }, 4),
                 buffer_entry(9, rw, 4),
                 buffer_entry(10, wgpu::BufferBindingType::Storage { read_only: true }, 4),
+                buffer_entry(23, rw, report_bytes(1)),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -222,7 +231,7 @@ impl HzbCull {
         let no_stamps = zero_word("hzb cull: no stamps");
         let no_parents = zero_word("hzb cull: no parents");
         let capacity = capacity.max(1);
-        let (status, commands) = Self::outputs(device, capacity);
+        let (status, commands, report) = Self::outputs(device, capacity);
         HzbCull {
             device: device.clone(),
             module,
@@ -233,6 +242,7 @@ impl HzbCull {
             status,
             commands,
             count,
+            report,
             no_parts,
             no_flags,
             no_ids,
@@ -258,7 +268,7 @@ impl HzbCull {
         })
     }
 
-    fn outputs(device: &wgpu::Device, capacity: u32) -> (wgpu::Buffer, wgpu::Buffer) {
+    fn outputs(device: &wgpu::Device, capacity: u32) -> (wgpu::Buffer, wgpu::Buffer, wgpu::Buffer) {
         let status = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("hzb cull status"),
             size: u64::from(capacity) * STATUS_BYTES,
@@ -274,7 +284,15 @@ impl HzbCull {
                 | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        (status, commands)
+        let report = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("hzb cull report"),
+            size: report_bytes(capacity),
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_SRC
+                | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        (status, commands, report)
     }
 
     /// The most boxes one cull can test (one-dimensional dispatch).
@@ -323,6 +341,7 @@ impl HzbCull {
         (pyramid, view_proj): (&HzbPyramid, Mat4),
         timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
     ) -> Result<(), CullError> {
+        self.clear_report(encoder);
         self.encode_entry(
             gpu,
             encoder,
@@ -379,7 +398,7 @@ impl HzbCull {
         }
         if box_count > self.capacity {
             self.capacity = box_count.next_power_of_two().min(max).max(box_count);
-            (self.status, self.commands) = Self::outputs(&self.device, self.capacity);
+            (self.status, self.commands, self.report) = Self::outputs(&self.device, self.capacity);
         }
         let (width, height) = pyramid.size();
         let params = HzbCullParams {
@@ -466,6 +485,10 @@ impl HzbCull {
                         .map_or(&self.no_parents, |v| v.parents)
                         .as_entire_binding(),
                 },
+                wgpu::BindGroupEntry {
+                    binding: 23,
+                    resource: self.report.as_entire_binding(),
+                },
             ],
         });
         let pipeline = self.pipeline(entry).clone();
@@ -482,6 +505,25 @@ impl HzbCull {
     /// Per-box status (`u32`), valid for the boxes of the last cull.
     pub fn status_buffer(&self) -> &wgpu::Buffer {
         &self.status
+    }
+
+    /// The frame's report: `CULL_R_*` header words, then the kept list at word
+    /// `CULL_R_WORDS` and the early list at `CULL_R_WORDS +` [`HzbCull::list_capacity`]
+    /// (candidate indices in no particular order). Zeroed by [`HzbCull::clear_report`], then
+    /// added to by the entry points run with this pass; a cull that grows the pass replaces it
+    /// by a new one, which wgpu zeroes.
+    pub fn report_buffer(&self) -> &wgpu::Buffer {
+        &self.report
+    }
+
+    /// Room in each list of [`HzbCull::report_buffer`].
+    pub fn list_capacity(&self) -> u32 {
+        self.capacity
+    }
+
+    /// Zeroes the report's header (the lists are read up to their lengths).
+    pub fn clear_report(&self, encoder: &mut wgpu::CommandEncoder) {
+        encoder.clear_buffer(&self.report, 0, Some(u64::from(CULL_R_WORDS) * 4));
     }
 
     /// The visible boxes' [`DrawIndexedIndirectArgs`], packed from the start; the rest of the
@@ -545,4 +587,9 @@ impl HzbCull {
             .collect();
         Ok(CullResults { status, commands })
     }
+}
+
+/// Bytes of a report with room for `capacity` candidates in each list.
+fn report_bytes(capacity: u32) -> u64 {
+    (u64::from(CULL_R_WORDS) + 2 * u64::from(capacity)) * 4
 }
