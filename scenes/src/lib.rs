@@ -20,6 +20,7 @@ pub mod load;
 pub mod mesh_footprint;
 pub mod occluder;
 pub mod occluder_draws;
+mod overlay_guard;
 pub mod package;
 pub mod quadtree;
 pub mod report;

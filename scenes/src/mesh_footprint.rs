@@ -16,6 +16,7 @@ use rstar::primitives::Rectangle;
 use rstar::{RTree, RTreeObject};
 
 use crate::city::TriangleMesh;
+use crate::overlay_guard::overlay_or_reject;
 use crate::report::RejectReason;
 use crate::validate::{CleanFootprint, MIN_AREA_M2, clean_footprint};
 
@@ -135,15 +136,8 @@ fn union_or_reject<'a>(
             polygons.len()
         )));
     }
-    std::panic::catch_unwind(|| geo::unary_union(polygons.iter().copied())).map_err(|panic| {
-        let why = panic
-            .downcast_ref::<&str>()
-            .map(|s| (*s).to_owned())
-            .or_else(|| panic.downcast_ref::<String>().cloned())
-            .unwrap_or_else(|| "no message".to_owned());
-        RejectReason::InvalidGeometry(format!(
-            "the footprint union failed inside i_overlay: {why}"
-        ))
+    overlay_or_reject("the footprint union", || {
+        geo::unary_union(polygons.iter().copied())
     })
 }
 

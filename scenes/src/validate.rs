@@ -15,6 +15,7 @@ use geo::{
     RemoveRepeatedPoints, Validation, Winding,
 };
 
+use crate::overlay_guard::overlay_or_reject;
 use crate::report::RejectReason;
 use crossings::{contacts, pair_budget};
 
@@ -102,7 +103,7 @@ pub fn clean_footprint(polygons: &[Vec<Vec<Coord<f64>>>]) -> Result<CleanFootpri
             )));
         }
         let before: f64 = footprint.0.iter().map(signed_ring_area_abs).sum();
-        let repaired = renode(&footprint);
+        let repaired = overlay_or_reject("the footprint repair", || renode(&footprint))?;
         let after = repaired.unsigned_area();
         if repaired.0.is_empty() || after < MIN_AREA_M2 {
             return Err(RejectReason::SelfIntersection);

@@ -554,13 +554,9 @@ fn clean_polygons(
         }
         local.push(out_rings);
     }
-    // `geo`'s overlay (used to repair crossing rings) is robust, but a panic on some
-    // pathological ring must not take the whole load down: it rejects this area only.
-    std::panic::catch_unwind(|| clean_footprint(&local)).unwrap_or_else(|_| {
-        Err(RejectReason::InvalidGeometry(
-            "footprint repair failed".into(),
-        ))
-    })
+    // A panic inside the overlay that repairs crossing rings rejects this area only
+    // (`overlay_guard`).
+    clean_footprint(&local)
 }
 
 /// Makes the model's building from a validated building (or orphan part) and its parts.

@@ -183,3 +183,43 @@ fn gltf_run_5_crossing_triangles_load_in_bounded_time() {
         assert_eq!(report.buildings_found, 1, "{report}");
     }
 }
+
+/// `obj`, run 6: i_overlay's `is_fill_top` debug assertion once more, this time in the repair
+/// of a crossing footprint (`validate::clean_footprint`, re-noding by a union), which no guard
+/// covered on the mesh loaders' path. Every footprint overlay now goes through one guard
+/// (`overlay_guard`): in a build with debug assertions the building is rejected naming
+/// i_overlay. In release the four mangled buildings are rejected for their own reasons
+/// (non-finite coordinates first) and the load is an error naming the file. Either way the
+/// target's checks hold, in bounded time.
+#[test]
+fn obj_overlay_assertion_in_the_footprint_repair_is_contained() {
+    use citywalk_scenes::LoadOptions;
+    use citywalk_scenes::load::obj;
+
+    let bytes = reproducer("obj", "i_overlay_repair_assert");
+    let start = Instant::now();
+    citywalk_fuzz::loaders::obj(&bytes);
+    assert!(
+        start.elapsed() < Duration::from_secs(5),
+        "{:?}",
+        start.elapsed()
+    );
+    let name = "i_overlay_repair_assert.obj";
+    match obj::load_reader(Path::new(name), &bytes[..], &LoadOptions::default()) {
+        Ok(city) => {
+            let report = &city.report;
+            assert!(report.is_balanced(), "{report}");
+            for rejection in &report.rejected {
+                assert!(
+                    !rejection.to_string().is_empty(),
+                    "a rejection without its reason"
+                );
+            }
+        }
+        Err(e) => {
+            let message = e.to_string();
+            assert!(message.contains(name), "{message}");
+            assert!(message.contains("4 found"), "{message}");
+        }
+    }
+}
