@@ -38,10 +38,10 @@ fn preprocess_to_a_device_or_pipe_fails_and_leaves_it() {
     let city = small_city(&dir);
     let fifo = dir.join("out.cwk");
     let made = Command::new("mkfifo").arg(&fifo).status();
-    if !made.is_ok_and(|s| s.success()) {
-        eprintln!("mkfifo unavailable: skipped");
-        return;
-    }
+    assert!(
+        made.as_ref().is_ok_and(|s| s.success()),
+        "mkfifo failed: {made:?}"
+    );
     let out = citywalk(&["preprocess", &city, "-o", path_str(&fifo)]);
     let all = text(&out);
     assert_eq!(out.status.code(), Some(1), "{all}");
@@ -95,6 +95,9 @@ fn rejections_and_warnings_name_their_building_everywhere() {
         square("b1", 0.0, serde_json::json!({"height": 10})),
         square("b2", 0.001, serde_json::json!({"height": "tall"})),
         square("b99", 0.002, serde_json::json!({"height": -5})),
+        // Issue 14 case 12: a street of one point is counted and named too.
+        serde_json::json!({"type": "Feature", "properties": {"id": "s7", "highway": "residential"},
+            "geometry": {"type": "LineString", "coordinates": [[0.0, -0.0001]]}}),
     ];
     let geojson = dir.join("ids.geojson");
     let doc = serde_json::json!({"type": "FeatureCollection", "features": features});
@@ -109,7 +112,12 @@ fn rejections_and_warnings_name_their_building_everywhere() {
     for log in [&stdout, &stderr] {
         assert!(log.contains("building b99: absurd height"), "{all}");
         assert!(log.contains("b2: unparseable height value"), "{all}");
+        assert!(log.contains("street s7: "), "{all}");
     }
+    assert!(
+        stdout.contains("streets: 1 found, 0 loaded, 1 rejected"),
+        "{all}"
+    );
 
     let out = citywalk(&[&args[..], &["--json"]].concat());
     assert!(out.status.success(), "{}", text(&out));
@@ -123,6 +131,24 @@ fn rejections_and_warnings_name_their_building_everywhere() {
     );
     let warned = json["load_warnings"].as_array().unwrap();
     assert!(warned.iter().any(|w| w["source_id"] == "b2"), "{json}");
+    let street = &json["rejected"][1];
+    assert_eq!(
+        (&street["kind"], &street["source_id"]),
+        (&"street".into(), &"s7".into()),
+        "{json}"
+    );
+    assert!(
+        street["reason"]
+            .as_str()
+            .unwrap()
+            .contains("2 distinct points"),
+        "{json}"
+    );
+    assert_eq!(
+        (&json["streets_found"], &json["streets_rejected"]),
+        (&1.into(), &1.into()),
+        "{json}"
+    );
 
     let pkg = citywalk_scenes::package::ScenePackage::read(&package).expect("package");
     let report = &pkg.provenance.load_report;

@@ -502,18 +502,20 @@ fn writing_over_a_device_pipe_folder_or_read_only_file_fails_and_leaves_it() {
     let dir = tempfile::tempdir().expect("temp dir");
     let fifo = dir.path().join("pipe.cwk");
     let made = std::process::Command::new("mkfifo").arg(&fifo).status();
-    if made.is_ok_and(|s| s.success()) {
-        let err = pkg.write(&fifo, WriteOptions::default()).unwrap_err();
-        assert!(matches!(err, PackageError::NotWritable { .. }), "{err}");
-        assert!(err.to_string().contains("named pipe"), "{err}");
-        let kind = std::fs::symlink_metadata(&fifo).expect("pipe").file_type();
-        assert!(kind.is_fifo(), "the pipe was replaced");
-        let link = dir.path().join("link.cwk");
-        std::os::unix::fs::symlink(&fifo, &link).expect("symlink");
-        let err = pkg.write(&link, WriteOptions::default()).unwrap_err();
-        assert!(err.to_string().contains("named pipe"), "{err}");
-        assert!(std::fs::symlink_metadata(&link).expect("link").is_symlink());
-    }
+    assert!(
+        made.as_ref().is_ok_and(|s| s.success()),
+        "mkfifo failed: {made:?}"
+    );
+    let err = pkg.write(&fifo, WriteOptions::default()).unwrap_err();
+    assert!(matches!(err, PackageError::NotWritable { .. }), "{err}");
+    assert!(err.to_string().contains("named pipe"), "{err}");
+    let kind = std::fs::symlink_metadata(&fifo).expect("pipe").file_type();
+    assert!(kind.is_fifo(), "the pipe was replaced");
+    let link = dir.path().join("link.cwk");
+    std::os::unix::fs::symlink(&fifo, &link).expect("symlink");
+    let err = pkg.write(&link, WriteOptions::default()).unwrap_err();
+    assert!(err.to_string().contains("named pipe"), "{err}");
+    assert!(std::fs::symlink_metadata(&link).expect("link").is_symlink());
     let folder = dir.path().join("folder.cwk");
     std::fs::create_dir(&folder).expect("folder");
     let err = pkg.write(&folder, WriteOptions::default()).unwrap_err();
@@ -530,6 +532,27 @@ fn writing_over_a_device_pipe_folder_or_read_only_file_fails_and_leaves_it() {
     // Only the refused targets and the link are left: no temporary file stays behind.
     let names = std::fs::read_dir(dir.path()).expect("list").count();
     assert!(names <= 4, "{names} entries");
+}
+
+/// Issue 14 case 1 itself (`-o /dev/full`): a character device, named or behind a link, is
+/// refused as one. Only the target check runs here: a test that wrote to a device
+/// would replace the test machine's own if the check failed.
+#[cfg(unix)]
+#[test]
+fn a_character_device_is_refused_as_one_before_anything_is_written() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let link = dir.path().join("to-dev-null.cwk");
+    std::os::unix::fs::symlink("/dev/null", &link).expect("symlink");
+    for target in [Path::new("/dev/null"), link.as_path()] {
+        let err = writable_target(target).unwrap_err();
+        assert!(matches!(err, PackageError::NotWritable { .. }), "{err}");
+        let text = err.to_string();
+        assert!(
+            text.contains("a character device") && text.contains("left as it is"),
+            "{text}"
+        );
+        assert!(text.contains(&target.display().to_string()), "{text}");
+    }
 }
 
 /// A package written over an existing regular file or through a symbolic link replaces the
