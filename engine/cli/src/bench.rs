@@ -219,22 +219,40 @@ pub fn run_benchmark_with(
             ground_surfaces,
         } = package.into_parts();
         let name = scene_name(scene_path);
-        let sphere = CitySphere::of(&city);
-        let mut paths: Vec<CameraPath> = path_kinds
-            .iter()
-            .map(|kind| kind.generate(&city, frames))
-            .collect();
+        // The occluders are drawn from the GPU scene's arrays (a package read to draw has no
+        // occluder set; a preprocessed input's set drew the same arrays).
+        drop(occluders);
+        // The camera paths are made from the city on a second thread while this one uploads
+        // the scene: the upload is the driver's and the kernel's work on fresh pages, the
+        // paths are the CPU's (1M buildings: about a second each).
+        let (paths, drawable) = std::thread::scope(|s| {
+            let paths = s.spawn(|| {
+                let sphere = CitySphere::of(&city);
+                let paths: Vec<CameraPath> = path_kinds
+                    .iter()
+                    .map(|kind| kind.generate(&city, frames))
+                    .collect();
+                (sphere, paths)
+            });
+            let drawable = DrawableScene::upload_package(
+                &gpu,
+                &gpu_scene,
+                cluster_tree,
+                Some((blocks, quadtree)),
+            )
+            .and_then(|d| d.with_surfaces(&gpu, &ground_surfaces));
+            let paths = paths
+                .join()
+                .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+            (paths, drawable)
+        });
+        let (sphere, mut paths) = paths;
         paths.extend(replayed.iter().cloned());
         // The frames draw from the GPU; only the decimated baseline meshes the city again (a
         // million buildings are a third of a gigabyte of heap).
         let city = baseline.is_some().then_some(city);
-        // The occluders are drawn from the GPU scene's arrays (a package read to draw has no
-        // occluder set; a preprocessed input's set drew the same arrays).
-        drop(occluders);
         let mut drawable =
-            DrawableScene::upload_package(&gpu, &gpu_scene, cluster_tree, Some((blocks, quadtree)))
-                .and_then(|d| d.with_surfaces(&gpu, &ground_surfaces))
-                .with_context(|| format!("cannot draw {}", scene_path.display()))?;
+            drawable.with_context(|| format!("cannot draw {}", scene_path.display()))?;
         if let Some(lod) = &mut drawable.lod {
             lod.criterion = LOD_CRITERION.get().copied().flatten();
         }
