@@ -8,6 +8,7 @@ pub mod blocks;
 pub mod camera_path;
 pub mod city;
 pub mod city_sphere;
+pub mod cluster_texture;
 pub mod cluster_tree;
 pub mod cull_parts;
 pub mod export;
