@@ -16,6 +16,8 @@
 //! ([`super::gpu_scene`]). Every byte of the file is covered by a checksum or checked to be zero, so any
 //! corruption is reported as an error.
 
+use std::borrow::Cow;
+use std::io::{Seek, SeekFrom, Write};
 use std::sync::Arc;
 
 use serde::Serialize;
@@ -164,67 +166,132 @@ fn encode_one<T: Serialize>(
         })
 }
 
-/// Encodes a package (see the module documentation).
-pub fn encode(pkg: &ScenePackage, options: WriteOptions) -> Result<Vec<u8>, PackageError> {
-    let mut payloads = vec![
-        encode_one(SectionKind::Frame, &pkg.frame)?,
-        encode_one(SectionKind::Buildings, &pkg.buildings)?,
-        encode_one(SectionKind::Streets, &pkg.streets)?,
-        encode_one(SectionKind::Blocks, &pkg.blocks)?,
-        encode_one(SectionKind::Quadtree, &pkg.quadtree)?,
-        encode_one(SectionKind::Provenance, &pkg.provenance)?,
+/// The sections `pkg` is written with, in the file's (ascending) order.
+fn sections_of(pkg: &ScenePackage, options: WriteOptions) -> Vec<SectionKind> {
+    use SectionKind as K;
+    let mut kinds = vec![
+        K::Frame,
+        K::Buildings,
+        K::Streets,
+        K::Blocks,
+        K::Quadtree,
+        K::Provenance,
     ];
-    if let Some(occ) = &pkg.occluders {
-        payloads.push(encode_one(SectionKind::Occluders, occ)?);
+    if pkg.occluders.is_some() {
+        kinds.push(K::Occluders);
     }
-    if let Some(tree) = &pkg.cluster_tree {
-        payloads.push(encode_one(SectionKind::ClusterTree, tree)?);
+    if pkg.cluster_tree.is_some() {
+        kinds.push(K::ClusterTree);
     }
     if options.include_timings {
-        payloads.push(encode_one(SectionKind::Timings, &pkg.timings)?);
+        kinds.push(K::Timings);
     }
-    payloads.push((SectionKind::GpuScene, pkg.gpu_scene.bytes().to_vec()));
-    let details: Vec<_> = pkg.buildings.iter().map(|b| (&b.parts, &b.tags)).collect();
-    payloads.push(encode_one(SectionKind::BuildingDetails, &details)?);
-    payloads.push(encode_one(SectionKind::GroundAreas, &pkg.ground_areas)?);
-    payloads.push(encode_one(
-        SectionKind::GroundSurfaces,
-        &pkg.ground_surfaces,
-    )?);
+    kinds.extend([
+        K::GpuScene,
+        K::BuildingDetails,
+        K::GroundAreas,
+        K::GroundSurfaces,
+    ]);
+    kinds
+}
 
-    let table_end = (HEADER_LEN + ENTRY_LEN * payloads.len()) as u64;
-    let mut entries = Vec::with_capacity(payloads.len());
+/// The payload of one section of `pkg`: encoded when asked for, or the GPU scene's own bytes.
+fn payload(pkg: &ScenePackage, kind: SectionKind) -> Result<Cow<'_, [u8]>, PackageError> {
+    use SectionKind as K;
+    let encoded = match kind {
+        K::Frame => encode_one(kind, &pkg.frame),
+        K::Buildings => encode_one(kind, &pkg.buildings),
+        K::Streets => encode_one(kind, &pkg.streets),
+        K::Blocks => encode_one(kind, &pkg.blocks),
+        K::Quadtree => encode_one(kind, &pkg.quadtree),
+        K::Provenance => encode_one(kind, &pkg.provenance),
+        K::Occluders => match &pkg.occluders {
+            Some(occluders) => encode_one(kind, occluders),
+            None => Err(absent(kind)),
+        },
+        K::ClusterTree => match &pkg.cluster_tree {
+            Some(tree) => encode_one(kind, tree),
+            None => Err(absent(kind)),
+        },
+        K::Timings => encode_one(kind, &pkg.timings),
+        K::GpuScene => return Ok(Cow::Borrowed(pkg.gpu_scene.bytes())),
+        K::BuildingDetails => {
+            let details: Vec<_> = pkg.buildings.iter().map(|b| (&b.parts, &b.tags)).collect();
+            encode_one(kind, &details)
+        }
+        K::GroundAreas => encode_one(kind, &pkg.ground_areas),
+        K::GroundSurfaces => encode_one(kind, &pkg.ground_surfaces),
+    };
+    encoded.map(|(_, bytes)| Cow::Owned(bytes))
+}
+
+/// An optional section asked for though the package lacks it ([`sections_of`] never does).
+fn absent(kind: SectionKind) -> PackageError {
+    PackageError::Encode {
+        section: kind.name().into(),
+        reason: "the package has no such section".into(),
+    }
+}
+
+/// Writes a package (see the module documentation) to `out` and returns its length. The
+/// sections are encoded and written one at a time, and the table, which needs their lengths
+/// and checksums, last: beside the package itself, at most one encoded section is in memory
+/// (at a million buildings the file is gigabytes). `io` names a failed write.
+pub fn encode_to<W: Write + Seek>(
+    pkg: &ScenePackage,
+    options: WriteOptions,
+    out: &mut W,
+    io: impl Fn(std::io::Error) -> PackageError,
+) -> Result<u64, PackageError> {
+    let kinds = sections_of(pkg, options);
+    let table_end = (HEADER_LEN + ENTRY_LEN * kinds.len()) as u64;
+    out.write_all(&vec![0; table_end as usize]).map_err(&io)?;
+    let mut entries = Vec::with_capacity(kinds.len());
     let mut offset = table_end;
-    for (kind, bytes) in &payloads {
-        offset = offset.next_multiple_of(SECTION_ALIGN);
+    for kind in kinds {
+        let start = offset.next_multiple_of(SECTION_ALIGN);
+        let gap = (start - offset) as usize;
+        out.write_all(&[0; SECTION_ALIGN as usize][..gap])
+            .map_err(&io)?;
+        let bytes = payload(pkg, kind)?;
+        out.write_all(&bytes).map_err(&io)?;
         entries.push(SectionEntry {
-            kind: *kind as u32,
-            offset,
+            kind: kind as u32,
+            offset: start,
             length: bytes.len() as u64,
-            crc32: crc32fast::hash(bytes),
+            crc32: crc32fast::hash(&bytes),
         });
-        offset += bytes.len() as u64;
+        offset = start + bytes.len() as u64;
     }
-    let mut out = Vec::with_capacity(offset as usize);
-    out.extend_from_slice(&MAGIC);
-    out.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
-    out.extend_from_slice(&(payloads.len() as u32).to_le_bytes());
-    out.extend_from_slice(&[0; 4]);
+    let mut head = Vec::with_capacity(table_end as usize);
+    head.extend_from_slice(&MAGIC);
+    head.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
+    head.extend_from_slice(&(entries.len() as u32).to_le_bytes());
+    head.extend_from_slice(&[0; 4]);
     for e in &entries {
-        out.extend_from_slice(&e.kind.to_le_bytes());
-        out.extend_from_slice(&0u32.to_le_bytes());
-        out.extend_from_slice(&e.offset.to_le_bytes());
-        out.extend_from_slice(&e.length.to_le_bytes());
-        out.extend_from_slice(&e.crc32.to_le_bytes());
-        out.extend_from_slice(&0u32.to_le_bytes());
+        head.extend_from_slice(&e.kind.to_le_bytes());
+        head.extend_from_slice(&0u32.to_le_bytes());
+        head.extend_from_slice(&e.offset.to_le_bytes());
+        head.extend_from_slice(&e.length.to_le_bytes());
+        head.extend_from_slice(&e.crc32.to_le_bytes());
+        head.extend_from_slice(&0u32.to_le_bytes());
     }
-    let crc = header_crc(&out);
-    out[12..16].copy_from_slice(&crc.to_le_bytes());
-    for ((_, bytes), e) in payloads.iter().zip(&entries) {
-        out.resize(e.offset as usize, 0);
-        out.extend_from_slice(bytes);
-    }
-    Ok(out)
+    let crc = header_crc(&head);
+    head[12..16].copy_from_slice(&crc.to_le_bytes());
+    out.seek(SeekFrom::Start(0)).map_err(&io)?;
+    out.write_all(&head).map_err(&io)?;
+    out.seek(SeekFrom::Start(offset)).map_err(&io)?;
+    Ok(offset)
+}
+
+/// Encodes a package into memory ([`encode_to`]).
+pub fn encode(pkg: &ScenePackage, options: WriteOptions) -> Result<Vec<u8>, PackageError> {
+    let mut out = std::io::Cursor::new(Vec::new());
+    encode_to(pkg, options, &mut out, |e| PackageError::Encode {
+        section: "package".into(),
+        reason: e.to_string(),
+    })?;
+    Ok(out.into_inner())
 }
 
 /// CRC-32 of the header's first 12 bytes and the section table (`bytes` starts at the header

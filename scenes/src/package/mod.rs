@@ -164,7 +164,6 @@ impl ScenePackage {
     /// a folder, a pipe) is refused and left as it was.
     pub fn write(&self, path: &Path, options: WriteOptions) -> Result<u64, PackageError> {
         let target = writable_target(path)?;
-        let bytes = self.to_bytes(options)?;
         let io = |source| PackageError::Io {
             path: target.clone(),
             source,
@@ -183,10 +182,13 @@ impl ScenePackage {
         #[cfg(unix)]
         builder.permissions(mode);
         let mut tmp = builder.tempfile_in(dir).map_err(io)?;
-        std::io::Write::write_all(&mut tmp, &bytes).map_err(io)?;
+        let mut out = std::io::BufWriter::with_capacity(1 << 20, tmp.as_file_mut());
+        let length = format::encode_to(self, options, &mut out, io)?;
+        std::io::Write::flush(&mut out).map_err(io)?;
+        drop(out);
         tmp.as_file().sync_all().map_err(io)?;
         tmp.persist(&target).map_err(|e| io(e.error))?;
-        Ok(bytes.len() as u64)
+        Ok(length)
     }
 
     /// Reads a package from `path` through a memory map (kept open while the package's GPU

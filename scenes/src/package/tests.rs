@@ -555,6 +555,41 @@ fn a_character_device_is_refused_as_one_before_anything_is_written() {
     }
 }
 
+/// The file `write` streams, section by section with the table written last, is byte for byte
+/// the package `to_bytes` encodes in memory, with and without the optional sections.
+#[test]
+fn a_written_file_is_the_encoded_package() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let mut pkg = small_package();
+    for round in 0..2 {
+        for options in [
+            WriteOptions::default(),
+            WriteOptions {
+                include_timings: true,
+            },
+        ] {
+            let path = dir
+                .path()
+                .join(format!("city-{round}-{}.cwk", options.include_timings));
+            let length = pkg.write(&path, options).expect("write");
+            let written = std::fs::read(&path).expect("read");
+            assert_eq!(length, written.len() as u64);
+            assert!(
+                written == pkg.to_bytes(options).expect("encode"),
+                "round {round}"
+            );
+            assert_eq!(
+                ScenePackage::read(&path).expect("reopen").buildings,
+                pkg.buildings
+            );
+        }
+        // Again without the optional occluder set and cluster tree.
+        pkg.occluders = None;
+        pkg.cluster_tree = None;
+        pkg.gpu_scene = GpuScene::build(&pkg.city(), None, None);
+    }
+}
+
 /// A package written over an existing regular file or through a symbolic link replaces the
 /// file the link points to (keeping its permissions), and the link stays a link.
 #[cfg(unix)]
