@@ -195,23 +195,24 @@ impl GpuScene {
                 let geometry = lod_geometry(city, tree);
                 let cull = cull_records(&geometry.records, n, tree);
                 let parents = draw_id_parents(tree, n);
-                GpuScene::from_arrays(n, &geometry, &cull, &parents, &occluders)
+                GpuScene::from_arrays(n, geometry, Some(cull), Some(parents), occluders)
             }
-            None => {
-                let geometry = SceneGeometry::from_city(city);
-                GpuScene::from_arrays(n, &geometry, &geometry.records, &[], &occluders)
-            }
+            None => GpuScene::from_arrays(n, SceneGeometry::from_city(city), None, None, occluders),
         }
     }
 
     /// Lays out `geometry` (whose first `building_count` records are buildings) with its cull
-    /// records and parents (one per record, or none without a tree), and the occluders.
+    /// records and parents (one per record; without a tree, none: the draw records cull, and
+    /// every draw id is a building at the top), and the occluders. Each array is released as
+    /// soon as it is copied, and the scene's zeroed pages are only committed as they are
+    /// written, so the peak is the arrays and one copy of the largest, not twice the scene (a
+    /// gigabyte at a million buildings).
     pub fn from_arrays(
         building_count: u32,
-        geometry: &SceneGeometry,
-        cull_records: &[BuildingRecord],
-        parents: &[u32],
-        occluders: &OccluderArrays,
+        mut geometry: SceneGeometry,
+        cull_records: Option<Vec<BuildingRecord>>,
+        parents: Option<Vec<u32>>,
+        mut occluders: OccluderArrays,
     ) -> GpuScene {
         let header = Header {
             building_count,
@@ -236,33 +237,39 @@ impl GpuScene {
             bytes[start..end].copy_from_slice(data);
         };
         put((0, HEADER_LEN), bytemuck::bytes_of(&header));
-        put(layout.vertices, bytemuck::cast_slice(&geometry.vertices));
-        put(layout.indices, bytemuck::cast_slice(&geometry.indices));
-        put(layout.records, bytemuck::cast_slice(&geometry.records));
-        put(layout.parts, bytemuck::cast_slice(&geometry.parts));
-        // Without a tree: the draw records, and no parents (every draw id a building at the
-        // top), stored as such so the layout has one shape.
-        let cull = if cull_records.len() == geometry.records.len() {
-            cull_records
-        } else {
-            &geometry.records
-        };
+        let cull = cull_records.as_deref().unwrap_or(&geometry.records);
         put(layout.cull_records, bytemuck::cast_slice(cull));
-        let no_parents;
-        let parents = if parents.len() == geometry.records.len() {
-            parents
-        } else {
-            no_parents = vec![NO_PARENT; geometry.records.len()];
-            &no_parents
-        };
-        put(layout.parents, bytemuck::cast_slice(parents));
+        drop(cull_records);
+        match parents {
+            Some(parents) => put(layout.parents, bytemuck::cast_slice(&parents)),
+            None => {
+                let no_parents = NO_PARENT.to_le_bytes().repeat(geometry.records.len());
+                put(layout.parents, &no_parents);
+            }
+        }
+        put(
+            layout.records,
+            bytemuck::cast_slice(&std::mem::take(&mut geometry.records)),
+        );
+        put(
+            layout.vertices,
+            bytemuck::cast_slice(&std::mem::take(&mut geometry.vertices)),
+        );
+        put(
+            layout.indices,
+            bytemuck::cast_slice(&std::mem::take(&mut geometry.indices)),
+        );
+        put(
+            layout.parts,
+            bytemuck::cast_slice(&std::mem::take(&mut geometry.parts)),
+        );
         put(
             layout.occluder_vertices,
-            bytemuck::cast_slice(&occluders.vertices),
+            bytemuck::cast_slice(&std::mem::take(&mut occluders.vertices)),
         );
         put(
             layout.occluder_indices,
-            bytemuck::cast_slice(&occluders.indices),
+            bytemuck::cast_slice(&std::mem::take(&mut occluders.indices)),
         );
         put(
             layout.occluder_records,

@@ -469,8 +469,7 @@ fn an_inconsistent_gpu_scene_is_refused() {
     let mut moved = small_package();
     let mut geometry = moved.gpu_scene.geometry();
     geometry.vertices[0].position_m[2] += 1.0;
-    moved.gpu_scene =
-        GpuScene::from_arrays(2, &geometry, &geometry.records, &[], &Default::default());
+    moved.gpu_scene = GpuScene::from_arrays(2, geometry, None, None, Default::default());
     let errors = moved.check_invariants().expect_err("moved vertex");
     assert!(
         errors.iter().any(|e| e.starts_with("gpu scene:")),
@@ -479,8 +478,7 @@ fn an_inconsistent_gpu_scene_is_refused() {
     let mut relabelled = small_package();
     let mut geometry = relabelled.gpu_scene.geometry();
     geometry.vertices[0].building_id = 1;
-    relabelled.gpu_scene =
-        GpuScene::from_arrays(2, &geometry, &geometry.records, &[], &Default::default());
+    relabelled.gpu_scene = GpuScene::from_arrays(2, geometry, None, None, Default::default());
     let errors = relabelled
         .check_invariants()
         .expect_err("vertex of another building");
