@@ -336,6 +336,7 @@ pub fn preprocess(
         quadtree,
         occluders,
         cluster_tree,
+        cluster_textures: None,
         provenance,
         timings,
         gpu_scene,

@@ -108,6 +108,35 @@ pub fn extrude_polygon_with(
     mesh
 }
 
+/// The walls of a mesh that [`extrude_polygon`] made of a polygon without holes (a cluster
+/// hull): its ring, counter-clockwise (wall `i` runs from ring vertex `i` to `i + 1`, the last
+/// back to the first), the walls' foot and their top. It reads the layout above (a base and a
+/// top vertex per ring vertex, in ring order, the walls first); `None` for a mesh not laid out
+/// that way.
+pub fn extruded_walls(mesh: &TriangleMesh) -> Option<(Vec<[f32; 2]>, f32, f32)> {
+    let p = &mesh.positions;
+    let n = p.len() / 2;
+    if n < 3 || !p.len().is_multiple_of(2) || mesh.indices.len() < 6 * n {
+        return None;
+    }
+    let (base, top) = (p[0].z, p[1].z);
+    let mut ring = Vec::with_capacity(n);
+    for i in 0..n {
+        let (b, t) = (p[2 * i], p[2 * i + 1]);
+        if b.x != t.x || b.y != t.y || b.z != base || t.z != top {
+            return None;
+        }
+        let j = ((i + 1) % n) as u32;
+        let i = i as u32;
+        let wall = [2 * i, 2 * j, 2 * j + 1, 2 * i, 2 * j + 1, 2 * i + 1];
+        if mesh.indices[6 * i as usize..6 * i as usize + 6] != wall {
+            return None;
+        }
+        ring.push([b.x, b.y]);
+    }
+    (top > base).then_some((ring, base, top))
+}
+
 /// The mesh of a building: its own mesh when the source had 3D geometry, else its parts
 /// extruded (every polygon of every part between the part's base and top).
 pub fn building_mesh(b: &Building) -> TriangleMesh {
@@ -274,6 +303,35 @@ mod tests {
 
     fn normal(t: [Vec3; 3]) -> Vec3 {
         (t[1] - t[0]).cross(t[2] - t[0])
+    }
+
+    #[test]
+    fn the_walls_of_a_hull_come_back_from_its_mesh() {
+        // Clockwise, with a repeated vertex: extrusion cleans and turns it.
+        let hull = polygon![(x: 0.0, y: 0.0), (x: 0.0, y: 5.0), (x: 0.0, y: 5.0), (x: 8.0, y: 5.0), (x: 8.0, y: 0.0)];
+        let mesh = extrude_polygon(&hull, 1.0, 9.0);
+        let (ring, base, top) = extruded_walls(&mesh).unwrap();
+        assert_eq!((base, top), (1.0, 9.0));
+        assert_eq!(ring.len(), 4);
+        let area2: f32 = (0..4)
+            .map(|i| {
+                let (a, b) = (ring[i], ring[(i + 1) % 4]);
+                a[0] * b[1] - b[0] * a[1]
+            })
+            .sum();
+        assert_eq!(area2, 80.0, "counter-clockwise, 40 m²: {ring:?}");
+        // A polygon with a hole has walls the ring does not close over.
+        let holed = Polygon::new(
+            hull.exterior().clone(),
+            vec![LineString::from(vec![
+                (2.0, 1.0),
+                (3.0, 1.0),
+                (3.0, 2.0),
+                (2.0, 1.0),
+            ])],
+        );
+        assert!(extruded_walls(&extrude_polygon(&holed, 0.0, 3.0)).is_none());
+        assert!(extruded_walls(&TriangleMesh::default()).is_none());
     }
 
     /// Sum of triangle areas whose normal points along `dir`.

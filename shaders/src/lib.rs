@@ -16,7 +16,9 @@ mod types;
 pub use constants::{GROUND_ID, ID_BACKGROUND, ID_OFFSET, SURFACE_ID_BASE};
 pub use debug::PyramidViewParams;
 pub use hzb::{HzbCullParams, TreeCullParams, TreeLandmark, TreeNode};
-pub use types::{BuildingRecord, CullPart, DrawIndexedIndirectArgs, SceneVertex, ViewUniforms};
+pub use types::{
+    BakeView, BuildingRecord, CullPart, DrawIndexedIndirectArgs, SceneVertex, ViewUniforms,
+};
 
 /// Flat-shaded scene pass (`wgsl/scene.wgsl`): entry points `vs_main`, `fs_main`; group 0
 /// binding 0 is the [`ViewUniforms`] uniform; vertex buffer of [`SceneVertex`].
@@ -62,6 +64,12 @@ pub const DEBUG_OCCLUDERS_WGSL: &str =
 /// [`constants::OUTLINE_DEPTH_BIAS_REL`]; group 0 binding 0 the [`ViewUniforms`].
 pub const OUTLINE_WGSL: &str = include_str!(concat!(env!("OUT_DIR"), "/outline.wgsl"));
 
+/// Cluster texture bake (`wgsl/bake.wgsl`): entry points `vs_main`, `fs_main`; group 0:
+/// binding 0 the [`BakeView`]s of a batch of draws (storage; a draw's instance index picks
+/// its view), binding 1 each building's top (`f32` per building id); vertex buffer of
+/// [`SceneVertex`]; writes albedo.
+pub const BAKE_WGSL: &str = include_str!(concat!(env!("OUT_DIR"), "/bake.wgsl"));
+
 /// Every composed shader by file name, for tests that validate or inspect them all.
 pub const ALL_WGSL: &[(&str, &str)] = &[
     ("scene.wgsl", SCENE_WGSL),
@@ -72,4 +80,5 @@ pub const ALL_WGSL: &[(&str, &str)] = &[
     ("debug_clusters.wgsl", DEBUG_CLUSTERS_WGSL),
     ("debug_occluders.wgsl", DEBUG_OCCLUDERS_WGSL),
     ("outline.wgsl", OUTLINE_WGSL),
+    ("bake.wgsl", BAKE_WGSL),
 ];

@@ -20,6 +20,17 @@ pub struct ViewUniforms {
     pub params: [f32; 4],
 }
 
+/// One orthographic view of the cluster texture bake. WGSL twin: `BakeView` in
+/// `wgsl/shared/view.wgsl`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct BakeView {
+    /// World to clip, column-major, reversed Z.
+    pub world_to_clip: [[f32; 4]; 4],
+    /// x: the cluster's roof height (m), to which every building is scaled.
+    pub params: [f32; 4],
+}
+
 /// One vertex of the scene's vertex buffer. WGSL twin: `SceneVertex` in
 /// `wgsl/shared/scene.wgsl` (vertex attributes: `Float32x3` at 0, `Uint32` at 12).
 #[repr(C)]
@@ -140,6 +151,18 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn bake_view_matches_wgsl() {
+        check(
+            "BakeView",
+            size_of::<BakeView>(),
+            &[
+                ("world_to_clip", offset_of!(BakeView, world_to_clip)),
+                ("params", offset_of!(BakeView, params)),
+            ],
+        );
     }
 
     #[test]

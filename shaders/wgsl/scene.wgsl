@@ -18,27 +18,6 @@ fn vs_main(v: SceneVertex) -> VertexOutput {
     return out;
 }
 
-// sRGB colour to linear (a 2.2 power is close enough for material colours).
-fn srgb_to_linear(c: vec3<f32>) -> vec3<f32> {
-    return pow(c, vec3<f32>(2.2));
-}
-
-// Base colour (linear RGB) of a building: a few facade materials, varied per building.
-fn facade_colour(id: u32) -> vec3<f32> {
-    let h = hash_u32(id);
-    var palette = array<vec3<f32>, 6>(
-        vec3<f32>(0.80, 0.72, 0.58), // sandstone
-        vec3<f32>(0.64, 0.36, 0.27), // red brick
-        vec3<f32>(0.90, 0.88, 0.82), // white render
-        vec3<f32>(0.60, 0.61, 0.62), // concrete
-        vec3<f32>(0.78, 0.66, 0.48), // yellow stock brick
-        vec3<f32>(0.47, 0.56, 0.66), // glass and steel
-    );
-    let base = palette[h % 6u];
-    let jitter = f32((h >> 8u) & 255u) / 255.0;
-    return srgb_to_linear(base * (0.88 + 0.2 * jitter));
-}
-
 // Ground surfaces by layer (citywalk_scenes::ground_surfaces::SurfaceLayer::index): ground areas
 // (other land, grass, forest, park, paved, water), then streets from minor to major (other,
 // footway, service, residential, minor, major): asphalt darkens with the road's rank.
@@ -60,12 +39,6 @@ fn surface_colour(layer: u32) -> vec3<f32> {
     return srgb_to_linear(palette[min(layer, SURFACE_LAYER_COUNT - 1u)]);
 }
 
-fn roof_colour(id: u32) -> vec3<f32> {
-    let h = hash_u32(id ^ 0x9e3779b9u);
-    let shade = 0.40 + 0.16 * f32(h & 255u) / 255.0;
-    return srgb_to_linear(vec3<f32>(shade * 1.02, shade, shade * 0.98));
-}
-
 @fragment
 fn fs_main(in: VertexOutput) -> @location(0) vec4<f32> {
     // Flat normal from screen-space derivatives, turned towards the eye (meshes from files may
@@ -78,7 +51,7 @@ fn fs_main(in: VertexOutput) -> @location(0) vec4<f32> {
     var albedo: vec3<f32>;
     if in.building_id == GROUND_ID {
         // Bare ground between the streets and areas: a plain earth tone.
-        albedo = srgb_to_linear(vec3<f32>(0.56, 0.56, 0.50));
+        albedo = bare_ground_colour();
         n = vec3<f32>(0.0, 0.0, 1.0);
     } else if in.building_id >= SURFACE_ID_BASE {
         albedo = surface_colour(in.building_id - SURFACE_ID_BASE);

@@ -215,6 +215,8 @@ pub fn run_benchmark_with(
             quadtree,
             occluders,
             cluster_tree,
+            // Not drawn yet: the runtime draws the cluster meshes untextured.
+            cluster_textures: _,
             gpu_scene,
             ground_surfaces,
         } = package.into_parts();

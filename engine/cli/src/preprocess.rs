@@ -7,8 +7,11 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use citywalk_preprocess::pipeline::{PreprocessParams, ProgressSink, Stage, preprocess};
+use citywalk_runtime::gpu::GpuContext;
+use citywalk_runtime::texture_bake::{BakeStats, bake_cluster_textures};
+use citywalk_scenes::cluster_texture::bins::CHANG_BIN_SIDE_PX;
 use citywalk_scenes::load_cities;
-use citywalk_scenes::package::{ScenePackage, WriteOptions, check_output_path};
+use citywalk_scenes::package::{ScenePackage, StageTiming, WriteOptions, check_output_path};
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use serde::Serialize;
 
@@ -39,6 +42,15 @@ pub struct Args {
     /// reproducible).
     #[arg(long)]
     store_timings: bool,
+    /// Bake the cluster meshes' textures (Chang et al. 2008 §7: a side texture of every
+    /// cluster's walls and five roof views) on the GPU, headless (a software adapter such as
+    /// lavapipe will do), and store them in the package.
+    #[arg(long)]
+    cluster_textures: bool,
+    /// With `--cluster-textures`: the side of each texture bin's budget, in texels per view
+    /// (Chang: 1024).
+    #[arg(long, default_value_t = CHANG_BIN_SIDE_PX, value_parser = clap::value_parser!(u32).range(16..=8192))]
+    texture_bin_px: u32,
     /// Threads for the stages that run in parallel (occluders, cluster meshes; 0: one per
     /// core). The package is the same for every count.
     #[arg(long, default_value_t = 0)]
@@ -108,6 +120,8 @@ struct Summary {
     peak_memory_bytes: Option<u64>,
     warnings: Vec<String>,
     skipped_stages: Vec<String>,
+    /// `None` without `--cluster-textures`.
+    cluster_textures: Option<TextureSummary>,
 }
 
 /// Peak resident memory (VmHWM from /proc/self/status), on Linux.
@@ -122,6 +136,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let start = Instant::now();
     // Refuse a device, a folder or a read-only file before minutes of work, not after.
     check_output_path(&args.output).context("cannot write the package")?;
+    if args.cluster_textures && args.no_cluster_tree {
+        anyhow::bail!(
+            "--cluster-textures needs the cluster tree (drop --no-cluster-tree): the textures are the cluster meshes'"
+        );
+    }
     rayon::ThreadPoolBuilder::new()
         .num_threads(args.threads)
         .build_global()
@@ -147,7 +166,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         multi: MultiProgress::new(),
         bars: Default::default(),
     };
-    let package = preprocess(city, &params, &bars).context("preprocessing failed")?;
+    let mut package = preprocess(city, &params, &bars).context("preprocessing failed")?;
+    let textures = if args.cluster_textures {
+        Some(bake_textures(&mut package, args.texture_bin_px)?)
+    } else {
+        None
+    };
     let write_start = Instant::now();
     let bytes = package
         .write(
@@ -159,13 +183,78 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .context("cannot write the package")?;
     let write_seconds = write_start.elapsed().as_secs_f64();
 
-    let summary = summarise(&package, &args, bytes, load_seconds, write_seconds, start);
+    let mut summary = summarise(&package, &args, bytes, load_seconds, write_seconds, start);
+    summary.cluster_textures = textures.map(TextureSummary::from);
     if args.json {
         println!("{}", serde_json::to_string_pretty(&summary)?);
     } else {
         print_summary(&summary);
     }
     Ok(())
+}
+
+/// Bakes the cluster textures of `package` on a headless GPU and stores them in it.
+fn bake_textures(package: &mut ScenePackage, bin_side_px: u32) -> anyhow::Result<BakeStats> {
+    let Some(tree) = package.cluster_tree.as_ref() else {
+        anyhow::bail!(
+            "no cluster tree was built ({}), so there are no cluster meshes to texture",
+            package.provenance.skipped_stages.join("; ")
+        );
+    };
+    let spinner = ProgressBar::new_spinner();
+    spinner.set_message("cluster textures");
+    spinner.enable_steady_tick(Duration::from_millis(120));
+    let gpu = GpuContext::headless().context("cannot bake the cluster textures")?;
+    let (textures, stats) =
+        bake_cluster_textures(&gpu, &package.gpu_scene.view(), tree, bin_side_px)
+            .context("cannot bake the cluster textures")?;
+    spinner.finish_with_message(format!(
+        "cluster textures: {} clusters in {} bins on {} ({:.2} s)",
+        stats.clusters,
+        stats.bins,
+        gpu.adapter_summary(),
+        stats.seconds
+    ));
+    package.cluster_textures = Some(textures);
+    package
+        .provenance
+        .counts
+        .insert("textured clusters".into(), stats.clusters as u64);
+    package.timings.push(StageTiming {
+        stage: "cluster textures".into(),
+        seconds: stats.seconds,
+    });
+    Ok(stats)
+}
+
+/// What the texture bake did, for the summary.
+#[derive(Debug, Serialize)]
+struct TextureSummary {
+    clusters: usize,
+    /// Cluster meshes with walls; the rest of them have walls too many for their cell.
+    candidates: usize,
+    bins: usize,
+    texels: u64,
+    compressed_bytes: u64,
+    seconds: f64,
+    /// Of `seconds`, the PNG compression on the CPU.
+    compress_seconds: f64,
+    clusters_per_second: f64,
+}
+
+impl From<BakeStats> for TextureSummary {
+    fn from(s: BakeStats) -> Self {
+        TextureSummary {
+            clusters: s.clusters,
+            candidates: s.candidates,
+            bins: s.bins,
+            texels: s.texels,
+            compressed_bytes: s.compressed_bytes,
+            seconds: s.seconds,
+            compress_seconds: s.compress_seconds,
+            clusters_per_second: s.clusters as f64 / s.seconds.max(1e-9),
+        }
+    }
 }
 
 fn summarise(
@@ -210,6 +299,7 @@ fn summarise(
         peak_memory_bytes: peak_memory_bytes(),
         warnings: package.provenance.warnings.clone(),
         skipped_stages: package.provenance.skipped_stages.clone(),
+        cluster_textures: None,
     }
 }
 
@@ -259,6 +349,19 @@ fn print_summary(s: &Summary) {
         ", write {:.2} s; total {:.2} s",
         s.write_seconds, s.total_seconds
     );
+    if let Some(t) = &s.cluster_textures {
+        println!(
+            "cluster textures: {} of {} cluster meshes in {} bins, {:.1} Mtexels, {:.1} MiB compressed; {:.2} s, {:.2} s of it compressing ({:.0} clusters/s)",
+            t.clusters,
+            t.candidates,
+            t.bins,
+            t.texels as f64 / 1e6,
+            t.compressed_bytes as f64 / 1048576.0,
+            t.seconds,
+            t.compress_seconds,
+            t.clusters_per_second
+        );
+    }
     if let Some(peak) = s.peak_memory_bytes {
         println!("peak memory: {:.0} MiB", peak as f64 / 1048576.0);
     }

@@ -21,4 +21,5 @@ pub mod plan;
 pub mod render;
 pub mod runner;
 pub mod scene_gpu;
+pub mod texture_bake;
 pub mod upload;

@@ -7,7 +7,11 @@
 //! the most texels each; the fine ones, drawn only close by where the buildings themselves
 //! soon replace them, the fewest. Each cluster's texture is a square whose side is a multiple
 //! of [`TEXEL_BLOCK`] (block-compressed formats store 4 × 4 blocks; Chang's card needed sides
-//! divisible by four for the same reason).
+//! divisible by four for the same reason). No cluster gets less than [`MIN_CELL_PX`] on a
+//! side: where a bin holds so many clusters that Chang's budget would give each fewer texels
+//! (a generated 100k city's first bin holds 17,000), the bin grows past the budget instead,
+//! since a cell of a few texels cannot hold one texel per wall with its border, and the
+//! cluster would stay untextured.
 
 /// Chang et al. 2008 §7's default resolution of every bin's texture, per view.
 pub const CHANG_BIN_SIDE_PX: u32 = 1024;
@@ -15,13 +19,17 @@ pub const CHANG_BIN_SIDE_PX: u32 = 1024;
 /// Texture sides are multiples of this many texels.
 pub const TEXEL_BLOCK: u32 = 4;
 
+/// The least side of a cluster's texture per view, in texels: room for 25 walls of one texel
+/// and their borders (five rows of five).
+pub const MIN_CELL_PX: u32 = 16;
+
 /// One cluster's share of its bin.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct ClusterTexels {
     /// The bin, 0 for the first (the half of the clusters with the least negative space).
     pub bin: u32,
     /// The side of the cluster's square texture per view, in texels: a multiple of
-    /// [`TEXEL_BLOCK`], at least one block.
+    /// [`TEXEL_BLOCK`], at least [`MIN_CELL_PX`].
     pub side_px: u32,
 }
 
@@ -59,12 +67,13 @@ pub fn texture_bins(negative_space_m2: &[f64], bin_side_px: u32) -> Vec<ClusterT
     out
 }
 
-/// The largest square side, a multiple of [`TEXEL_BLOCK`] and at least one block, whose
-/// area is at most `texels`.
+/// The largest square side, a multiple of [`TEXEL_BLOCK`], whose area is at most `texels`,
+/// and never less than [`MIN_CELL_PX`].
 fn block_side(texels: u64) -> u32 {
     let side = texels.isqrt();
     let blocks = side / u64::from(TEXEL_BLOCK);
-    u32::try_from(blocks.max(1) * u64::from(TEXEL_BLOCK)).unwrap_or(u32::MAX - 3)
+    let side = u32::try_from(blocks * u64::from(TEXEL_BLOCK)).unwrap_or(u32::MAX - 3);
+    side.max(MIN_CELL_PX)
 }
 
 #[cfg(test)]
@@ -100,7 +109,7 @@ mod tests {
 
     #[test]
     fn every_bin_stays_within_its_budget_and_sides_are_whole_blocks() {
-        for n in [1usize, 2, 3, 7, 100, 1001] {
+        for n in [1usize, 2, 3, 7, 100, 1001, 10_000] {
             let areas: Vec<f64> = (0..n).map(|i| ((i * 7919) % 97) as f64).collect();
             let texels = texture_bins(&areas, 1024);
             let bins = texels.iter().map(|t| t.bin).max().unwrap() as usize + 1;
@@ -111,13 +120,14 @@ mod tests {
             let mut used = vec![0u64; bins];
             for t in &texels {
                 assert_eq!(t.side_px % TEXEL_BLOCK, 0);
-                assert!(t.side_px >= TEXEL_BLOCK);
+                assert!(t.side_px >= MIN_CELL_PX);
                 used[t.bin as usize] += u64::from(t.side_px).pow(2);
             }
             for (bin, texels_used) in used.iter().enumerate() {
-                // One block each is the floor: a bin of more clusters than 1024²/16 exceeds it.
+                // The least cell each is the floor: a bin of more clusters than 1024²/256
+                // exceeds the budget.
                 let clusters = texels.iter().filter(|t| t.bin as usize == bin).count() as u64;
-                let floor = clusters * u64::from(TEXEL_BLOCK).pow(2);
+                let floor = clusters * u64::from(MIN_CELL_PX).pow(2);
                 assert!(*texels_used <= (1024 * 1024).max(floor), "{n}: bin {bin}");
             }
             // A bin further on never gives a cluster less than an earlier one.

@@ -71,7 +71,14 @@ impl RoofView {
     /// The texture coordinate (0..1, v down) at which this view sees `point` of a cluster
     /// whose box is `lo`..`hi`. A box of no extent across the view maps to the middle.
     pub fn uv(self, point: Vec3, lo: Vec3, hi: Vec3) -> [f32; 2] {
+        self.frame(lo, hi).uv(point)
+    }
+
+    /// The orthographic image of the box `lo`..`hi` seen from this view: what [`Self::uv`]
+    /// reads and the baker renders.
+    pub fn frame(self, lo: Vec3, hi: Vec3) -> ViewFrame {
         let (right, down) = self.image_axes();
+        let depth = self.direction();
         let corners = (0..8).map(|i| {
             Vec3::new(
                 if i & 1 == 0 { lo.x } else { hi.x },
@@ -79,23 +86,45 @@ impl RoofView {
                 if i & 4 == 0 { lo.z } else { hi.z },
             )
         });
-        let (mut u_range, mut v_range) = ((f32::MAX, f32::MIN), (f32::MAX, f32::MIN));
+        let mut ranges = [(f32::MAX, f32::MIN); 3];
         for c in corners {
-            let (u, v) = (c.dot(right), c.dot(down));
-            u_range = (u_range.0.min(u), u_range.1.max(u));
-            v_range = (v_range.0.min(v), v_range.1.max(v));
-        }
-        let along = |x: f32, (min, max): (f32, f32)| {
-            if max > min {
-                (x - min) / (max - min)
-            } else {
-                0.5
+            for (range, axis) in ranges.iter_mut().zip([right, down, depth]) {
+                let x = c.dot(axis);
+                *range = (range.0.min(x), range.1.max(x));
             }
-        };
-        [
-            along(point.dot(right), u_range),
-            along(point.dot(down), v_range),
-        ]
+        }
+        ViewFrame {
+            axes: [right, down, depth],
+            ranges,
+        }
+    }
+}
+
+/// An orthographic view of a box: the image's right and down axes and the view direction,
+/// each with the range the box's corners span along it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ViewFrame {
+    /// Right, down (in the image) and the direction of view, unit vectors.
+    pub axes: [Vec3; 3],
+    /// The box's extent along each axis, `(min, max)`.
+    pub ranges: [(f32, f32); 3],
+}
+
+impl ViewFrame {
+    /// Where `point` lies along axis `k`, 0 at the range's start and 1 at its end; 0.5 for a
+    /// range of no extent.
+    pub fn along(&self, k: usize, point: Vec3) -> f32 {
+        let (min, max) = self.ranges[k];
+        if max > min {
+            (point.dot(self.axes[k]) - min) / (max - min)
+        } else {
+            0.5
+        }
+    }
+
+    /// The image coordinate of `point`, 0..1 across the image, v down.
+    pub fn uv(&self, point: Vec3) -> [f32; 2] {
+        [self.along(0, point), self.along(1, point)]
     }
 }
 

@@ -9,12 +9,14 @@
 //! that the baker fills from the rectangle's edge, so that filtering never reads a
 //! neighbour; the density is the largest at which the rows fit the square.
 
+use serde::{Deserialize, Serialize};
+
 /// Texels around each face's rectangle, filled from its edge.
 pub const BORDER_PX: u32 = 1;
 
 /// A face's texels in the side texture, its border excluded. Row 0 is the top of the texture;
 /// the top row of the rectangle is the top of the wall.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub struct FaceRect {
     pub x_px: u32,
     pub y_px: u32,
@@ -24,7 +26,7 @@ pub struct FaceRect {
 
 /// The side texture of one cluster mesh: a square of `side_px` texels holding one rectangle
 /// per wall, in the hull's order.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SideLayout {
     pub side_px: u32,
     /// The density every face shares.

@@ -51,7 +51,9 @@ pub const MAGIC: [u8; 4] = *b"CWK\0";
 /// - 8: the drawable occluders' vertices are welded per occluder (the corners a facade's walls
 ///   share are stored once: half the occluder vertices); a package of format 7 would still
 ///   draw, but fails its check against the arrays rebuilt from its buildings.
-pub const FORMAT_VERSION: u32 = 8;
+/// - 9: an optional section of baked cluster textures ([`SectionKind::ClusterTextures`],
+///   Chang et al. 2008 §7).
+pub const FORMAT_VERSION: u32 = 9;
 /// Sections start at multiples of this (a cache line, and enough for any scalar type).
 pub const SECTION_ALIGN: u64 = 64;
 /// The most sections a package may have.
@@ -92,10 +94,13 @@ pub enum SectionKind {
     GroundAreas = 12,
     /// [`crate::ground_surfaces::GroundSurfaces`]: streets and ground areas as drawn triangles.
     GroundSurfaces = 13,
+    /// [`crate::cluster_texture::baked::ClusterTextures`]: the cluster meshes' baked textures
+    /// (optional; `preprocess --cluster-textures`).
+    ClusterTextures = 14,
 }
 
 impl SectionKind {
-    pub const ALL: [SectionKind; 13] = [
+    pub const ALL: [SectionKind; 14] = [
         SectionKind::Frame,
         SectionKind::Buildings,
         SectionKind::Streets,
@@ -109,6 +114,7 @@ impl SectionKind {
         SectionKind::BuildingDetails,
         SectionKind::GroundAreas,
         SectionKind::GroundSurfaces,
+        SectionKind::ClusterTextures,
     ];
 
     pub fn from_u32(v: u32) -> Option<SectionKind> {
@@ -130,6 +136,7 @@ impl SectionKind {
             SectionKind::BuildingDetails => "building details",
             SectionKind::GroundAreas => "ground areas",
             SectionKind::GroundSurfaces => "ground surfaces",
+            SectionKind::ClusterTextures => "cluster textures",
         }
     }
 
@@ -192,6 +199,9 @@ fn sections_of(pkg: &ScenePackage, options: WriteOptions) -> Vec<SectionKind> {
         K::GroundAreas,
         K::GroundSurfaces,
     ]);
+    if pkg.cluster_textures.is_some() {
+        kinds.push(K::ClusterTextures);
+    }
     kinds
 }
 
@@ -221,6 +231,10 @@ fn payload(pkg: &ScenePackage, kind: SectionKind) -> Result<Cow<'_, [u8]>, Packa
         }
         K::GroundAreas => encode_one(kind, &pkg.ground_areas),
         K::GroundSurfaces => encode_one(kind, &pkg.ground_surfaces),
+        K::ClusterTextures => match &pkg.cluster_textures {
+            Some(textures) => encode_one(kind, textures),
+            None => Err(absent(kind)),
+        },
     };
     encoded.map(|(_, bytes)| Cow::Owned(bytes))
 }
@@ -865,6 +879,7 @@ fn decode_with(
         provenance: required(decode_one(bytes, entries, K::Provenance)?, K::Provenance)?,
         occluders: occluders?,
         cluster_tree,
+        cluster_textures: decode_one(bytes, entries, K::ClusterTextures)?,
         timings: decode_one::<Vec<StageTiming>>(bytes, entries, K::Timings)?.unwrap_or_default(),
         gpu_scene,
     };

@@ -15,6 +15,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::blocks::UrbanBlocks;
 use crate::city::{Building, City, GroundArea, Street};
+use crate::cluster_texture::baked::ClusterTextures;
 use crate::cluster_tree::ClusterTree;
 use crate::frame::Frame;
 use crate::ground_surfaces::GroundSurfaces;
@@ -84,6 +85,9 @@ pub struct ScenePackage {
     pub occluders: Option<OccluderSet>,
     /// `None` when the cluster-tree stage was not run.
     pub cluster_tree: Option<ClusterTree>,
+    /// The cluster meshes' baked textures (Chang et al. 2008 §7); `None` unless preprocessing
+    /// was asked to bake them.
+    pub cluster_textures: Option<ClusterTextures>,
     pub provenance: Provenance,
     /// Stage timings; written only with [`WriteOptions::include_timings`].
     pub timings: Vec<StageTiming>,
@@ -100,6 +104,7 @@ pub struct PackageParts {
     pub quadtree: BQuadtree,
     pub occluders: Option<OccluderSet>,
     pub cluster_tree: Option<ClusterTree>,
+    pub cluster_textures: Option<ClusterTextures>,
     pub gpu_scene: GpuScene,
     pub ground_surfaces: GroundSurfaces,
 }
@@ -143,6 +148,7 @@ impl ScenePackage {
             quadtree: self.quadtree,
             occluders: self.occluders,
             cluster_tree: self.cluster_tree,
+            cluster_textures: self.cluster_textures,
             gpu_scene: self.gpu_scene,
             ground_surfaces: self.ground_surfaces,
         }
@@ -288,6 +294,18 @@ impl ScenePackage {
             && let Err(e) = tree_ranges(tree, &self.buildings)
         {
             errors.push(("cluster tree, buildings", e));
+        }
+        match (&self.cluster_textures, &self.cluster_tree) {
+            (Some(textures), Some(tree)) => {
+                if let Err(e) = textures.check(tree) {
+                    errors.push(("cluster textures, cluster tree", e));
+                }
+            }
+            (Some(_), None) => errors.push((
+                "cluster textures, cluster tree",
+                "textures of cluster meshes without a cluster tree".into(),
+            )),
+            (None, _) => {}
         }
         if errors.is_empty() {
             Ok(())

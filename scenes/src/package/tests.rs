@@ -102,6 +102,7 @@ pub(crate) fn small_package() -> ScenePackage {
         quadtree,
         occluders: None,
         cluster_tree: None,
+        cluster_textures: None,
         provenance: Provenance {
             tool_version: "citywalk test".into(),
             inputs: vec![InputFile {
@@ -222,10 +223,10 @@ fn other_files_and_versions_are_refused() {
         .to_bytes(WriteOptions::default())
         .expect("encode");
     assert!(matches!(
-        ScenePackage::from_bytes(b"CWK\0\x09\0\0\0"),
+        ScenePackage::from_bytes(b"CWK\0\x08\0\0\0"),
         Err(PackageError::Version {
             path: None,
-            found: 9,
+            found: 8,
             supported: FORMAT_VERSION
         })
     ));

@@ -42,14 +42,3 @@ struct DrawIndexedIndirectArgs {
     base_vertex: i32,
     first_instance: u32,
 }
-
-// A well-mixed 32-bit hash (lowbias32 by Chris Wellons), for per-building colour variation.
-fn hash_u32(x_in: u32) -> u32 {
-    var x = x_in;
-    x ^= x >> 16u;
-    x *= 0x7feb352du;
-    x ^= x >> 15u;
-    x *= 0x846ca68bu;
-    x ^= x >> 16u;
-    return x;
-}

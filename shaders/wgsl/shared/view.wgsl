@@ -13,3 +13,12 @@ struct View {
     // draw id + 1 (0: none).
     params: vec4<f32>,
 }
+
+// One orthographic view of the cluster texture bake (Chang et al. 2008 §7).
+// Rust twin: citywalk_shaders::BakeView.
+struct BakeView {
+    // World (local frame, metres) to clip space, the buildings already scaled; reversed Z.
+    world_to_clip: mat4x4<f32>,
+    // x: the cluster's roof height (m), to which every building is scaled; yzw unused.
+    params: vec4<f32>,
+}

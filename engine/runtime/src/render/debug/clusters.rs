@@ -23,7 +23,7 @@ const BACKGROUND: wgpu::Color = wgpu::Color {
     a: 1.0,
 };
 
-/// lowbias32 by Chris Wellons. CPU twin of `hash_u32` in `wgsl/shared/scene.wgsl`.
+/// lowbias32 by Chris Wellons. CPU twin of `hash_u32` in `wgsl/shared/materials.wgsl`.
 pub fn hash_u32(x: u32) -> u32 {
     let mut x = x;
     x ^= x >> 16;

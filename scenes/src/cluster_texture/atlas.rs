@@ -1,0 +1,389 @@
+//! Where each textured cluster lies in its bin's textures: the one layout the baker renders
+//! into, the package stores and the cluster meshes' texture coordinates will read.
+//!
+//! Chang et al. 2008 §7: every bin has one texture per view (the side view and the five roof
+//! views), shared equally by its clusters ([`super::bins`]). Here each cluster of a bin gets
+//! the same square cell in each of the bin's six textures, the cells in a grid of ⌈√n⌉
+//! columns, so that a bin's texture is about its budget on each side (never past the largest
+//! 2D texture a GPU must offer while a bin holds fewer than four million clusters). In its
+//! side cell a cluster's walls lie as [`super::side_layout`] places them; in a roof cell the
+//! view's image of the cluster's box fills the cell inside a border of
+//! [`side_layout::BORDER_PX`] texels, filled from the image's edge, so that filtering never
+//! reads a neighbouring cell.
+
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+
+use super::bins::texture_bins;
+use super::roof_views::RoofView;
+use super::side_layout::{self, FaceRect, SideLayout, layout_sides};
+
+/// The six textures of every bin.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum AtlasView {
+    /// The walls, each face an orthographic view of the cluster's buildings.
+    Side,
+    /// One of the roof views.
+    Roof(RoofView),
+}
+
+impl AtlasView {
+    /// The six, in the order of a bin's textures.
+    pub const ALL: [AtlasView; 6] = [
+        AtlasView::Side,
+        AtlasView::Roof(RoofView::Top),
+        AtlasView::Roof(RoofView::North),
+        AtlasView::Roof(RoofView::East),
+        AtlasView::Roof(RoofView::South),
+        AtlasView::Roof(RoofView::West),
+    ];
+
+    /// The position in [`Self::ALL`].
+    pub fn index(self) -> usize {
+        Self::ALL
+            .iter()
+            .position(|v| *v == self)
+            .expect("ALL lists every view")
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            AtlasView::Side => "side",
+            AtlasView::Roof(RoofView::Top) => "top",
+            AtlasView::Roof(RoofView::North) => "north",
+            AtlasView::Roof(RoofView::East) => "east",
+            AtlasView::Roof(RoofView::South) => "south",
+            AtlasView::Roof(RoofView::West) => "west",
+        }
+    }
+}
+
+/// What the atlas needs of one cluster mesh: its walls and its box.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ClusterWalls {
+    /// The cluster's tree node.
+    pub node: u32,
+    /// Chang's sort key: the negative-space area of the cluster (m²).
+    pub negative_space_m2: f64,
+    /// The hull ring the walls stand on, counter-clockwise, not closed: wall `i` runs from
+    /// vertex `i` to vertex `i + 1` (the last back to the first).
+    pub ring: Vec<[f32; 2]>,
+    /// The walls' foot and the roof's height (metres).
+    pub base_m: f32,
+    pub top_m: f32,
+}
+
+impl ClusterWalls {
+    /// The length of each wall, in ring order.
+    pub fn wall_lengths_m(&self) -> Vec<f64> {
+        let n = self.ring.len();
+        (0..n)
+            .map(|i| {
+                let (a, b) = (self.ring[i], self.ring[(i + 1) % n]);
+                f64::from(b[0] - a[0]).hypot(f64::from(b[1] - a[1]))
+            })
+            .collect()
+    }
+}
+
+/// One bin's grid of cells.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct BinGrid {
+    /// The side of every cell, in texels.
+    pub cell_px: u32,
+    pub columns: u32,
+    pub rows: u32,
+}
+
+impl BinGrid {
+    /// The bin's textures are `columns × cell_px` texels wide.
+    pub fn width_px(&self) -> u32 {
+        self.columns.saturating_mul(self.cell_px)
+    }
+
+    pub fn height_px(&self) -> u32 {
+        self.rows.saturating_mul(self.cell_px)
+    }
+
+    /// The top-left texel of cell `cell`, row by row.
+    pub fn cell_origin_px(&self, cell: u32) -> [u32; 2] {
+        let columns = self.columns.max(1);
+        [
+            (cell % columns) * self.cell_px,
+            (cell / columns) * self.cell_px,
+        ]
+    }
+}
+
+/// Where one cluster's textures lie.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ClusterPlacement {
+    pub node: u32,
+    pub bin: u32,
+    /// The cluster's cell in its bin's grid, the same in all six textures.
+    pub cell: u32,
+    /// Its walls in the side cell (cell-local texels).
+    pub sides: SideLayout,
+    /// The box the roof views see: the ring's bounds, from the walls' foot to the roof.
+    pub box_lo_m: [f32; 3],
+    pub box_hi_m: [f32; 3],
+}
+
+impl ClusterPlacement {
+    /// Wall `face`'s texels in the bin's side texture.
+    pub fn face_rect_px(&self, grid: &BinGrid, face: usize) -> Option<FaceRect> {
+        let r = *self.sides.faces.get(face)?;
+        let [x, y] = grid.cell_origin_px(self.cell);
+        Some(FaceRect {
+            x_px: x + r.x_px,
+            y_px: y + r.y_px,
+            ..r
+        })
+    }
+
+    /// The texels a roof view's image fills in the bin's roof textures: the cell inside its
+    /// border.
+    pub fn roof_rect_px(&self, grid: &BinGrid) -> FaceRect {
+        let [x, y] = grid.cell_origin_px(self.cell);
+        let b = side_layout::BORDER_PX;
+        let inner = grid.cell_px.saturating_sub(2 * b).max(1);
+        FaceRect {
+            x_px: x + b,
+            y_px: y + b,
+            width_px: inner,
+            height_px: inner,
+        }
+    }
+
+    /// The texture coordinate (0..1 across the bin's texture, v down) where `view` sees the
+    /// roof point `point`.
+    pub fn roof_uv(&self, grid: &BinGrid, view: RoofView, point: Vec3) -> [f32; 2] {
+        let [u, v] = view.uv(point, Vec3::from(self.box_lo_m), Vec3::from(self.box_hi_m));
+        let r = self.roof_rect_px(grid);
+        [
+            (r.x_px as f32 + u * r.width_px as f32) / grid.width_px() as f32,
+            (r.y_px as f32 + v * r.height_px as f32) / grid.height_px() as f32,
+        ]
+    }
+}
+
+/// The bins and the placement of every textured cluster.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct AtlasLayout {
+    /// Chang's texel budget of each bin and view is `bin_side_px²`.
+    pub bin_side_px: u32,
+    pub bins: Vec<BinGrid>,
+    /// Sorted by node; a cluster whose walls do not fit one texel each in its cell is left
+    /// out (drawn untextured).
+    pub clusters: Vec<ClusterPlacement>,
+}
+
+impl AtlasLayout {
+    /// The placement of `node`'s cluster, if it is textured.
+    pub fn placement(&self, node: u32) -> Option<&ClusterPlacement> {
+        self.clusters
+            .binary_search_by_key(&node, |p| p.node)
+            .ok()
+            .map(|i| &self.clusters[i])
+    }
+}
+
+/// Lays out `clusters` (any order, each node once) in bins of `bin_side_px²` texels per
+/// view.
+pub fn layout_atlas(clusters: &[ClusterWalls], bin_side_px: u32) -> AtlasLayout {
+    let areas: Vec<f64> = clusters.iter().map(|c| c.negative_space_m2).collect();
+    let texels = texture_bins(&areas, bin_side_px);
+    let bin_count = texels.iter().map(|t| t.bin + 1).max().unwrap_or(0) as usize;
+    let mut members: Vec<Vec<usize>> = vec![Vec::new(); bin_count];
+    for (i, t) in texels.iter().enumerate() {
+        members[t.bin as usize].push(i);
+    }
+    let mut bins = Vec::with_capacity(bin_count);
+    let mut placements = Vec::with_capacity(clusters.len());
+    for (bin, members) in members.iter().enumerate() {
+        let count = members.len() as u32;
+        let columns = (f64::from(count).sqrt().ceil() as u32).max(1);
+        let cell_px = texels[members[0]].side_px;
+        let grid = BinGrid {
+            cell_px,
+            columns,
+            rows: count.div_ceil(columns),
+        };
+        bins.push(grid);
+        // Cells in the order of the nodes, so that a bin's texture reads like the tree.
+        let mut members = members.clone();
+        members.sort_by_key(|&i| clusters[i].node);
+        for (cell, &i) in members.iter().enumerate() {
+            let c = &clusters[i];
+            let height = f64::from(c.top_m) - f64::from(c.base_m);
+            let Some(sides) = layout_sides(&c.wall_lengths_m(), height, cell_px) else {
+                continue;
+            };
+            let (mut lo, mut hi) = ([f32::MAX; 2], [f32::MIN; 2]);
+            for p in &c.ring {
+                for k in 0..2 {
+                    lo[k] = lo[k].min(p[k]);
+                    hi[k] = hi[k].max(p[k]);
+                }
+            }
+            placements.push(ClusterPlacement {
+                node: c.node,
+                bin: bin as u32,
+                cell: cell as u32,
+                sides,
+                box_lo_m: [lo[0], lo[1], c.base_m],
+                box_hi_m: [hi[0], hi[1], c.top_m],
+            });
+        }
+    }
+    placements.sort_by_key(|p| p.node);
+    AtlasLayout {
+        bin_side_px,
+        bins,
+        clusters: placements,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cluster_texture::bins::MIN_CELL_PX;
+    use proptest::prelude::*;
+
+    fn square(node: u32, size: f32, area: f64) -> ClusterWalls {
+        ClusterWalls {
+            node,
+            negative_space_m2: area,
+            ring: vec![[0.0, 0.0], [size, 0.0], [size, size], [0.0, size]],
+            base_m: 0.0,
+            top_m: 12.0,
+        }
+    }
+
+    /// (x0, y0, x1, y1) of a rectangle with its border, end exclusive.
+    fn with_border(r: FaceRect) -> (u32, u32, u32, u32) {
+        let b = side_layout::BORDER_PX;
+        (
+            r.x_px - b,
+            r.y_px - b,
+            r.x_px + r.width_px + b,
+            r.y_px + r.height_px + b,
+        )
+    }
+
+    fn apart(a: (u32, u32, u32, u32), b: (u32, u32, u32, u32)) -> bool {
+        a.2 <= b.0 || b.2 <= a.0 || a.3 <= b.1 || b.3 <= a.1
+    }
+
+    /// No two rectangles of one texture overlap, borders included, and every one lies inside
+    /// its bin's texture and its cluster's cell.
+    fn assert_packed(layout: &AtlasLayout) {
+        for (bin, grid) in layout.bins.iter().enumerate() {
+            let placed: Vec<&ClusterPlacement> = layout
+                .clusters
+                .iter()
+                .filter(|p| p.bin as usize == bin)
+                .collect();
+            let mut sides = Vec::new();
+            let mut roofs = Vec::new();
+            for p in &placed {
+                let [cx, cy] = grid.cell_origin_px(p.cell);
+                let cell = (cx, cy, cx + grid.cell_px, cy + grid.cell_px);
+                for face in 0..p.sides.faces.len() {
+                    let r = with_border(p.face_rect_px(grid, face).unwrap());
+                    assert!(r.0 >= cell.0 && r.1 >= cell.1 && r.2 <= cell.2 && r.3 <= cell.3);
+                    sides.push(r);
+                }
+                let r = with_border(p.roof_rect_px(grid));
+                assert!(r.2 <= grid.width_px() && r.3 <= grid.height_px());
+                assert!(r.0 >= cell.0 && r.1 >= cell.1 && r.2 <= cell.2 && r.3 <= cell.3);
+                roofs.push(r);
+            }
+            for rects in [&sides, &roofs] {
+                for (i, a) in rects.iter().enumerate() {
+                    for b in &rects[i + 1..] {
+                        assert!(apart(*a, *b), "bin {bin}: {a:?} overlaps {b:?}");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn every_cluster_gets_its_own_cell_in_its_bin() {
+        let clusters: Vec<ClusterWalls> = (0..13)
+            .map(|i| square(100 - i, 10.0 + i as f32, f64::from(i)))
+            .collect();
+        let layout = layout_atlas(&clusters, 256);
+        assert_eq!(layout.clusters.len(), 13);
+        assert!(layout.clusters.windows(2).all(|w| w[0].node < w[1].node));
+        // Bins of 7, 3, 2, 1: grids of 3 × 3, 2 × 2, 2 × 1, 1 × 1.
+        let grids: Vec<(u32, u32)> = layout.bins.iter().map(|g| (g.columns, g.rows)).collect();
+        assert_eq!(grids, [(3, 3), (2, 2), (2, 1), (1, 1)]);
+        // The last bin holds the cluster of most negative space, alone, with the budget.
+        let last = layout.placement(88).unwrap();
+        assert_eq!((last.bin, layout.bins[3].cell_px), (3, 256));
+        assert_eq!(last.box_lo_m, [0.0, 0.0, 0.0]);
+        assert_eq!(last.box_hi_m, [22.0, 22.0, 12.0]);
+        assert_packed(&layout);
+        assert!(layout.placement(5).is_none());
+    }
+
+    #[test]
+    fn roof_coordinates_stay_inside_the_clusters_cell() {
+        let clusters = [
+            square(0, 30.0, 5.0),
+            square(1, 8.0, 1.0),
+            square(2, 50.0, 0.0),
+        ];
+        let layout = layout_atlas(&clusters, 64);
+        for p in &layout.clusters {
+            let grid = &layout.bins[p.bin as usize];
+            let [cx, cy] = grid.cell_origin_px(p.cell);
+            let (w, h) = (grid.width_px() as f32, grid.height_px() as f32);
+            for view in RoofView::ALL {
+                for corner in [[0.0, 0.0], [1.0, 1.0], [0.5, 0.25]] {
+                    let lo = Vec3::from(p.box_lo_m);
+                    let hi = Vec3::from(p.box_hi_m);
+                    let point = lo + (hi - lo) * Vec3::new(corner[0], corner[1], 1.0);
+                    let [u, v] = p.roof_uv(grid, view, point);
+                    let (x, y) = (u * w, v * h);
+                    assert!(x >= cx as f32 + 0.999 && x <= (cx + grid.cell_px) as f32 - 0.999);
+                    assert!(y >= cy as f32 + 0.999 && y <= (cy + grid.cell_px) as f32 - 0.999);
+                }
+            }
+        }
+    }
+
+    proptest! {
+        #[test]
+        fn cells_and_walls_never_overlap(
+            shapes in prop::collection::vec(
+                (prop::collection::vec((-200.0f32..200.0, -200.0f32..200.0), 3..12), 0.0f64..5e4, 1.0f32..80.0),
+                1..40,
+            ),
+            bin_side in prop::sample::select(vec![32u32, 128, 1024]),
+        ) {
+            let clusters: Vec<ClusterWalls> = shapes
+                .into_iter()
+                .enumerate()
+                .map(|(i, (ring, area, top))| ClusterWalls {
+                    node: i as u32 * 3,
+                    negative_space_m2: area,
+                    ring: ring.into_iter().map(|(x, y)| [x, y]).collect(),
+                    base_m: 0.0,
+                    top_m: top,
+                })
+                .collect();
+            let layout = layout_atlas(&clusters, bin_side);
+            assert_packed(&layout);
+            // About the budget on each side, unless the cells are at their least.
+            for grid in &layout.bins {
+                prop_assert!(
+                    grid.cell_px == MIN_CELL_PX
+                        || (grid.width_px() <= 2 * bin_side && grid.height_px() <= 2 * bin_side)
+                );
+            }
+        }
+    }
+}

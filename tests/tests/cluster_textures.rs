@@ -1,0 +1,165 @@
+//! The cluster texture bake (Chang et al. 2008 §7) on a GPU: each wall of a cluster mesh shows
+//! the facades of the buildings behind it, at the cluster's height, and the roof views show
+//! their roofs; the textures survive the package.
+
+use citywalk_preprocess::pipeline::{NoProgress, PreprocessParams, preprocess};
+use citywalk_runtime::render::debug::clusters::hash_u32;
+use citywalk_runtime::texture_bake::{bake_cluster_textures, cluster_walls};
+use citywalk_scenes::cluster_texture::atlas::AtlasView;
+use citywalk_scenes::cluster_texture::roof_views::RoofView;
+use citywalk_scenes::cluster_texture::side_layout::BORDER_PX;
+use citywalk_scenes::package::{ScenePackage, WriteOptions};
+use citywalk_tests::city_builder::boxes;
+use citywalk_tests::gpu::gpu_or_skip;
+
+/// The sRGB bytes an sRGB target stores for a linear value.
+fn srgb_byte(linear: f32) -> u8 {
+    let l = linear.clamp(0.0, 1.0);
+    let s = if l <= 0.003_130_8 {
+        12.92 * l
+    } else {
+        1.055 * l.powf(1.0 / 2.4) - 0.055
+    };
+    (s * 255.0).round() as u8
+}
+
+/// CPU twin of `facade_colour` in `wgsl/shared/materials.wgsl`, as the baked texture stores it.
+fn facade_srgb(id: u32) -> [u8; 3] {
+    let h = hash_u32(id);
+    let palette = [
+        [0.80, 0.72, 0.58],
+        [0.64, 0.36, 0.27],
+        [0.90, 0.88, 0.82],
+        [0.60, 0.61, 0.62],
+        [0.78, 0.66, 0.48],
+        [0.47, 0.56, 0.66],
+    ];
+    let base: [f32; 3] = palette[(h % 6) as usize];
+    let jitter = ((h >> 8) & 255) as f32 / 255.0;
+    base.map(|c| srgb_byte((c * (0.88 + 0.2 * jitter)).powf(2.2)))
+}
+
+fn close(a: &[u8], b: [u8; 3]) -> bool {
+    a.iter().zip(b).all(|(x, y)| x.abs_diff(y) <= 2)
+}
+
+#[test]
+fn walls_show_the_facades_behind_them_and_roofs_their_roofs() {
+    let Some(gpu) = gpu_or_skip("walls_show_the_facades_behind_them_and_roofs_their_roofs") else {
+        return;
+    };
+    // A terrace of three houses sharing walls, 8, 14 and 10 m tall: one cluster, a 30 × 10 m
+    // box, whose south wall stands on the three houses' fronts.
+    let city = boxes(&[
+        (0.0, 0.0, 10.0, 10.0, 8.0),
+        (10.0, 0.0, 20.0, 10.0, 14.0),
+        (20.0, 0.0, 30.0, 10.0, 10.0),
+    ]);
+    let mut package =
+        preprocess(city, &PreprocessParams::default(), &NoProgress).expect("preprocess");
+    let tree = package.cluster_tree.as_ref().expect("a cluster tree");
+    let root = tree.root;
+    assert!(!tree.nodes[root as usize].is_leaf());
+    let walls = cluster_walls(tree);
+    let root_walls = walls
+        .iter()
+        .find(|w| w.node == root)
+        .expect("the root's walls");
+    let (textures, stats) =
+        bake_cluster_textures(&gpu, &package.gpu_scene.view(), tree, 64).expect("bake");
+    assert_eq!(stats.clusters, stats.candidates);
+    textures.check(tree).expect("textures match the tree");
+    let placement = textures
+        .layout
+        .placement(root)
+        .expect("the root is textured");
+    let grid = textures.layout.bins[placement.bin as usize];
+    let side = textures
+        .decode(placement.bin as usize, AtlasView::Side)
+        .unwrap();
+    let texel = |x: u32, y: u32| {
+        let at = ((y * side.width + x) * 4) as usize;
+        side.rgba[at..at + 3].to_vec()
+    };
+
+    // The south wall: the ring edge along y = 0, running east.
+    let n = root_walls.ring.len();
+    let south = (0..n)
+        .find(|&i| {
+            let (a, b) = (root_walls.ring[i], root_walls.ring[(i + 1) % n]);
+            a[1].abs() < 1e-3 && b[1].abs() < 1e-3 && b[0] > a[0]
+        })
+        .expect("a south wall");
+    let (a, b) = (root_walls.ring[south], root_walls.ring[(south + 1) % n]);
+    let rect = placement.face_rect_px(&grid, south).unwrap();
+    for x in 0..rect.width_px {
+        // The metre of the wall at this texel's centre: which house stands there.
+        let along = (x as f32 + 0.5) / rect.width_px as f32;
+        let metre = a[0] + (b[0] - a[0]) * along;
+        if (metre - 10.0).abs() < 1.0 || (metre - 20.0).abs() < 1.0 {
+            continue;
+        }
+        let house = (metre / 10.0).floor() as u32;
+        // Every house scaled to the cluster's height: its facade fills the wall's height.
+        for y in 0..rect.height_px {
+            let got = texel(rect.x_px + x, rect.y_px + y);
+            assert!(
+                close(&got, facade_srgb(house)),
+                "wall texel ({x}, {y}) at {metre} m: {got:?}, house {house} is {:?}",
+                facade_srgb(house)
+            );
+        }
+    }
+    // The border repeats the rectangle's edge.
+    let b = BORDER_PX;
+    assert_eq!(
+        texel(rect.x_px - b, rect.y_px + 3),
+        texel(rect.x_px, rect.y_px + 3)
+    );
+    assert_eq!(
+        texel(rect.x_px + 3, rect.y_px + rect.height_px - 1 + b),
+        texel(rect.x_px + 3, rect.y_px + rect.height_px - 1)
+    );
+
+    // The top view: the middle of the roof shows a roof (grey), not the bare ground, whose
+    // blue is well below its red.
+    let top = textures
+        .decode(placement.bin as usize, AtlasView::Roof(RoofView::Top))
+        .unwrap();
+    let middle = glam::Vec3::new(15.0, 5.0, placement.box_hi_m[2]);
+    let [u, v] = placement.roof_uv(&grid, RoofView::Top, middle);
+    let (x, y) = (
+        (u * top.width as f32) as u32,
+        (v * top.height as f32) as u32,
+    );
+    let at = ((y * top.width + x) * 4) as usize;
+    let roof = &top.rgba[at..at + 3];
+    assert!(
+        roof[0].abs_diff(roof[2]) <= 8 && roof[0] < 150,
+        "roof texel {roof:?}"
+    );
+    // From the south, 45° down, the middle of the box's image is the middle house's front or
+    // roof: a building, not ground.
+    let south_view = textures
+        .decode(placement.bin as usize, AtlasView::Roof(RoofView::South))
+        .unwrap();
+    let [u, v] = placement.roof_uv(&grid, RoofView::South, middle);
+    let (x, y) = (
+        (u * top.width as f32) as u32,
+        (v * top.height as f32) as u32,
+    );
+    let at = ((y * south_view.width + x) * 4) as usize;
+    let seen = &south_view.rgba[at..at + 3];
+    let ground = [srgb_byte(0.56f32.powf(2.2)), srgb_byte(0.50f32.powf(2.2))];
+    assert!(
+        !(seen[0].abs_diff(ground[0]) <= 2 && seen[2].abs_diff(ground[1]) <= 2),
+        "south view sees ground {seen:?}"
+    );
+
+    // The textures go into the package and come back the same.
+    package.cluster_textures = Some(textures.clone());
+    let bytes = package.to_bytes(WriteOptions::default()).unwrap();
+    let back = ScenePackage::from_bytes(&bytes).unwrap();
+    assert_eq!(back.cluster_textures.as_ref(), Some(&textures));
+    assert!(back.check_invariants().is_ok());
+}
