@@ -73,10 +73,10 @@ fn walls_show_the_facades_behind_them_and_roofs_their_roofs() {
         .layout
         .placement(root)
         .expect("the root is textured");
-    let grid = textures.layout.bins[placement.bin as usize];
-    let side = textures
-        .decode(placement.bin as usize, AtlasView::Side)
-        .unwrap();
+    let bin = textures.layout.bins[placement.bin as usize];
+    let page = placement.page as usize;
+    let page_px = textures.layout.page_px;
+    let side = textures.decode(page, AtlasView::Side).unwrap();
     let texel = |x: u32, y: u32| {
         let at = ((y * side.width + x) * 4) as usize;
         side.rgba[at..at + 3].to_vec()
@@ -91,7 +91,7 @@ fn walls_show_the_facades_behind_them_and_roofs_their_roofs() {
         })
         .expect("a south wall");
     let (a, b) = (root_walls.ring[south], root_walls.ring[(south + 1) % n]);
-    let rect = placement.face_rect_px(&grid, south).unwrap();
+    let rect = placement.face_rect_px(&bin, south).unwrap();
     for x in 0..rect.width_px {
         // The metre of the wall at this texel's centre: which house stands there.
         let along = (x as f32 + 0.5) / rect.width_px as f32;
@@ -124,10 +124,10 @@ fn walls_show_the_facades_behind_them_and_roofs_their_roofs() {
     // The top view: the middle of the roof shows a roof (grey), not the bare ground, whose
     // blue is well below its red.
     let top = textures
-        .decode(placement.bin as usize, AtlasView::Roof(RoofView::Top))
+        .decode(page, AtlasView::Roof(RoofView::Top))
         .unwrap();
     let middle = glam::Vec3::new(15.0, 5.0, placement.box_hi_m[2]);
-    let [u, v] = placement.roof_uv(&grid, RoofView::Top, middle);
+    let [u, v] = placement.roof_uv(&bin, page_px, RoofView::Top, middle);
     let (x, y) = (
         (u * top.width as f32) as u32,
         (v * top.height as f32) as u32,
@@ -141,9 +141,9 @@ fn walls_show_the_facades_behind_them_and_roofs_their_roofs() {
     // From the south, 45° down, the middle of the box's image is the middle house's front or
     // roof: a building, not ground.
     let south_view = textures
-        .decode(placement.bin as usize, AtlasView::Roof(RoofView::South))
+        .decode(page, AtlasView::Roof(RoofView::South))
         .unwrap();
-    let [u, v] = placement.roof_uv(&grid, RoofView::South, middle);
+    let [u, v] = placement.roof_uv(&bin, page_px, RoofView::South, middle);
     let (x, y) = (
         (u * top.width as f32) as u32,
         (v * top.height as f32) as u32,

@@ -234,6 +234,7 @@ struct TextureSummary {
     /// Cluster meshes with walls; the rest of them have walls too many for their cell.
     candidates: usize,
     bins: usize,
+    pages: usize,
     texels: u64,
     compressed_bytes: u64,
     seconds: f64,
@@ -248,6 +249,7 @@ impl From<BakeStats> for TextureSummary {
             clusters: s.clusters,
             candidates: s.candidates,
             bins: s.bins,
+            pages: s.pages,
             texels: s.texels,
             compressed_bytes: s.compressed_bytes,
             seconds: s.seconds,
@@ -351,10 +353,11 @@ fn print_summary(s: &Summary) {
     );
     if let Some(t) = &s.cluster_textures {
         println!(
-            "cluster textures: {} of {} cluster meshes in {} bins, {:.1} Mtexels, {:.1} MiB compressed; {:.2} s, {:.2} s of it compressing ({:.0} clusters/s)",
+            "cluster textures: {} of {} cluster meshes in {} bins on {} pages, {:.1} Mtexels, {:.1} MiB compressed; {:.2} s, {:.2} s of it compressing ({:.0} clusters/s)",
             t.clusters,
             t.candidates,
             t.bins,
+            t.pages,
             t.texels as f64 / 1e6,
             t.compressed_bytes as f64 / 1048576.0,
             t.seconds,

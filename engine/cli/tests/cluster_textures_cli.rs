@@ -1,6 +1,6 @@
 //! `preprocess --cluster-textures` and `inspect textures` end to end: the binary bakes the
 //! cluster textures on a headless GPU into the package, says what it baked, and writes them
-//! back out as one PNG per bin and view; without a cluster tree, or from a package without
+//! back out as one PNG per page and view; without a cluster tree, or from a package without
 //! textures, it says why it cannot.
 
 #[path = "support/gpu.rs"]
@@ -58,7 +58,7 @@ fn preprocess_bakes_the_cluster_textures_and_inspect_writes_them_out() {
         .expect("the package has textures");
     textures.check(tree).expect("textures match the tree");
     assert_eq!(textures.layout.clusters.len() as u64, clusters);
-    assert_eq!(textures.layout.bin_side_px, 128);
+    assert_eq!(textures.layout.page_px, 128);
     let inner = tree.nodes.iter().filter(|n| !n.is_leaf()).count() as u64;
     assert_eq!(
         baked["candidates"].as_u64(),
@@ -80,13 +80,14 @@ fn preprocess_bakes_the_cluster_textures_and_inspect_writes_them_out() {
         "{}",
         text(&out)
     );
-    for (bin, grid) in textures.layout.bins.iter().enumerate() {
+    assert!(textures.layout.page_count as usize >= textures.layout.bins.len());
+    for page in 0..textures.layout.page_count {
         for view in AtlasView::ALL {
-            let path = pngs.join(format!("bin{bin:02}_{}.png", view.name()));
-            let image = image::open(&path).expect("a PNG per bin and view");
+            let path = pngs.join(format!("page{page:03}_{}.png", view.name()));
+            let image = image::open(&path).expect("a PNG per page and view");
             assert_eq!(
                 (image.width(), image.height()),
-                (grid.width_px(), grid.height_px()),
+                (128, 128),
                 "{}",
                 path.display()
             );

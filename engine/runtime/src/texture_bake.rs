@@ -8,7 +8,7 @@
 //! textures hold albedo: the runtime lights the cluster mesh itself.
 
 use citywalk_scenes::cluster_texture::atlas::{
-    AtlasView, BinGrid, ClusterPlacement, ClusterWalls, layout_atlas,
+    AtlasView, BinCells, ClusterPlacement, ClusterWalls, layout_atlas,
 };
 use citywalk_scenes::cluster_texture::baked::ClusterTextures;
 use citywalk_scenes::cluster_texture::roof_views::ViewFrame;
@@ -63,6 +63,7 @@ pub struct BakeStats {
     pub clusters: usize,
     pub candidates: usize,
     pub bins: usize,
+    pub pages: usize,
     /// Draws (one per wall and per roof view of each cluster).
     pub draws: u64,
     pub texels: u64,
@@ -105,21 +106,24 @@ pub fn bake_cluster_textures(
     let walls = cluster_walls(tree);
     let layout = layout_atlas(&walls, bin_side_px);
     let baker = Baker::new(gpu, scene, tree)?;
-    let mut pixels = Vec::with_capacity(layout.bins.len());
+    let mut pixels = Vec::with_capacity(layout.page_count as usize);
     let mut draws = 0u64;
-    for (bin, grid) in layout.bins.iter().enumerate() {
-        let placed: Vec<&ClusterPlacement> = layout
-            .clusters
-            .iter()
-            .filter(|p| p.bin as usize == bin)
-            .collect();
-        let mut views = Vec::with_capacity(AtlasView::ALL.len());
-        for view in AtlasView::ALL {
-            let (image, count) = baker.render(gpu, grid, &placed, &walls, view)?;
-            draws += count;
-            views.push(image);
+    let mut on_page: Vec<Vec<&ClusterPlacement>> = vec![Vec::new(); layout.page_count as usize];
+    for p in &layout.clusters {
+        on_page[p.page as usize].push(p);
+    }
+    for bin in &layout.bins {
+        for page in bin.first_page..bin.first_page + bin.page_count {
+            let mut views = Vec::with_capacity(AtlasView::ALL.len());
+            for view in AtlasView::ALL {
+                let placed = &on_page[page as usize];
+                let (image, count) =
+                    baker.render(gpu, layout.page_px, bin, placed, &walls, view)?;
+                draws += count;
+                views.push(image);
+            }
+            pixels.push(views);
         }
-        pixels.push(views);
     }
     let compress_start = std::time::Instant::now();
     let textures =
@@ -129,6 +133,7 @@ pub fn bake_cluster_textures(
         clusters: layout.clusters.len(),
         candidates: walls.len(),
         bins: layout.bins.len(),
+        pages: layout.page_count as usize,
         draws,
         texels: textures.texels(),
         compressed_bytes: textures.compressed_bytes(),
@@ -278,17 +283,19 @@ impl Baker {
         })
     }
 
-    /// Renders `view` of the clusters `placed` in one bin, fills the rectangles' borders and
-    /// returns the texels (RGBA8) and the number of draws.
+    /// Renders `view` of the clusters `placed` on one page (of `page_px` texels on a side) of
+    /// `bin`, fills the rectangles' borders and returns the texels (RGBA8) and the number of
+    /// draws.
     fn render(
         &self,
         gpu: &GpuContext,
-        grid: &BinGrid,
+        page_px: u32,
+        bin: &BinCells,
         placed: &[&ClusterPlacement],
         walls: &[ClusterWalls],
         view: AtlasView,
     ) -> Result<(Vec<u8>, u64), BakeError> {
-        let target = OffscreenTarget::new(gpu, grid.width_px(), grid.height_px(), FORMAT)?;
+        let target = OffscreenTarget::new(gpu, page_px, page_px, FORMAT)?;
         let mut views: Vec<ViewDraw> = Vec::new();
         for p in placed {
             let (first, end) = self.node_order[p.node as usize];
@@ -300,7 +307,7 @@ impl Baker {
                     };
                     let ring = &walls[at].ring;
                     for face in 0..p.sides.faces.len() {
-                        let Some(rect) = p.face_rect_px(grid, face) else {
+                        let Some(rect) = p.face_rect_px(bin, face) else {
                             continue;
                         };
                         let (a, b) = (ring[face], ring[(face + 1) % ring.len()]);
@@ -314,7 +321,7 @@ impl Baker {
                 AtlasView::Roof(roof) => {
                     let frame = roof.frame(Vec3::from(p.box_lo_m), Vec3::from(p.box_hi_m));
                     views.push(ViewDraw {
-                        rect: p.roof_rect_px(grid),
+                        rect: p.roof_rect_px(bin),
                         view: frame_view(p, &frame),
                         ranges: vec![self.index_range(first..end)],
                     });
@@ -337,7 +344,7 @@ impl Baker {
         }
         let mut texels = target.read_colour(gpu)?;
         let rects: Vec<FaceRect> = views.iter().map(|d| d.rect).collect();
-        fill_borders(&mut texels, grid.width_px(), &rects);
+        fill_borders(&mut texels, page_px, &rects);
         let draws = views.iter().map(|v| v.ranges.len() as u64).sum();
         Ok((texels, draws))
     }

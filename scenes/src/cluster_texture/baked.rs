@@ -1,4 +1,4 @@
-//! A package's baked cluster textures: the atlas layout and, per bin and view, the texture
+//! A package's baked cluster textures: the atlas layout and, per page and view, the texture
 //! compressed as a PNG (8-bit sRGB RGB). The baked images are areas of flat colour (one per
 //! building face, and the ground between buildings), which deflate to a few percent of their
 //! texels; PNG keeps them exact and every GPU-less tool can read them.
@@ -10,15 +10,15 @@ use image::{ExtendedColorType, ImageEncoder, ImageFormat, ImageReader, Limits};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::atlas::{AtlasLayout, AtlasView, BinGrid};
+use super::atlas::{AtlasLayout, AtlasView, MAX_PAGE_PX};
 use crate::cluster_tree::ClusterTree;
 
 /// The cluster textures of a package.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ClusterTextures {
     pub layout: AtlasLayout,
-    /// Per bin, its six textures in [`AtlasView::ALL`]'s order, each a PNG as wide and high
-    /// as the bin's grid.
+    /// Per page, its six views in [`AtlasView::ALL`]'s order, each a PNG of the layout's
+    /// `page_px` on a side.
     pub images: Vec<Vec<Vec<u8>>>,
 }
 
@@ -31,34 +31,33 @@ pub struct TextureImage {
 }
 
 impl ClusterTextures {
-    /// Compresses baked textures: `rgba[bin][view]` is the bin's texture of that view, RGBA8
-    /// (alpha dropped), as large as the bin's grid.
+    /// Compresses baked textures: `rgba[page][view]` is the page's view, RGBA8 (alpha
+    /// dropped), `page_px` on a side.
     pub fn compress(layout: AtlasLayout, rgba: &[Vec<Vec<u8>>]) -> Result<Self, String> {
-        if rgba.len() != layout.bins.len() {
+        if rgba.len() != layout.page_count as usize {
             return Err(format!(
-                "{} bins of pixels for {} bins",
+                "{} pages of pixels for {} pages",
                 rgba.len(),
-                layout.bins.len()
+                layout.page_count
             ));
         }
-        for (bin, views) in rgba.iter().enumerate() {
+        for (page, views) in rgba.iter().enumerate() {
             if views.len() != AtlasView::ALL.len() {
-                return Err(format!("bin {bin}: {} views, not 6", views.len()));
+                return Err(format!("page {page}: {} views, not 6", views.len()));
             }
         }
+        let side = layout.page_px;
         // Every texture on its own thread (rayon's pool: `preprocess --threads`).
-        let images = layout
-            .bins
+        let images = rgba
             .par_iter()
-            .zip(rgba)
             .enumerate()
-            .map(|(bin, (grid, views))| {
+            .map(|(page, views)| {
                 AtlasView::ALL
                     .par_iter()
                     .zip(views)
                     .map(|(view, pixels)| {
-                        encode_png(grid, pixels)
-                            .map_err(|e| format!("bin {bin}, {} view: {e}", view.name()))
+                        encode_png(side, pixels)
+                            .map_err(|e| format!("page {page}, {} view: {e}", view.name()))
                     })
                     .collect::<Result<Vec<_>, _>>()
             })
@@ -66,20 +65,16 @@ impl ClusterTextures {
         Ok(ClusterTextures { layout, images })
     }
 
-    /// Decodes the texture of `view` in `bin`. A PNG that is not as large as the bin's grid is
-    /// an error, found from its header before anything is allocated.
-    pub fn decode(&self, bin: usize, view: AtlasView) -> Result<TextureImage, String> {
-        let grid = self
-            .layout
-            .bins
-            .get(bin)
-            .ok_or_else(|| format!("no bin {bin}"))?;
+    /// Decodes `view` of page `page`. A PNG that is not a page's size is an error, found from
+    /// its header before anything is allocated.
+    pub fn decode(&self, page: usize, view: AtlasView) -> Result<TextureImage, String> {
         let png = self
             .images
-            .get(bin)
+            .get(page)
             .and_then(|views| views.get(view.index()))
-            .ok_or_else(|| format!("bin {bin} has no {} texture", view.name()))?;
-        decode_png(grid, png).map_err(|e| format!("bin {bin}, {} texture: {e}", view.name()))
+            .ok_or_else(|| format!("page {page} has no {} view", view.name()))?;
+        decode_png(self.layout.page_px, png)
+            .map_err(|e| format!("page {page}, {} view: {e}", view.name()))
     }
 
     /// Compressed bytes of all textures.
@@ -87,25 +82,41 @@ impl ClusterTextures {
         self.images.iter().flatten().map(|p| p.len() as u64).sum()
     }
 
-    /// Texels of all textures (six per bin).
+    /// Texels of all textures (six views per page).
     pub fn texels(&self) -> u64 {
-        self.layout
-            .bins
-            .iter()
-            .map(|g| u64::from(g.width_px()) * u64::from(g.height_px()) * 6)
-            .sum()
+        u64::from(self.layout.page_px).pow(2) * 6 * u64::from(self.layout.page_count)
     }
 
-    /// Checks the layout against the tree (each placement an inner node with a mesh, its bin
-    /// and cell in range, no cell taken twice, every wall of the mesh laid out) and the images
-    /// against the layout (six per bin, each PNG's header as large as its bin's grid).
+    /// Checks the layout against the tree (each placement an inner node with a mesh, on a page
+    /// of its bin, in a cell of it, no cell taken twice, every wall of the mesh laid out) and
+    /// the images against the layout (six per page, each PNG's header a page's size).
     pub fn check(&self, tree: &ClusterTree) -> Result<(), String> {
         let layout = &self.layout;
-        if self.images.len() != layout.bins.len() {
+        if !(1..=MAX_PAGE_PX).contains(&layout.page_px) {
             return Err(format!(
-                "{} bins of textures for {} bins",
+                "pages of {} texels on a side, not 1 to {MAX_PAGE_PX}",
+                layout.page_px
+            ));
+        }
+        if self.images.len() != layout.page_count as usize {
+            return Err(format!(
+                "{} pages of textures for {} pages",
                 self.images.len(),
-                layout.bins.len()
+                layout.page_count
+            ));
+        }
+        let mut next_page = 0u32;
+        for (b, bin) in layout.bins.iter().enumerate() {
+            let fits = bin.cell_px.checked_mul(bin.per_row.max(1));
+            if bin.first_page != next_page || fits.is_none_or(|w| w > layout.page_px) {
+                return Err(format!("bin {b}: its pages or cells are out of place"));
+            }
+            next_page = next_page.saturating_add(bin.page_count);
+        }
+        if next_page != layout.page_count {
+            return Err(format!(
+                "the bins take {next_page} pages of {}",
+                layout.page_count
             ));
         }
         let mut taken = std::collections::HashSet::new();
@@ -120,14 +131,18 @@ impl ClusterTextures {
             if node.is_leaf() {
                 return Err(format!("node {} is a leaf, drawn untextured", p.node));
             }
-            let grid = layout
+            let bin = layout
                 .bins
                 .get(p.bin as usize)
                 .ok_or_else(|| format!("node {}: no bin {}", p.node, p.bin))?;
-            if p.cell >= grid.columns.saturating_mul(grid.rows) || !taken.insert((p.bin, p.cell)) {
-                return Err(format!("node {}: cell {} of bin {}", p.node, p.cell, p.bin));
+            let on_its_pages = (bin.first_page..bin.first_page + bin.page_count).contains(&p.page);
+            if !on_its_pages || p.cell >= bin.per_page() || !taken.insert((p.page, p.cell)) {
+                return Err(format!(
+                    "node {}: cell {} of page {}",
+                    p.node, p.cell, p.page
+                ));
             }
-            if p.sides.side_px != grid.cell_px {
+            if p.sides.side_px != bin.cell_px {
                 return Err(format!("node {}: side layout not of its cell", p.node));
             }
             let walls = node.mesh.positions.len() / 2;
@@ -139,19 +154,18 @@ impl ClusterTextures {
                 ));
             }
         }
-        for (bin, (grid, views)) in layout.bins.iter().zip(&self.images).enumerate() {
+        let side = layout.page_px;
+        for (page, views) in self.images.iter().enumerate() {
             if views.len() != AtlasView::ALL.len() {
-                return Err(format!("bin {bin}: {} textures, not 6", views.len()));
+                return Err(format!("page {page}: {} views, not 6", views.len()));
             }
             for (view, png) in AtlasView::ALL.iter().zip(views) {
-                let (w, h) = png_size(png)
-                    .map_err(|e| format!("bin {bin}, {} texture: {e}", view.name()))?;
-                if (w, h) != (grid.width_px(), grid.height_px()) {
+                let (w, h) =
+                    png_size(png).map_err(|e| format!("page {page}, {} view: {e}", view.name()))?;
+                if (w, h) != (side, side) {
                     return Err(format!(
-                        "bin {bin}, {} texture: {w}×{h}, its grid is {}×{}",
-                        view.name(),
-                        grid.width_px(),
-                        grid.height_px()
+                        "page {page}, {} view: {w}×{h}, a page is {side}×{side}",
+                        view.name()
                     ));
                 }
             }
@@ -160,8 +174,8 @@ impl ClusterTextures {
     }
 }
 
-fn encode_png(grid: &BinGrid, rgba: &[u8]) -> Result<Vec<u8>, String> {
-    let (w, h) = (grid.width_px(), grid.height_px());
+fn encode_png(side_px: u32, rgba: &[u8]) -> Result<Vec<u8>, String> {
+    let (w, h) = (side_px, side_px);
     if rgba.len() as u64 != u64::from(w) * u64::from(h) * 4 {
         return Err(format!("{} bytes for {w}×{h} RGBA texels", rgba.len()));
     }
@@ -182,8 +196,13 @@ fn png_size(png: &[u8]) -> Result<(u32, u32), String> {
         .map_err(|e| e.to_string())
 }
 
-fn decode_png(grid: &BinGrid, png: &[u8]) -> Result<TextureImage, String> {
-    let (w, h) = (grid.width_px(), grid.height_px());
+fn decode_png(side_px: u32, png: &[u8]) -> Result<TextureImage, String> {
+    if side_px > MAX_PAGE_PX {
+        return Err(format!(
+            "pages of {side_px} texels, more than {MAX_PAGE_PX}"
+        ));
+    }
+    let (w, h) = (side_px, side_px);
     let mut reader = ImageReader::with_format(Cursor::new(png), ImageFormat::Png);
     let mut limits = Limits::default();
     limits.max_image_width = Some(w);
@@ -194,7 +213,7 @@ fn decode_png(grid: &BinGrid, png: &[u8]) -> Result<TextureImage, String> {
     let image = reader.decode().map_err(|e| e.to_string())?;
     if (image.width(), image.height()) != (w, h) {
         return Err(format!(
-            "{}×{}, its grid is {w}×{h}",
+            "{}×{}, a page is {w}×{h}",
             image.width(),
             image.height()
         ));
@@ -225,16 +244,13 @@ mod tests {
     }
 
     fn pixels(layout: &AtlasLayout) -> Vec<Vec<Vec<u8>>> {
-        layout
-            .bins
-            .iter()
-            .enumerate()
-            .map(|(bin, g)| {
+        let n = (layout.page_px * layout.page_px) as usize;
+        (0..layout.page_count)
+            .map(|page| {
                 (0..6)
                     .map(|view| {
-                        let n = (g.width_px() * g.height_px()) as usize;
                         (0..n)
-                            .flat_map(|i| [(i % 251) as u8, bin as u8, view as u8 * 40, 255])
+                            .flat_map(|i| [(i % 251) as u8, page as u8, view as u8 * 40, 255])
                             .collect()
                     })
                     .collect()
@@ -247,36 +263,42 @@ mod tests {
         let layout = layout();
         let rgba = pixels(&layout);
         let textures = ClusterTextures::compress(layout.clone(), &rgba).unwrap();
-        for (bin, views) in rgba.iter().enumerate() {
+        for (page, views) in rgba.iter().enumerate() {
             for (view, pixels) in AtlasView::ALL.iter().zip(views) {
-                let image = textures.decode(bin, *view).unwrap();
-                assert_eq!(&image.rgba, pixels, "bin {bin} {}", view.name());
+                let image = textures.decode(page, *view).unwrap();
+                assert_eq!(&image.rgba, pixels, "page {page} {}", view.name());
             }
         }
         assert!(textures.compressed_bytes() > 0);
-        assert!(textures.decode(layout.bins.len(), AtlasView::Side).is_err());
+        assert!(
+            textures
+                .decode(layout.page_count as usize, AtlasView::Side)
+                .is_err()
+        );
     }
 
     #[test]
     fn a_texture_of_the_wrong_size_is_refused_before_it_is_decoded() {
         let layout = layout();
         let mut textures = ClusterTextures::compress(layout.clone(), &pixels(&layout)).unwrap();
-        // Bin 1's textures put in bin 0's place: their headers name another size.
-        let other = textures.images[1][0].clone();
-        textures.images[0][0] = other;
+        // A page of another size in page 0's place: its header says so.
+        let mut other = layout.clone();
+        other.page_px = 16;
+        let small = ClusterTextures::compress(other.clone(), &pixels(&other)).unwrap();
+        textures.images[0][0] = small.images[0][0].clone();
         let err = textures.decode(0, AtlasView::Side).unwrap_err();
-        assert!(err.contains("bin 0, side texture"), "{err}");
+        assert!(err.contains("page 0, side view"), "{err}");
         // Damaged bytes are an error, not a panic.
         textures.images[0][1].truncate(40);
         assert!(textures.decode(0, AtlasView::ALL[1]).is_err());
     }
 
     #[test]
-    fn pixels_not_of_the_grid_are_refused() {
+    fn pixels_not_of_the_page_are_refused() {
         let layout = layout();
         let mut rgba = pixels(&layout);
         rgba[0][2].pop();
         let err = ClusterTextures::compress(layout, &rgba).unwrap_err();
-        assert!(err.contains("bin 0, north view"), "{err}");
+        assert!(err.contains("page 0, north view"), "{err}");
     }
 }

@@ -1,7 +1,7 @@
 //! `citywalk inspect textures PACKAGE -o DIR [--json]`: the package's baked cluster textures
-//! (Chang et al. 2008 §7), one PNG per bin and view written to `DIR` as they are stored
-//! (`bin03_side.png`, `bin03_top.png`, ...), and a table of the bins: clusters, cell size,
-//! texture size and compressed bytes.
+//! (Chang et al. 2008 §7), one PNG per page and view written to `DIR` as they are stored
+//! (`page003_side.png`, `page003_top.png`, ...), and a table of the bins: clusters, cell
+//! size, pages and compressed bytes.
 
 use std::path::PathBuf;
 
@@ -28,8 +28,8 @@ struct BinRow {
     bin: usize,
     clusters: usize,
     cell_px: u32,
-    width_px: u32,
-    height_px: u32,
+    first_page: u32,
+    pages: u32,
     compressed_bytes: u64,
 }
 
@@ -44,53 +44,61 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     })?;
     std::fs::create_dir_all(&args.output)
         .with_context(|| format!("cannot create {}", args.output.display()))?;
-    let mut rows = Vec::new();
-    for (bin, (grid, pngs)) in textures
-        .layout
-        .bins
-        .iter()
-        .zip(&textures.images)
-        .enumerate()
-    {
+    for (page, pngs) in textures.images.iter().enumerate() {
         for (view, png) in AtlasView::ALL.iter().zip(pngs) {
-            let path = args.output.join(format!("bin{bin:02}_{}.png", view.name()));
+            let path = args
+                .output
+                .join(format!("page{page:03}_{}.png", view.name()));
             std::fs::write(&path, png)
                 .with_context(|| format!("cannot write {}", path.display()))?;
         }
-        rows.push(BinRow {
-            bin,
-            clusters: textures
-                .layout
-                .clusters
-                .iter()
-                .filter(|p| p.bin as usize == bin)
-                .count(),
-            cell_px: grid.cell_px,
-            width_px: grid.width_px(),
-            height_px: grid.height_px(),
-            compressed_bytes: pngs.iter().map(|p| p.len() as u64).sum(),
-        });
     }
+    let layout = &textures.layout;
+    let rows: Vec<BinRow> = layout
+        .bins
+        .iter()
+        .enumerate()
+        .map(|(bin, cells)| {
+            let pages = cells.first_page as usize..(cells.first_page + cells.page_count) as usize;
+            BinRow {
+                bin,
+                clusters: layout
+                    .clusters
+                    .iter()
+                    .filter(|p| p.bin as usize == bin)
+                    .count(),
+                cell_px: cells.cell_px,
+                first_page: cells.first_page,
+                pages: cells.page_count,
+                compressed_bytes: textures.images[pages]
+                    .iter()
+                    .flatten()
+                    .map(|p| p.len() as u64)
+                    .sum(),
+            }
+        })
+        .collect();
     if args.json {
         println!("{}", serde_json::to_string_pretty(&rows)?);
         return Ok(());
     }
     println!(
-        "{} textured clusters in {} bins ({} texels per bin and view): {} PNGs in {}",
-        textures.layout.clusters.len(),
+        "{} textured clusters in {} bins on {} pages of {px}×{px} texels: {} PNGs in {}",
+        layout.clusters.len(),
         rows.len(),
-        textures.layout.bin_side_px,
-        rows.len() * AtlasView::ALL.len(),
-        args.output.display()
+        layout.page_count,
+        layout.page_count as usize * AtlasView::ALL.len(),
+        args.output.display(),
+        px = layout.page_px,
     );
-    println!("bin  clusters  cell px  texture px   compressed");
+    println!("bin  clusters  cell px  pages   compressed");
     for r in &rows {
         println!(
-            "{:>3}  {:>8}  {:>7}  {:>10}  {:>8.1} KiB",
+            "{:>3}  {:>8}  {:>7}  {:>5}  {:>8.1} KiB",
             r.bin,
             r.clusters,
             r.cell_px,
-            format!("{}×{}", r.width_px, r.height_px),
+            r.pages,
             r.compressed_bytes as f64 / 1024.0
         );
     }
