@@ -10,7 +10,7 @@
 use citywalk_scenes::cluster_texture::atlas::{
     AtlasView, BinCells, ClusterPlacement, ClusterWalls, layout_atlas,
 };
-use citywalk_scenes::cluster_texture::baked::ClusterTextures;
+use citywalk_scenes::cluster_texture::baked::{ClusterTextures, compress_page};
 use citywalk_scenes::cluster_texture::roof_views::ViewFrame;
 use citywalk_scenes::cluster_texture::side_layout::{BORDER_PX, FaceRect};
 use citywalk_scenes::cluster_tree::ClusterTree;
@@ -106,8 +106,9 @@ pub fn bake_cluster_textures(
     let walls = cluster_walls(tree);
     let layout = layout_atlas(&walls, bin_side_px);
     let baker = Baker::new(gpu, scene, tree)?;
-    let mut pixels = Vec::with_capacity(layout.page_count as usize);
+    let mut images = Vec::with_capacity(layout.page_count as usize);
     let mut draws = 0u64;
+    let mut compress_seconds = 0.0;
     let mut on_page: Vec<Vec<&ClusterPlacement>> = vec![Vec::new(); layout.page_count as usize];
     for p in &layout.clusters {
         on_page[p.page as usize].push(p);
@@ -122,13 +123,17 @@ pub fn bake_cluster_textures(
                 draws += count;
                 views.push(image);
             }
-            pixels.push(views);
+            // Compressed at once: a bake holds one page of texels, not all of them.
+            let compress_start = std::time::Instant::now();
+            images.push(
+                compress_page(layout.page_px, page as usize, &views)
+                    .map_err(BakeError::Compress)?,
+            );
+            compress_seconds += compress_start.elapsed().as_secs_f64();
         }
     }
-    let compress_start = std::time::Instant::now();
     let textures =
-        ClusterTextures::compress(layout.clone(), &pixels).map_err(BakeError::Compress)?;
-    let compress_seconds = compress_start.elapsed().as_secs_f64();
+        ClusterTextures::from_compressed(layout.clone(), images).map_err(BakeError::Compress)?;
     let stats = BakeStats {
         clusters: layout.clusters.len(),
         candidates: walls.len(),

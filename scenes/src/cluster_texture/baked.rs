@@ -41,27 +41,24 @@ impl ClusterTextures {
                 layout.page_count
             ));
         }
-        for (page, views) in rgba.iter().enumerate() {
-            if views.len() != AtlasView::ALL.len() {
-                return Err(format!("page {page}: {} views, not 6", views.len()));
-            }
-        }
-        let side = layout.page_px;
-        // Every texture on its own thread (rayon's pool: `preprocess --threads`).
         let images = rgba
-            .par_iter()
+            .iter()
             .enumerate()
-            .map(|(page, views)| {
-                AtlasView::ALL
-                    .par_iter()
-                    .zip(views)
-                    .map(|(view, pixels)| {
-                        encode_png(side, pixels)
-                            .map_err(|e| format!("page {page}, {} view: {e}", view.name()))
-                    })
-                    .collect::<Result<Vec<_>, _>>()
-            })
+            .map(|(page, views)| compress_page(layout.page_px, page, views))
             .collect::<Result<Vec<_>, _>>()?;
+        Ok(ClusterTextures { layout, images })
+    }
+
+    /// The textures of `layout` from pages compressed one at a time ([`compress_page`]), so
+    /// that a bake holds one page of texels, not all.
+    pub fn from_compressed(layout: AtlasLayout, images: Vec<Vec<Vec<u8>>>) -> Result<Self, String> {
+        if images.len() != layout.page_count as usize {
+            return Err(format!(
+                "{} compressed pages for {} pages",
+                images.len(),
+                layout.page_count
+            ));
+        }
         Ok(ClusterTextures { layout, images })
     }
 
@@ -172,6 +169,22 @@ impl ClusterTextures {
         }
         Ok(())
     }
+}
+
+/// Compresses the six views of page `page`, each RGBA8 (alpha dropped) of `page_px` on a
+/// side, on rayon's threads (`preprocess --threads`).
+pub fn compress_page(page_px: u32, page: usize, views: &[Vec<u8>]) -> Result<Vec<Vec<u8>>, String> {
+    if views.len() != AtlasView::ALL.len() {
+        return Err(format!("page {page}: {} views, not 6", views.len()));
+    }
+    AtlasView::ALL
+        .par_iter()
+        .zip(views)
+        .map(|(view, pixels)| {
+            encode_png(page_px, pixels)
+                .map_err(|e| format!("page {page}, {} view: {e}", view.name()))
+        })
+        .collect()
 }
 
 fn encode_png(side_px: u32, rgba: &[u8]) -> Result<Vec<u8>, String> {
