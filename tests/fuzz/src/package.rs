@@ -1,5 +1,7 @@
 //! The scene-package target: [`ScenePackage::from_bytes`], then
-//! [`ScenePackage::check_invariants`] on what it accepts.
+//! [`ScenePackage::check_invariants`] on what it accepts, and the decoding of its cluster
+//! textures' PNGs (pages of at most 256 texels on a side: a larger page is a larger, bounded,
+//! allocation, 8192² at most, which only slows the fuzzer).
 //!
 //! A package has a CRC-32 over its header and one per section, so nearly every mutation of a
 //! real package would stop at the checksum test and the decoders behind it would never see
@@ -12,6 +14,7 @@
 //! a 16-byte header (magic, version, section count, header CRC-32), then 32-byte entries
 //! (kind, flags, offset, length, payload CRC-32, reserved).
 
+use citywalk_scenes::cluster_texture::atlas::AtlasView;
 use citywalk_scenes::package::{MAGIC, ScenePackage};
 
 const HEADER_LEN: usize = 16;
@@ -35,6 +38,15 @@ fn read(bytes: &[u8]) {
     // panic. Its verdict is not judged here: a package with recomputed checksums may be
     // inconsistent.
     let _verdict = package.check_invariants();
+    if let Some(textures) = &package.cluster_textures
+        && textures.layout.page_px <= 256
+    {
+        for page in 0..textures.images.len() {
+            for view in AtlasView::ALL {
+                let _image = textures.decode(page, view);
+            }
+        }
+    }
 }
 
 /// `data` with every section checksum whose entry lies inside the file, and then the header
