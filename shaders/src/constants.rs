@@ -26,6 +26,10 @@ pub const ID_OFFSET: u32 = 1;
 /// Ambient share of the flat-shaded scene colour (the rest is the sun's Lambert term).
 pub const AMBIENT: f32 = 0.38;
 
+/// The bare ground between streets and areas (sRGB): the scene pass's earth tone, and what the
+/// cluster texture bake shows where no building is seen.
+pub const BARE_GROUND_SRGB: [f32; 3] = [0.56, 0.56, 0.50];
+
 // ---- Hierarchical-Z pyramid build and occlusion cull (engine `hzb::build`, `hzb::cull`). ----
 
 /// Side of the square workgroup of the pyramid build (`wgsl/hzb_build.wgsl`).
@@ -209,6 +213,9 @@ pub const WGSL_U32: &[(&str, u32)] = &[
 /// Every `f32` constant emitted into WGSL, by name.
 pub const WGSL_F32: &[(&str, f32)] = &[
     ("AMBIENT", AMBIENT),
+    ("BARE_GROUND_SRGB_R", BARE_GROUND_SRGB[0]),
+    ("BARE_GROUND_SRGB_G", BARE_GROUND_SRGB[1]),
+    ("BARE_GROUND_SRGB_B", BARE_GROUND_SRGB[2]),
     ("HZB_BEHIND_W", HZB_BEHIND_W),
     ("HZB_ROUNDING_REL", HZB_ROUNDING_REL),
     ("DEBUG_WALL_SHADE", DEBUG_WALL_SHADE),

@@ -6,9 +6,12 @@ use citywalk_preprocess::pipeline::{NoProgress, PreprocessParams, preprocess};
 use citywalk_runtime::render::debug::clusters::hash_u32;
 use citywalk_runtime::texture_bake::{bake_cluster_textures, cluster_walls};
 use citywalk_scenes::cluster_texture::atlas::AtlasView;
+use citywalk_scenes::cluster_texture::atlas::layout_atlas;
+use citywalk_scenes::cluster_texture::baked::{ClusterTextures, compress_page};
 use citywalk_scenes::cluster_texture::roof_views::RoofView;
 use citywalk_scenes::cluster_texture::side_layout::BORDER_PX;
 use citywalk_scenes::package::{ScenePackage, WriteOptions};
+use citywalk_shaders::constants::BARE_GROUND_SRGB;
 use citywalk_tests::city_builder::boxes;
 use citywalk_tests::gpu::gpu_or_skip;
 
@@ -37,6 +40,13 @@ fn facade_srgb(id: u32) -> [u8; 3] {
     let base: [f32; 3] = palette[(h % 6) as usize];
     let jitter = ((h >> 8) & 255) as f32 / 255.0;
     base.map(|c| srgb_byte((c * (0.88 + 0.2 * jitter)).powf(2.2)))
+}
+
+/// CPU twin of `roof_colour` in `wgsl/shared/materials.wgsl`, as the baked texture stores it.
+fn roof_srgb(id: u32) -> [u8; 3] {
+    let h = hash_u32(id ^ 0x9e37_79b9);
+    let shade = 0.40 + 0.16 * (h & 255) as f32 / 255.0;
+    [shade * 1.02, shade, shade * 0.98].map(|c| srgb_byte(c.powf(2.2)))
 }
 
 fn close(a: &[u8], b: [u8; 3]) -> bool {
@@ -121,23 +131,30 @@ fn walls_show_the_facades_behind_them_and_roofs_their_roofs() {
         texel(rect.x_px + 3, rect.y_px + rect.height_px - 1)
     );
 
-    // The top view: the middle of the roof shows a roof (grey), not the bare ground, whose
-    // blue is well below its red.
+    // The top view: over each house, that house's roof (north up, east right: a flipped or
+    // mirrored image would put another house there).
     let top = textures
         .decode(page, AtlasView::Roof(RoofView::Top))
         .unwrap();
+    let roof_at = |x_m: f32, y_m: f32| {
+        let point = glam::Vec3::new(x_m, y_m, placement.box_hi_m[2]);
+        let [u, v] = placement.roof_uv(&bin, page_px, RoofView::Top, point);
+        let (x, y) = (
+            (u * top.width as f32) as u32,
+            (v * top.height as f32) as u32,
+        );
+        let at = ((y * top.width + x) * 4) as usize;
+        top.rgba[at..at + 3].to_vec()
+    };
+    for (x_m, y_m, house) in [(5.0, 5.0, 0), (15.0, 3.0, 1), (25.0, 7.0, 2)] {
+        let got = roof_at(x_m, y_m);
+        assert!(
+            close(&got, roof_srgb(house)),
+            "roof at ({x_m}, {y_m}): {got:?}, house {house}'s is {:?}",
+            roof_srgb(house)
+        );
+    }
     let middle = glam::Vec3::new(15.0, 5.0, placement.box_hi_m[2]);
-    let [u, v] = placement.roof_uv(&bin, page_px, RoofView::Top, middle);
-    let (x, y) = (
-        (u * top.width as f32) as u32,
-        (v * top.height as f32) as u32,
-    );
-    let at = ((y * top.width + x) * 4) as usize;
-    let roof = &top.rgba[at..at + 3];
-    assert!(
-        roof[0].abs_diff(roof[2]) <= 8 && roof[0] < 150,
-        "roof texel {roof:?}"
-    );
     // From the south, 45° down, the middle of the box's image is the middle house's front or
     // roof: a building, not ground.
     let south_view = textures
@@ -150,7 +167,10 @@ fn walls_show_the_facades_behind_them_and_roofs_their_roofs() {
     );
     let at = ((y * south_view.width + x) * 4) as usize;
     let seen = &south_view.rgba[at..at + 3];
-    let ground = [srgb_byte(0.56f32.powf(2.2)), srgb_byte(0.50f32.powf(2.2))];
+    let ground = [
+        srgb_byte(BARE_GROUND_SRGB[0].powf(2.2)),
+        srgb_byte(BARE_GROUND_SRGB[2].powf(2.2)),
+    ];
     assert!(
         !(seen[0].abs_diff(ground[0]) <= 2 && seen[2].abs_diff(ground[1]) <= 2),
         "south view sees ground {seen:?}"
@@ -162,4 +182,73 @@ fn walls_show_the_facades_behind_them_and_roofs_their_roofs() {
     let back = ScenePackage::from_bytes(&bytes).unwrap();
     assert_eq!(back.cluster_textures.as_ref(), Some(&textures));
     assert!(back.check_invariants().is_ok());
+}
+
+/// Textures of `package`'s tree laid out on pages of 32 texels, each page a blank PNG: what
+/// `check` reads, without a GPU.
+fn blank_textures(package: &ScenePackage) -> ClusterTextures {
+    let tree = package.cluster_tree.as_ref().unwrap();
+    let layout = layout_atlas(&cluster_walls(tree), 32);
+    let blank = vec![vec![0u8; 32 * 32 * 4]; 6];
+    let images = (0..layout.page_count as usize)
+        .map(|page| compress_page(32, page, &blank).unwrap())
+        .collect();
+    ClusterTextures::from_compressed(layout, images).unwrap()
+}
+
+#[test]
+fn damaged_texture_layouts_are_refused_with_their_reason() {
+    let city = boxes(&[
+        (0.0, 0.0, 10.0, 10.0, 8.0),
+        (10.0, 0.0, 20.0, 10.0, 14.0),
+        (40.0, 0.0, 50.0, 12.0, 10.0),
+        (40.0, 14.0, 50.0, 24.0, 12.0),
+    ]);
+    let package = preprocess(city, &PreprocessParams::default(), &NoProgress).expect("preprocess");
+    let tree = package.cluster_tree.as_ref().unwrap();
+    let good = blank_textures(&package);
+    assert!(
+        good.layout.clusters.len() >= 2,
+        "{:?}",
+        good.layout.clusters.len()
+    );
+    good.check(tree).expect("a sound layout passes");
+    let refused = |damage: &dyn Fn(&mut ClusterTextures), reason: &str| {
+        let mut t = good.clone();
+        damage(&mut t);
+        let err = t.check(tree).expect_err(reason);
+        assert!(err.contains(reason), "{reason}: {err}");
+    };
+    refused(
+        &|t| t.layout.clusters[0].sides.faces[0].x_px = u32::MAX - 1,
+        "wall 0's rectangle lies outside its cell",
+    );
+    refused(
+        &|t| t.layout.clusters[0].box_hi_m[2] = f32::NAN,
+        "its box is not finite and ordered",
+    );
+    refused(
+        &|t| {
+            let first = t.layout.clusters[0].clone();
+            let second = &mut t.layout.clusters[1];
+            (second.bin, second.page, second.cell) = (first.bin, first.page, first.cell);
+            second.sides = first.sides;
+        },
+        "cell",
+    );
+    refused(&|t| t.layout.page_px = 0, "pages of 0 texels");
+    refused(&|t| t.layout.page_px = 1 << 20, "not 1 to 8192");
+    refused(&|t| t.layout.bins[0].page_count += 1, "pages");
+    refused(
+        &|t| t.images.truncate(t.images.len() - 1),
+        "pages of textures",
+    );
+    refused(
+        &|t| t.images[0][3] = b"not a png".to_vec(),
+        "page 0, east view",
+    );
+    refused(
+        &|t| t.layout.clusters[0].node = tree.building_order.len() as u32 * 10,
+        "which the tree lacks",
+    );
 }

@@ -30,7 +30,7 @@ enum What {
     Occluders(occluders::Args),
     /// The legibility cluster tree: a top-down map of one level.
     Tree(tree::Args),
-    /// The baked cluster textures of a package: one PNG per bin and view, and a table.
+    /// The baked cluster textures of a package: one PNG per page and view, and a table of the bins.
     Textures(textures::Args),
 }
 

@@ -231,7 +231,8 @@ fn bake_textures(package: &mut ScenePackage, bin_side_px: u32) -> anyhow::Result
 #[derive(Debug, Serialize)]
 struct TextureSummary {
     clusters: usize,
-    /// Cluster meshes with walls; the rest of them have walls too many for their cell.
+    /// Cluster meshes with walls; those not among `clusters` have more walls than their cell
+    /// holds.
     candidates: usize,
     bins: usize,
     pages: usize,

@@ -95,7 +95,12 @@ fn preprocess_bakes_the_cluster_textures_and_inspect_writes_them_out() {
     }
     let out = citywalk(&["inspect", path_str(&package), "--check"]);
     assert!(out.status.success(), "{}", text(&out));
-    assert!(text(&out).contains("cluster textures"), "{}", text(&out));
+    assert!(
+        text(&out).contains("section cluster textures")
+            && text(&out).contains("check: all invariants hold"),
+        "{}",
+        text(&out)
+    );
 }
 
 #[test]

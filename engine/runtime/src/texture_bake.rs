@@ -1,10 +1,10 @@
 //! Bakes the cluster meshes' textures headless (Chang et al. 2008 §7): for every wall of a
 //! cluster mesh, an orthographic view with its near plane on the wall, looking in, of the
 //! cluster's buildings each scaled vertically to the cluster's height; for its roof, the five
-//! roof views of the same buildings. Every view is one draw of the cluster's buildings into
-//! its rectangle of the bin's texture ([`citywalk_scenes::cluster_texture::atlas`]): the
-//! buildings' triangles are laid out in the tree's leaf order, so the buildings below a node
-//! are one index range. Where no building is seen the texture shows the bare ground. The
+//! roof views of the same buildings. Every view draws the cluster's buildings (a wall's, those
+//! just behind it) into its rectangle of its page's view
+//! ([`citywalk_scenes::cluster_texture::atlas`]): the buildings' triangles are laid out in the
+//! tree's leaf order, so the buildings below a node are one index range. Where no building is seen the texture shows the bare ground. The
 //! textures hold albedo: the runtime lights the cluster mesh itself.
 
 use citywalk_scenes::cluster_texture::atlas::{
@@ -16,6 +16,7 @@ use citywalk_scenes::cluster_texture::side_layout::{BORDER_PX, FaceRect};
 use citywalk_scenes::cluster_tree::ClusterTree;
 use citywalk_scenes::extrude::extruded_walls;
 use citywalk_scenes::package::GpuSceneView;
+use citywalk_shaders::constants::BARE_GROUND_SRGB;
 use citywalk_shaders::{BAKE_WGSL, BakeView};
 use glam::{Mat4, Vec2, Vec3, Vec4};
 use wgpu::util::DeviceExt;
@@ -52,14 +53,15 @@ pub enum BakeError {
     Mismatch(String),
     #[error(transparent)]
     Readback(#[from] ReadbackError),
-    #[error("cannot compress the textures: {0}")]
-    Compress(String),
+    #[error("cannot store the textures: {0}")]
+    Store(String),
 }
 
 /// What a bake did.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BakeStats {
-    /// Cluster meshes textured, of those with walls.
+    /// Cluster meshes textured, of `candidates`, those with walls (the rest have more walls
+    /// than their cell holds).
     pub clusters: usize,
     pub candidates: usize,
     pub bins: usize,
@@ -126,14 +128,13 @@ pub fn bake_cluster_textures(
             // Compressed at once: a bake holds one page of texels, not all of them.
             let compress_start = std::time::Instant::now();
             images.push(
-                compress_page(layout.page_px, page as usize, &views)
-                    .map_err(BakeError::Compress)?,
+                compress_page(layout.page_px, page as usize, &views).map_err(BakeError::Store)?,
             );
             compress_seconds += compress_start.elapsed().as_secs_f64();
         }
     }
     let textures =
-        ClusterTextures::from_compressed(layout.clone(), images).map_err(BakeError::Compress)?;
+        ClusterTextures::from_compressed(layout.clone(), images).map_err(BakeError::Store)?;
     let stats = BakeStats {
         clusters: layout.clusters.len(),
         candidates: walls.len(),
@@ -506,8 +507,13 @@ impl Baker {
 /// The bare ground's colour in linear RGB, as `bare_ground_colour` in the shaders (the
 /// clear colour of an sRGB target is given in linear values).
 fn bare_ground_linear() -> glam::DVec3 {
-    glam::DVec3::new(0.56, 0.56, 0.50).powf(2.2)
+    glam::DVec3::from(BARE_GROUND_SRGB.map(f64::from)).powf(2.2)
 }
+
+/// How far in front of what it must see each view's near plane lies (m): a building scaled to
+/// the roof, or a facade on the hull's edge, lands a few ulp off its plane, and a point just
+/// past the near plane would be clipped away.
+const NEAR_SLACK_M: f32 = 0.01;
 
 /// The orthographic view of the wall from `a` to `b` (the hull counter-clockwise, the cluster
 /// on the wall's left): looking in from the wall, `a` at the image's left, the walls' foot at
@@ -519,8 +525,9 @@ fn wall_view(p: &ClusterPlacement, a: [f32; 2], b: [f32; 2]) -> BakeView {
     let along = (b - a) / length;
     let outward = Vec2::new(along.y, -along.x);
     let (lo, hi) = (Vec3::from(p.box_lo_m), Vec3::from(p.box_hi_m));
-    let depth = WALL_DEPTH_M;
     let height = (hi.z - lo.z).max(1e-3);
+    // Reversed Z: 1 just outside the wall, falling to 0 at `WALL_DEPTH_M` in.
+    let depth = WALL_DEPTH_M + NEAR_SLACK_M;
     let rows = [
         Vec4::new(
             2.0 * along.x / length,
@@ -529,33 +536,41 @@ fn wall_view(p: &ClusterPlacement, a: [f32; 2], b: [f32; 2]) -> BakeView {
             -2.0 * a.dot(along) / length - 1.0,
         ),
         Vec4::new(0.0, 0.0, 2.0 / height, -2.0 * lo.z / height - 1.0),
-        // Reversed Z: 1 on the wall, falling to 0 at `depth` metres in.
         Vec4::new(
             outward.x / depth,
             outward.y / depth,
             0.0,
-            1.0 - a.dot(outward) / depth,
+            1.0 - (a.dot(outward) + NEAR_SLACK_M) / depth,
         ),
         Vec4::W,
     ];
     bake_view(rows, hi.z)
 }
 
-/// The orthographic roof view `frame` of the cluster's box, filling the image.
+/// The orthographic roof view `frame` of the cluster's box, filling the image as
+/// [`ViewFrame::uv`] reads it (an axis of no extent maps to the image's middle).
 fn frame_view(p: &ClusterPlacement, frame: &ViewFrame) -> BakeView {
-    let axis = |k: usize| {
+    // Clip x or y of axis `k`: -1 at the range's start, +1 at its end.
+    let image_row = |k: usize| {
         let (min, max) = frame.ranges[k];
-        (frame.axes[k], min, (max - min).max(1e-3))
+        if max > min {
+            let extent = max - min;
+            (2.0 * frame.axes[k] / extent).extend(-2.0 * min / extent - 1.0)
+        } else {
+            Vec4::ZERO
+        }
     };
-    let (right, u_min, u_extent) = axis(0);
-    let (down, v_min, v_extent) = axis(1);
-    let (ahead, d_min, d_extent) = axis(2);
+    // Reversed Z: 1 just before the box's nearest corner, 0 just past its farthest.
+    let (near, far) = (
+        frame.ranges[2].0 - NEAR_SLACK_M,
+        frame.ranges[2].1 + NEAR_SLACK_M,
+    );
+    let ahead = frame.axes[2];
     let rows = [
-        (2.0 * right / u_extent).extend(-2.0 * u_min / u_extent - 1.0),
+        image_row(0),
         // v grows down the image, clip y up.
-        (-2.0 * down / v_extent).extend(2.0 * v_min / v_extent + 1.0),
-        // Reversed Z: 1 at the box's nearest corner, 0 at its farthest.
-        (-ahead / d_extent).extend(1.0 + d_min / d_extent),
+        -image_row(1),
+        (-ahead / (far - near)).extend(1.0 + near / (far - near)),
         Vec4::W,
     ];
     bake_view(rows, p.box_hi_m[2])
@@ -593,5 +608,121 @@ fn fill_borders(texels: &mut [u8], width_px: u32, rects: &[FaceRect]) {
                 texels.copy_within(from..from + 4, to);
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use citywalk_scenes::cluster_texture::roof_views::RoofView;
+    use citywalk_scenes::cluster_texture::side_layout::SideLayout;
+
+    fn placement(lo: [f32; 3], hi: [f32; 3]) -> ClusterPlacement {
+        ClusterPlacement {
+            node: 0,
+            bin: 0,
+            page: 0,
+            cell: 0,
+            sides: SideLayout {
+                side_px: 64,
+                texels_per_m: 1.0,
+                faces: Vec::new(),
+            },
+            box_lo_m: lo,
+            box_hi_m: hi,
+        }
+    }
+
+    fn clip(view: &BakeView, p: Vec3) -> Vec3 {
+        let c = Mat4::from_cols_array_2d(&view.world_to_clip) * p.extend(1.0);
+        c.truncate() / c.w
+    }
+
+    /// CPU reference of the roof views: where the baked view puts a point is where
+    /// `ViewFrame::uv` (what the runtime will sample) reads it, and the box lies inside the
+    /// depth range.
+    #[test]
+    fn roof_views_put_each_point_where_its_texture_coordinate_reads_it() {
+        let p = placement([-12.0, 4.0, 0.0], [30.0, 19.0, 14.0]);
+        let (lo, hi) = (Vec3::from(p.box_lo_m), Vec3::from(p.box_hi_m));
+        for view in RoofView::ALL {
+            let frame = view.frame(lo, hi);
+            let bake = frame_view(&p, &frame);
+            for t in [
+                [0.0, 0.0, 1.0],
+                [1.0, 1.0, 1.0],
+                [0.3, 0.8, 1.0],
+                [0.9, 0.1, 0.0],
+            ] {
+                let point = lo + (hi - lo) * Vec3::from(t);
+                let c = clip(&bake, point);
+                let [u, v] = frame.uv(point);
+                assert!(
+                    (u - (c.x + 1.0) / 2.0).abs() < 1e-4,
+                    "{view:?} {t:?}: {c} {u}"
+                );
+                assert!(
+                    (v - (1.0 - c.y) / 2.0).abs() < 1e-4,
+                    "{view:?} {t:?}: {c} {v}"
+                );
+                assert!(c.z > 0.0 && c.z < 1.0, "{view:?} {t:?}: depth {}", c.z);
+            }
+        }
+        // A box of no extent across the view: its middle, as `uv` says.
+        let flat = placement([3.0, 3.0, 0.0], [3.0, 3.0, 0.0]);
+        let frame = RoofView::Top.frame(Vec3::splat(3.0), Vec3::splat(3.0));
+        let c = clip(&frame_view(&flat, &frame), Vec3::new(3.0, 3.0, 0.0));
+        assert_eq!((c.x, c.y), (0.0, 0.0));
+    }
+
+    #[test]
+    fn a_wall_view_spans_the_wall_and_sees_its_plane() {
+        let p = placement([0.0, 0.0, 2.0], [20.0, 10.0, 12.0]);
+        // The south wall of a counter-clockwise ring runs east; the cluster is to its north.
+        let view = wall_view(&p, [0.0, 0.0], [20.0, 0.0]);
+        let foot_left = clip(&view, Vec3::new(0.0, 0.0, 2.0));
+        let top_right = clip(&view, Vec3::new(20.0, 0.0, 12.0));
+        assert!((foot_left - Vec3::new(-1.0, -1.0, foot_left.z)).length() < 1e-5);
+        assert!((top_right - Vec3::new(1.0, 1.0, top_right.z)).length() < 1e-5);
+        // The wall's own plane is inside the near plane, the far plane 40 m in, the outside
+        // beyond the near plane.
+        assert!(foot_left.z < 1.0 && foot_left.z > 0.999);
+        let deep = clip(&view, Vec3::new(10.0, WALL_DEPTH_M - 0.1, 5.0));
+        assert!(deep.z > 0.0 && deep.z < 0.01, "{deep}");
+        assert!(clip(&view, Vec3::new(10.0, WALL_DEPTH_M + 1.0, 5.0)).z < 0.0);
+        assert!(clip(&view, Vec3::new(10.0, -1.0, 5.0)).z > 1.0);
+    }
+
+    #[test]
+    fn borders_repeat_their_rectangles_edge() {
+        // A 6 × 5 page, one 2 × 2 rectangle at (2, 1) of four colours.
+        let (w, h) = (6u32, 5u32);
+        let mut texels = vec![0u8; (w * h * 4) as usize];
+        let put = |t: &mut Vec<u8>, x: u32, y: u32, v: u8| t[((y * w + x) * 4) as usize] = v;
+        let get = |t: &Vec<u8>, x: u32, y: u32| t[((y * w + x) * 4) as usize];
+        put(&mut texels, 2, 1, 10);
+        put(&mut texels, 3, 1, 20);
+        put(&mut texels, 2, 2, 30);
+        put(&mut texels, 3, 2, 40);
+        let rect = FaceRect {
+            x_px: 2,
+            y_px: 1,
+            width_px: 2,
+            height_px: 2,
+        };
+        fill_borders(&mut texels, w, &[rect]);
+        let rows: Vec<Vec<u8>> = (0..h)
+            .map(|y| (0..w).map(|x| get(&texels, x, y)).collect())
+            .collect();
+        assert_eq!(
+            rows,
+            [
+                [0, 10, 10, 20, 20, 0],
+                [0, 10, 10, 20, 20, 0],
+                [0, 30, 30, 40, 40, 0],
+                [0, 30, 30, 40, 40, 0],
+                [0, 0, 0, 0, 0, 0],
+            ]
+        );
     }
 }

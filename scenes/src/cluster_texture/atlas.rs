@@ -33,7 +33,7 @@ pub enum AtlasView {
 }
 
 impl AtlasView {
-    /// The six, in the order of a bin's textures.
+    /// The six, in the order of a page's views.
     pub const ALL: [AtlasView; 6] = [
         AtlasView::Side,
         AtlasView::Roof(RoofView::Top),
@@ -197,8 +197,9 @@ impl AtlasLayout {
 }
 
 /// Lays out `clusters` (any order, each node once) in bins of `page_px²` texels per view, on
-/// pages of that size.
+/// pages of that size (at most [`MAX_PAGE_PX`]: a larger `page_px` is taken as that).
 pub fn layout_atlas(clusters: &[ClusterWalls], page_px: u32) -> AtlasLayout {
+    let page_px = page_px.clamp(1, MAX_PAGE_PX);
     let areas: Vec<f64> = clusters.iter().map(|c| c.negative_space_m2).collect();
     let texels = texture_bins(&areas, page_px);
     let bin_count = texels.iter().map(|t| t.bin + 1).max().unwrap_or(0) as usize;
@@ -234,9 +235,9 @@ pub fn layout_atlas(clusters: &[ClusterWalls], page_px: u32) -> AtlasLayout {
             };
             let (mut lo, mut hi) = ([f32::MAX; 2], [f32::MIN; 2]);
             for p in &c.ring {
-                for k in 0..2 {
-                    lo[k] = lo[k].min(p[k]);
-                    hi[k] = hi[k].max(p[k]);
+                for axis in 0..2 {
+                    lo[axis] = lo[axis].min(p[axis]);
+                    hi[axis] = hi[axis].max(p[axis]);
                 }
             }
             placements.push(ClusterPlacement {

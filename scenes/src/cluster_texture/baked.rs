@@ -33,7 +33,8 @@ pub struct TextureImage {
 impl ClusterTextures {
     /// Compresses baked textures: `rgba[page][view]` is the page's view, RGBA8 (alpha
     /// dropped), `page_px` on a side.
-    pub fn compress(layout: AtlasLayout, rgba: &[Vec<Vec<u8>>]) -> Result<Self, String> {
+    #[cfg(test)]
+    fn compress(layout: AtlasLayout, rgba: &[Vec<Vec<u8>>]) -> Result<Self, String> {
         if rgba.len() != layout.page_count as usize {
             return Err(format!(
                 "{} pages of pixels for {} pages",
@@ -84,9 +85,12 @@ impl ClusterTextures {
         u64::from(self.layout.page_px).pow(2) * 6 * u64::from(self.layout.page_count)
     }
 
-    /// Checks the layout against the tree (each placement an inner node with a mesh, on a page
-    /// of its bin, in a cell of it, no cell taken twice, every wall of the mesh laid out) and
-    /// the images against the layout (six per page, each PNG's header a page's size).
+    /// Checks the layout against the tree (each placement an inner node, on a page of its bin,
+    /// in a cell of it, no cell taken twice, its walls' rectangles inside its cell, its box
+    /// finite and ordered; where the tree holds its meshes, a package decoded whole, every
+    /// wall of the mesh laid out) and the images against the layout (six per page, each PNG's
+    /// header a page's size). A package is untrusted input: every number read is bounded
+    /// before it is used.
     pub fn check(&self, tree: &ClusterTree) -> Result<(), String> {
         let layout = &self.layout;
         if !(1..=MAX_PAGE_PX).contains(&layout.page_px) {
@@ -132,6 +136,7 @@ impl ClusterTextures {
                 .bins
                 .get(p.bin as usize)
                 .ok_or_else(|| format!("node {}: no bin {}", p.node, p.bin))?;
+            // The loop above bounded every bin's pages by `page_count`: no overflow.
             let on_its_pages = (bin.first_page..bin.first_page + bin.page_count).contains(&p.page);
             if !on_its_pages || p.cell >= bin.per_page() || !taken.insert((p.page, p.cell)) {
                 return Err(format!(
@@ -142,6 +147,7 @@ impl ClusterTextures {
             if p.sides.side_px != bin.cell_px {
                 return Err(format!("node {}: side layout not of its cell", p.node));
             }
+            placement_in_bounds(p).map_err(|e| format!("node {}: {e}", p.node))?;
             let walls = node.mesh.positions.len() / 2;
             if !node.mesh.positions.is_empty() && p.sides.faces.len() != walls {
                 return Err(format!(
@@ -169,6 +175,43 @@ impl ClusterTextures {
         }
         Ok(())
     }
+}
+
+/// The parts of a placement that do not refer to others: its box finite and ordered, its
+/// density positive, each wall's rectangle of at least a texel inside the cell with its border.
+fn placement_in_bounds(p: &super::atlas::ClusterPlacement) -> Result<(), String> {
+    let ordered = (0..3).all(|k| {
+        let (lo, hi) = (p.box_lo_m[k], p.box_hi_m[k]);
+        lo.is_finite() && hi.is_finite() && lo <= hi
+    });
+    if !ordered {
+        return Err("its box is not finite and ordered".into());
+    }
+    if !(p.sides.texels_per_m.is_finite() && p.sides.texels_per_m > 0.0) {
+        return Err("its walls' density is not a positive number".into());
+    }
+    let b = super::side_layout::BORDER_PX;
+    let side = p.sides.side_px;
+    for (i, r) in p.sides.faces.iter().enumerate() {
+        let right = r
+            .x_px
+            .checked_add(r.width_px)
+            .and_then(|x| x.checked_add(b));
+        let bottom = r
+            .y_px
+            .checked_add(r.height_px)
+            .and_then(|y| y.checked_add(b));
+        let inside = r.width_px >= 1
+            && r.height_px >= 1
+            && r.x_px >= b
+            && r.y_px >= b
+            && right.is_some_and(|x| x <= side)
+            && bottom.is_some_and(|y| y <= side);
+        if !inside {
+            return Err(format!("wall {i}'s rectangle lies outside its cell"));
+        }
+    }
+    Ok(())
 }
 
 /// Compresses the six views of page `page`, each RGBA8 (alpha dropped) of `page_px` on a

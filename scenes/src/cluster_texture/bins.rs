@@ -9,7 +9,7 @@
 //! of [`TEXEL_BLOCK`] (block-compressed formats store 4 × 4 blocks; Chang's card needed sides
 //! divisible by four for the same reason). No cluster gets less than [`MIN_CELL_PX`] on a
 //! side: where a bin holds so many clusters that Chang's budget would give each fewer texels
-//! (a generated 100k city's first bin holds 17,000), the bin grows past the budget instead,
+//! (a large city's first bins), the bin grows past the budget instead,
 //! since a cell of a few texels cannot hold one texel per wall with its border, and the
 //! cluster would stay untextured.
 

@@ -34,7 +34,7 @@ fn facade_colour(id: u32) -> vec3<f32> {
 
 // The bare ground between streets and areas: a plain earth tone (linear RGB).
 fn bare_ground_colour() -> vec3<f32> {
-    return srgb_to_linear(vec3<f32>(0.56, 0.56, 0.50));
+    return srgb_to_linear(vec3<f32>(BARE_GROUND_SRGB_R, BARE_GROUND_SRGB_G, BARE_GROUND_SRGB_B));
 }
 
 // Roof colour (linear RGB) of a building: greys, varied per building.

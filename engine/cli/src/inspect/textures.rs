@@ -59,7 +59,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .iter()
         .enumerate()
         .map(|(bin, cells)| {
-            let pages = cells.first_page as usize..(cells.first_page + cells.page_count) as usize;
+            // `check` (on opening) has bounded the bins' pages by the images.
+            let first = cells.first_page as usize;
+            let pages = first..first + cells.page_count as usize;
             BinRow {
                 bin,
                 clusters: layout
