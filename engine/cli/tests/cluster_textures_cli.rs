@@ -97,6 +97,7 @@ fn preprocess_bakes_the_cluster_textures_and_inspect_writes_them_out() {
     assert!(out.status.success(), "{}", text(&out));
     assert!(
         text(&out).contains("section cluster textures")
+            && text(&out).contains(&format!("cluster textures: {clusters} clusters in"))
             && text(&out).contains("check: all invariants hold"),
         "{}",
         text(&out)

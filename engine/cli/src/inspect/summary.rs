@@ -74,6 +74,8 @@ struct Summary {
     /// Footprint repairs and fallbacks of the cluster tree (`ClusterStats`): nothing is
     /// dropped, but a person should see what was repaired.
     cluster_tree_repairs: Option<ClusterRepairs>,
+    /// The baked cluster textures (`preprocess --cluster-textures`), if any.
+    cluster_textures: Option<TextureSummary>,
     counts: BTreeMap<String, u64>,
     parameters_json: String,
     warnings: Vec<String>,
@@ -81,6 +83,16 @@ struct Summary {
     stage_seconds: Vec<(String, f64)>,
     sections: Vec<SectionSummary>,
     check: Option<Vec<String>>,
+}
+
+/// A package's baked cluster textures.
+#[derive(Debug, Serialize)]
+struct TextureSummary {
+    clusters: usize,
+    bins: usize,
+    pages: u32,
+    page_px: u32,
+    compressed_bytes: u64,
 }
 
 /// What the cluster tree repaired or fell back on ([`citywalk_scenes::cluster_tree::ClusterStats`]).
@@ -203,6 +215,13 @@ fn summarise(
             merge_fallbacks: t.stats.merge_fallbacks,
             simplify_fallbacks: t.stats.simplify_fallbacks,
         }),
+        cluster_textures: pkg.cluster_textures.as_ref().map(|t| TextureSummary {
+            clusters: t.layout.clusters.len(),
+            bins: t.layout.bins.len(),
+            pages: t.layout.page_count,
+            page_px: t.layout.page_px,
+            compressed_bytes: t.compressed_bytes(),
+        }),
         counts: pkg.provenance.counts.clone(),
         parameters_json: pkg.provenance.parameters_json.clone(),
         warnings: pkg.provenance.warnings.clone(),
@@ -290,6 +309,16 @@ fn print_summary(s: &Summary) {
              self-crossing footprints (their hull), {} merge fallbacks, {} simplification \
              fallbacks",
             r.degenerate_buildings, r.multi_part_buildings, r.merge_fallbacks, r.simplify_fallbacks
+        );
+    }
+    if let Some(t) = &s.cluster_textures {
+        println!(
+            "cluster textures: {} clusters in {} bins on {} pages of {px}×{px} texels, {:.1} MiB",
+            t.clusters,
+            t.bins,
+            t.pages,
+            t.compressed_bytes as f64 / 1048576.0,
+            px = t.page_px
         );
     }
     for sec in &s.sections {
