@@ -23,6 +23,14 @@ pub const ID_BACKGROUND: u32 = 0;
 /// What the id pass adds to a building id, so that 0 stays free for the background.
 pub const ID_OFFSET: u32 = 1;
 
+/// A cluster mesh without baked textures, or a texture page view not resident on the GPU
+/// (the cluster texture tables of `wgsl/shared/cluster_textures.wgsl`).
+pub const NO_TEXTURE_PAGE: u32 = u32::MAX;
+
+/// Views of every cluster texture page (`citywalk_scenes::cluster_texture::AtlasView::ALL`,
+/// which asserts it): the side view, then the five roof views.
+pub const TEXTURE_PAGE_VIEWS: u32 = 6;
+
 /// Ambient share of the flat-shaded scene colour (the rest is the sun's Lambert term).
 pub const AMBIENT: f32 = 0.38;
 
@@ -173,6 +181,8 @@ pub const WGSL_U32: &[(&str, u32)] = &[
     ("SURFACE_LAYER_COUNT", SURFACE_LAYER_COUNT),
     ("ID_BACKGROUND", ID_BACKGROUND),
     ("ID_OFFSET", ID_OFFSET),
+    ("NO_TEXTURE_PAGE", NO_TEXTURE_PAGE),
+    ("TEXTURE_PAGE_VIEWS", TEXTURE_PAGE_VIEWS),
     ("HZB_BUILD_WORKGROUP", HZB_BUILD_WORKGROUP),
     ("HZB_CULL_WORKGROUP", HZB_CULL_WORKGROUP),
     ("CULL_VISIBLE", CULL_VISIBLE),

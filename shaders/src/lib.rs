@@ -17,11 +17,16 @@ pub use constants::{GROUND_ID, ID_BACKGROUND, ID_OFFSET, SURFACE_ID_BASE};
 pub use debug::PyramidViewParams;
 pub use hzb::{HzbCullParams, TreeCullParams, TreeLandmark, TreeNode};
 pub use types::{
-    BakeView, BuildingRecord, CullPart, DrawIndexedIndirectArgs, SceneVertex, ViewUniforms,
+    BakeView, BuildingRecord, ClusterTexturingParams, CullPart, DrawIndexedIndirectArgs,
+    SceneVertex, TexturedCluster, TexturedWall, ViewUniforms,
 };
 
 /// Flat-shaded scene pass (`wgsl/scene.wgsl`): entry points `vs_main`, `fs_main`; group 0
-/// binding 0 is the [`ViewUniforms`] uniform; vertex buffer of [`SceneVertex`].
+/// binding 0 is the [`ViewUniforms`] uniform; vertex buffer of [`SceneVertex`]. Entry point
+/// `fs_textured` also draws cluster meshes with their baked textures, from group 1: binding 0
+/// the [`ClusterTexturingParams`] uniform, 1 the [`TexturedCluster`]s by tree node, 2 the
+/// [`TexturedWall`]s, 3 the resident layer of every page view (`u32`, page × 6 + view), 4
+/// the resident page views (`texture_2d_array<f32>`, filterable), 5 a filtering sampler.
 pub const SCENE_WGSL: &str = include_str!(concat!(env!("OUT_DIR"), "/scene.wgsl"));
 
 /// Building-id pass (`wgsl/ids.wgsl`): like [`SCENE_WGSL`] but writes `id + ID_OFFSET` to an

@@ -116,6 +116,58 @@ pub struct DrawIndexedIndirectArgs {
     pub first_instance: u32,
 }
 
+/// Per cluster tree node, where its mesh's textures lie (Chang et al. 2008 §7). WGSL twin:
+/// `TexturedCluster` in `wgsl/shared/cluster_textures.wgsl`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Pod, Zeroable)]
+pub struct TexturedCluster {
+    /// The mesh's first vertex in the scene's vertex buffer (its record's `base_vertex`).
+    pub base_vertex: u32,
+    /// Its walls are `first_wall .. first_wall + wall_count` of the wall table.
+    pub first_wall: u32,
+    pub wall_count: u32,
+    /// The page of its cells, or `NO_TEXTURE_PAGE`: drawn in flat colours.
+    pub page: u32,
+    /// The roof views' image in the page: x, y, width, height in texels.
+    pub roof_rect_px: [f32; 4],
+    /// The box the roof views see (xyz; w unused).
+    pub box_lo_m: [f32; 4],
+    pub box_hi_m: [f32; 4],
+}
+
+/// One wall of a textured cluster mesh. WGSL twin: `TexturedWall` in
+/// `wgsl/shared/cluster_textures.wgsl`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Pod, Zeroable)]
+pub struct TexturedWall {
+    /// The wall's first hull vertex (x, y in metres).
+    pub start_m: [f32; 2],
+    /// Its direction divided by its length: `dot(p - start, along)` is 0 at the first vertex
+    /// and 1 at the second.
+    pub along_per_m: [f32; 2],
+    /// Its image in the page's side view: x, y, width, height in texels (row 0 the wall's top).
+    pub rect_px: [f32; 4],
+}
+
+/// What the textured scene pass needs besides the tables. WGSL twin: `ClusterTexturing` in
+/// `wgsl/shared/cluster_textures.wgsl`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Pod, Zeroable)]
+pub struct ClusterTexturingParams {
+    /// The roof view of this frame (the one closest to the look vector): its image's right
+    /// and down axes (xyz, unit; w unused).
+    pub roof_right: [f32; 4],
+    pub roof_down: [f32; 4],
+    /// The side of every page, in texels.
+    pub page_px: f32,
+    /// Draw ids from here on are cluster nodes (`draw id - building_count`).
+    pub building_count: u32,
+    /// The roof view's index among a page's views (1..=5).
+    pub roof_view: u32,
+    /// 0: draw every cluster in flat colours.
+    pub enabled: u32,
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -151,6 +203,47 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn cluster_texture_tables_match_wgsl() {
+        check(
+            "TexturedCluster",
+            size_of::<TexturedCluster>(),
+            &[
+                ("base_vertex", offset_of!(TexturedCluster, base_vertex)),
+                ("first_wall", offset_of!(TexturedCluster, first_wall)),
+                ("wall_count", offset_of!(TexturedCluster, wall_count)),
+                ("page", offset_of!(TexturedCluster, page)),
+                ("roof_rect_px", offset_of!(TexturedCluster, roof_rect_px)),
+                ("box_lo_m", offset_of!(TexturedCluster, box_lo_m)),
+                ("box_hi_m", offset_of!(TexturedCluster, box_hi_m)),
+            ],
+        );
+        check(
+            "TexturedWall",
+            size_of::<TexturedWall>(),
+            &[
+                ("start_m", offset_of!(TexturedWall, start_m)),
+                ("along_per_m", offset_of!(TexturedWall, along_per_m)),
+                ("rect_px", offset_of!(TexturedWall, rect_px)),
+            ],
+        );
+        check(
+            "ClusterTexturing",
+            size_of::<ClusterTexturingParams>(),
+            &[
+                ("roof_right", offset_of!(ClusterTexturingParams, roof_right)),
+                ("roof_down", offset_of!(ClusterTexturingParams, roof_down)),
+                ("page_px", offset_of!(ClusterTexturingParams, page_px)),
+                (
+                    "building_count",
+                    offset_of!(ClusterTexturingParams, building_count),
+                ),
+                ("roof_view", offset_of!(ClusterTexturingParams, roof_view)),
+                ("enabled", offset_of!(ClusterTexturingParams, enabled)),
+            ],
+        );
     }
 
     #[test]

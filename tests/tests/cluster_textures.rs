@@ -13,7 +13,7 @@ use citywalk_scenes::cluster_texture::side_layout::BORDER_PX;
 use citywalk_scenes::package::{ScenePackage, WriteOptions};
 use citywalk_shaders::constants::BARE_GROUND_SRGB;
 use citywalk_tests::city_builder::boxes;
-use citywalk_tests::gpu::gpu_or_skip;
+use citywalk_tests::gpu::{diff_rgba, gpu_or_skip};
 
 /// The sRGB bytes an sRGB target stores for a linear value.
 fn srgb_byte(linear: f32) -> u8 {
@@ -251,4 +251,140 @@ fn damaged_texture_layouts_are_refused_with_their_reason() {
         &|t| t.layout.clusters[0].node = tree.building_order.len() as u32 * 10,
         "which the tree lacks",
     );
+}
+
+/// Mean absolute difference per channel (RGB) of two images of one size.
+fn mean_abs_diff(a: &image::RgbaImage, b: &image::RgbaImage) -> f64 {
+    let sum: u64 = a
+        .pixels()
+        .zip(b.pixels())
+        .map(|(p, q)| {
+            (0..3)
+                .map(|c| u64::from(p.0[c].abs_diff(q.0[c])))
+                .sum::<u64>()
+        })
+        .sum();
+    sum as f64 / (3 * a.width() * a.height()) as f64
+}
+
+/// Chang et al. 2008 §9 in small: drawn far enough that the LOD cut takes cluster meshes, a
+/// city whose clusters carry their baked textures looks more like the full city than one whose
+/// clusters are flat-coloured, in the LOD frame of the CPU cut and in the occlusion-culled one.
+#[test]
+fn textured_clusters_look_more_like_the_full_city_than_flat_ones() {
+    use citywalk_runtime::camera::Camera;
+    use citywalk_runtime::drawable::DrawableScene;
+    use citywalk_runtime::frame::Visibility;
+    use citywalk_runtime::lod::LodCriterion;
+    use citywalk_runtime::plan::FramePlan;
+    use citywalk_runtime::render::{BruteRenderer, OffscreenTarget};
+    use citywalk_runtime::runner::{Completion, FrameRunner, FrameTarget};
+    use citywalk_scenes::generate::{GenerateParams, generate_city};
+    use glam::Vec3;
+
+    let Some(gpu) = gpu_or_skip("textured_clusters_look_more_like_the_full_city_than_flat_ones")
+    else {
+        return;
+    };
+    let city = generate_city(&GenerateParams::new(600, 11)).expect("generate");
+    let package = preprocess(city, &PreprocessParams::default(), &NoProgress).expect("preprocess");
+    let tree = package.cluster_tree.clone().expect("a cluster tree");
+    let (textures, _) =
+        bake_cluster_textures(&gpu, &package.gpu_scene.view(), &tree, 512).expect("bake");
+    let scene = DrawableScene::upload_package(&gpu, &package.gpu_scene, Some(tree), None)
+        .expect("upload")
+        .with_cluster_textures(&gpu, &package.gpu_scene, textures, 64)
+        .expect("textures within the budget");
+    let texturing = scene.texturing().expect("the LOD scene is textured");
+    assert!(
+        texturing.summary.rejected.is_empty(),
+        "{:?}",
+        texturing.summary.rejected
+    );
+    assert!(texturing.summary.textured_clusters > 10);
+
+    let (lo, hi) = scene.buildings.bounds;
+    let centre = (lo + hi) * 0.5;
+    // Looking north-east and down at the city from its south-west, a few hundred metres out.
+    let camera = Camera::new(
+        Vec3::new(lo.x - 150.0, lo.y - 150.0, 260.0),
+        45f32.to_radians(),
+        -35f32.to_radians(),
+    );
+    assert!(camera.forward().dot(centre - camera.position) > 0.0);
+    let (width, height) = (480, 270);
+    let format = BruteRenderer::PNG_FORMAT;
+    let target = OffscreenTarget::new(&gpu, width, height, format).expect("target");
+    let read = |target: &OffscreenTarget| {
+        image::RgbaImage::from_raw(width, height, target.read_colour(&gpu).expect("read"))
+            .expect("size")
+    };
+    let full = {
+        let renderer = BruteRenderer::new(&gpu, format);
+        let rgba = renderer
+            .render_rgba(&gpu, &scene.buildings, &camera, width, height)
+            .expect("brute frame");
+        image::RgbaImage::from_raw(width, height, rgba).expect("size")
+    };
+    // A coarse cut: clusters stand for most of the city.
+    let criterion = Some(LodCriterion::Geometric { tolerance_px: 24.0 });
+    let lod_only = FramePlan {
+        lod: true,
+        ..FramePlan::NONE
+    };
+    for plan in [lod_only, FramePlan::ALL] {
+        let mut runner = FrameRunner::new(&gpu, format);
+        let mut visibility = Visibility::default();
+        let mut frame = |textured: bool| {
+            texturing.set_enabled(textured);
+            let report = runner
+                .run(
+                    &gpu,
+                    scene.refs(),
+                    plan,
+                    criterion,
+                    &mut visibility,
+                    &camera,
+                    FrameTarget::offscreen(&target),
+                    (Completion::Wait, false),
+                )
+                .expect("frame")
+                .expect("a waited frame's report");
+            (read(&target), report)
+        };
+        let (flat, report) = frame(false);
+        let clusters = report.clusters_drawn.unwrap_or(0);
+        assert!(
+            clusters > 10,
+            "{}: {clusters} clusters drawn",
+            plan.describe()
+        );
+        // The first textured frame asks for its pages; they are resident for the next.
+        frame(true);
+        texturing.settle(&gpu);
+        let (textured, _) = frame(true);
+        let (resident, uploaded, broken) = texturing.residency();
+        assert!(broken.is_empty(), "{broken:?}");
+        assert!(resident > 0 && uploaded >= resident as u64);
+        let (flat_error, textured_error) =
+            (mean_abs_diff(&flat, &full), mean_abs_diff(&textured, &full));
+        let changed = diff_rgba(&flat, &textured, 8).differing;
+        eprintln!(
+            "{}: {clusters} clusters, {resident} page views resident; mean error against the full city: flat {flat_error:.2}, textured {textured_error:.2}; {changed} pixels changed",
+            plan.describe()
+        );
+        if let Ok(dir) = std::env::var("CITYWALK_TEXTURE_IMAGES") {
+            for (name, image) in [("full", &full), ("flat", &flat), ("textured", &textured)] {
+                let _ = image.save(format!(
+                    "{dir}/{}_{name}.png",
+                    plan.lod as u8 + plan.hzb as u8
+                ));
+            }
+        }
+        assert!(changed > 500, "the textures show: {changed} pixels changed");
+        assert!(
+            textured_error < 0.9 * flat_error,
+            "textured {textured_error:.2} against flat {flat_error:.2}"
+        );
+    }
 }

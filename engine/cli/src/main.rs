@@ -16,6 +16,7 @@ mod preprocess;
 mod render;
 mod report_items;
 mod scene_input;
+mod texture_args;
 mod view;
 
 /// citywalk: an occlusion-aware urban walkthrough engine.

@@ -33,6 +33,8 @@ pub struct Args {
     pub scene: PathBuf,
     #[command(flatten)]
     pub input: crate::input_args::InputArgs,
+    #[command(flatten)]
+    pub textures: crate::texture_args::TextureArgs,
     /// Camera as X,Y,Z,YAW,PITCH (metres in the scene's local frame; degrees, yaw 0 = east,
     /// pitch positive up). Default: the overview from the south-west.
     #[arg(long, allow_hyphen_values = true, conflicts_with = "path")]
@@ -67,7 +69,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let started = Instant::now();
     let load = args.input.load_options(std::slice::from_ref(&args.scene))?;
     let gpu = GpuContext::headless()?;
-    let (city, scene) = load_drawable(&gpu, &args.scene, &load, args.mode)?;
+    let (city, scene) = load_drawable(&gpu, &args.scene, &load, args.mode, &args.textures)?;
     let loaded_s = started.elapsed().as_secs_f64();
     println!("adapter: {}", gpu.adapter_summary());
     let mut frames = Frames::new(&gpu, &scene, args.mode, args.size)?;
@@ -140,6 +142,7 @@ fn load_drawable(
     path: &Path,
     load: &citywalk_scenes::LoadOptions,
     mode: Mode,
+    textures: &crate::texture_args::TextureArgs,
 ) -> anyhow::Result<(City, DrawableScene)> {
     if mode == Mode::Brute && !crate::scene_input::is_package(path)? {
         let city = crate::scene_input::load_city(path, load)?;
@@ -156,6 +159,7 @@ fn load_drawable(
     )
     .and_then(|d| d.with_surfaces(gpu, &parts.ground_surfaces))
     .with_context(|| format!("cannot draw {}", path.display()))?;
+    let scene = textures.apply(gpu, scene, &parts.gpu_scene, parts.cluster_textures)?;
     Ok((parts.city, scene))
 }
 
@@ -206,8 +210,23 @@ impl<'a> Frames<'a> {
         })
     }
 
-    /// One frame from `camera`, waited for, and its image.
+    /// One frame from `camera`, waited for, and its image: drawn again, as the same frame,
+    /// when the cluster textures it drew were still loading, so that an image shows them.
     fn draw(&mut self, camera: &Camera) -> anyhow::Result<(image::RgbaImage, FrameReport)> {
+        let mut frame = self.draw_once(camera)?;
+        if let Some(texturing) = self.scene.texturing()
+            && texturing.loading() > 0
+        {
+            texturing.settle(self.gpu);
+            frame = self.draw_once(camera)?;
+        }
+        if let Some(planner) = &mut self.planner {
+            planner.record(&frame.1);
+        }
+        Ok(frame)
+    }
+
+    fn draw_once(&mut self, camera: &Camera) -> anyhow::Result<(image::RgbaImage, FrameReport)> {
         let plan = match (&mut self.planner, self.mode.plan()) {
             (Some(planner), _) => planner.plan_for(camera),
             (None, Some(plan)) => plan,
@@ -227,9 +246,6 @@ impl<'a> Frames<'a> {
                 (Completion::Wait, false),
             )?
             .context("a waited frame has its report")?;
-        if let Some(planner) = &mut self.planner {
-            planner.record(&report);
-        }
         let rgba = target.read_colour(self.gpu)?;
         let image = image::RgbaImage::from_raw(target.width, target.height, rgba)
             .context("readback size does not match the image size")?;

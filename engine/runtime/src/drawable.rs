@@ -10,6 +10,11 @@ use citywalk_scenes::ground_surfaces::GroundSurfaces;
 use citywalk_scenes::package::GpuScene;
 use citywalk_scenes::quadtree::BQuadtree;
 
+use std::sync::Arc;
+
+use citywalk_scenes::cluster_texture::baked::ClusterTextures;
+
+use crate::cluster_textures::{ClusterTexturing, MeshArrays, TexturingError};
 use crate::frame::OccluderMeshes;
 use crate::gpu::GpuContext;
 use crate::lod::scene::LodScene;
@@ -75,6 +80,39 @@ impl DrawableScene {
         let ground_z = citywalk_scenes::scene_geometry::ground_plane_z(self.buildings.bounds.0.z);
         self.surfaces = SurfaceMeshes::upload(gpu, surfaces, ground_z)?;
         Ok(self)
+    }
+
+    /// Draws the LOD scene's cluster meshes with a package's baked `textures`, keeping at most
+    /// `budget_mib` MiB of page views on the GPU ([`ClusterTexturing`]); `gpu_scene` is the
+    /// package's GPU scene this was uploaded from (its meshes are checked against the layout).
+    /// A scene without a cluster tree draws nothing textured and is returned as it is.
+    pub fn with_cluster_textures(
+        mut self,
+        gpu: &GpuContext,
+        gpu_scene: &GpuScene,
+        textures: ClusterTextures,
+        budget_mib: u64,
+    ) -> Result<DrawableScene, TexturingError> {
+        let Some(lod) = &mut self.lod else {
+            return Ok(self);
+        };
+        let view = gpu_scene.view();
+        let meshes = MeshArrays {
+            building_count: view.building_count,
+            node_count: lod.tree.tree.nodes.len() as u32,
+            records: view.records,
+            vertices: view.vertices,
+            indices: view.indices,
+        };
+        let texturing = ClusterTexturing::new(gpu, Arc::new(textures), meshes, budget_mib)?;
+        view.release_resident(gpu_scene.bytes());
+        lod.gpu_scene.texturing = Some(texturing);
+        Ok(self)
+    }
+
+    /// The LOD scene's cluster textures, if it draws any.
+    pub fn texturing(&self) -> Option<&ClusterTexturing> {
+        self.lod.as_ref()?.gpu_scene.texturing.as_ref()
     }
 
     /// Meshes and uploads a city loaded from a raw input, as preprocessing does for a package

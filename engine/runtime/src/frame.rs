@@ -309,7 +309,7 @@ struct PendingFrame {
 /// The two-phase culling renderer: pipelines, the cull pass, draw lists and targets.
 #[derive(Debug)]
 pub struct CullingRenderer {
-    scene_pipeline: wgpu::RenderPipeline,
+    scene_pipelines: crate::render::ScenePipelines,
     depth_pipeline: wgpu::RenderPipeline,
     view_buffer: wgpu::Buffer,
     view_group: wgpu::BindGroup,
@@ -370,19 +370,14 @@ impl CullingRenderer {
         let layout = crate::render::view_bind_group_layout(device, "frame view");
         let (view_buffer, view_group) =
             crate::render::view_buffer_and_group(device, &layout, "frame view");
-        let scene_pipeline = crate::render::scene_pipeline(
-            device,
-            "frame scene",
-            SCENE_WGSL,
-            &layout,
-            Some(colour_format),
-        );
+        let scene_pipelines =
+            crate::render::ScenePipelines::new(device, "frame scene", &layout, colour_format);
         let depth_pipeline =
             crate::render::scene_pipeline(device, "occluder depth", SCENE_WGSL, &layout, None);
         let indirect = wgpu::BufferUsages::INDIRECT | wgpu::BufferUsages::COPY_DST;
         let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
         CullingRenderer {
-            scene_pipeline,
+            scene_pipelines,
             depth_pipeline,
             view_buffer,
             view_group,
@@ -813,7 +808,7 @@ impl CullingRenderer {
             occlusion_query_set: None,
             multiview_mask: None,
         });
-        pass.set_pipeline(&self.scene_pipeline);
+        self.scene_pipelines.set(&mut pass, scene);
         pass.set_bind_group(0, &self.view_group, &[]);
         scene.bind(&mut pass);
         scene.draw_ground(&mut pass);
@@ -971,7 +966,7 @@ impl CullingRenderer {
             &targets.depth,
             self.timer.render_pass_writes("late"),
         );
-        pass.set_pipeline(&self.scene_pipeline);
+        self.scene_pipelines.set(&mut pass, scene);
         pass.set_bind_group(0, &self.view_group, &[]);
         scene.bind(&mut pass);
         self.indirect_draws(&mut pass, draws, n);

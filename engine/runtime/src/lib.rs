@@ -7,6 +7,7 @@
 pub mod auto;
 pub mod camera;
 pub mod camera_path_io;
+pub mod cluster_textures;
 pub mod controller;
 pub mod cpu_clock;
 pub mod drawable;

@@ -205,10 +205,21 @@ impl FrameRunner {
         wait: (Completion, bool),
     ) -> Result<Option<FrameReport>, FrameError> {
         gpu.alive()?;
+        // The cluster textures: this frame's roof view and the page views decoded since the
+        // last; what the frame drew asks for the views the next frames need.
+        let texturing = scene.lod.and_then(|lod| lod.gpu_scene.texturing.as_ref());
+        if let Some(texturing) = texturing {
+            texturing.begin_frame(gpu, camera);
+        }
         let frame = self.run_frame(
             gpu, scene, plan, criterion, visibility, camera, target, wait,
         );
         gpu.alive()?;
+        if let (Some(texturing), Ok(Some(report))) = (texturing, &frame)
+            && report.lod_scene
+        {
+            texturing.note_drawn(gpu, &report.ids);
+        }
         frame
     }
 

@@ -17,6 +17,7 @@ use glam::Vec3;
 use std::ops::Deref;
 use std::sync::Arc;
 
+use crate::cluster_textures::ClusterTexturing;
 use crate::gpu::GpuContext;
 use crate::upload::{UploadError, array_buffer, buffer_from_chunks};
 
@@ -57,6 +58,10 @@ pub struct SceneGpu {
     pub bounds: (Vec3, Vec3),
     /// Building triangles (the ground excluded).
     pub triangle_count: usize,
+    /// The cluster meshes' baked textures, on the LOD scene of a package that has them
+    /// ([`crate::drawable::DrawableScene::with_cluster_textures`]): the scene pass draws
+    /// textured where this is set.
+    pub texturing: Option<ClusterTexturing>,
 }
 
 /// A plain scene's records and brute-force draw list on the GPU ([`SceneGpu::all`]).
@@ -172,6 +177,7 @@ impl SceneGpu {
             parts: Arc::clone(&shared.parts),
             ground: shared.ground,
             bounds,
+            texturing: None,
         }
     }
 
@@ -222,6 +228,7 @@ impl SceneGpu {
             parts,
             ground,
             bounds,
+            texturing: None,
         })
     }
 

@@ -63,6 +63,10 @@ impl AtlasView {
     }
 }
 
+// The runtime's tables index a page's views by this order (`TEXTURE_PAGE_VIEWS` per page).
+const _: () =
+    assert!(AtlasView::ALL.len() == citywalk_shaders::constants::TEXTURE_PAGE_VIEWS as usize);
+
 /// What the atlas needs of one cluster mesh: its walls and its box.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ClusterWalls {

@@ -1,8 +1,6 @@
 //! The brute-force renderer: draws every building and the ground, flat-shaded, with no culling.
 //! The reference image for every culling scheme, and the viewer's renderer until culling lands.
 
-use citywalk_shaders::SCENE_WGSL;
-
 use crate::camera::Camera;
 use crate::gpu::GpuContext;
 use crate::render::targets::{DepthTarget, OffscreenTarget, ReadbackError};
@@ -13,7 +11,7 @@ use crate::scene_gpu::SceneGpu;
 /// `Depth32Float` depth target.
 #[derive(Debug)]
 pub struct BruteRenderer {
-    pipeline: wgpu::RenderPipeline,
+    pipelines: super::ScenePipelines,
     view_buffer: wgpu::Buffer,
     view_group: wgpu::BindGroup,
     /// The colour format the pipeline was built for.
@@ -33,15 +31,9 @@ impl BruteRenderer {
         let device = &gpu.device;
         let layout = super::view_bind_group_layout(device, "brute view");
         let (view_buffer, view_group) = super::view_buffer_and_group(device, &layout, "brute view");
-        let pipeline = super::scene_pipeline(
-            device,
-            "brute scene",
-            SCENE_WGSL,
-            &layout,
-            Some(colour_format),
-        );
+        let pipelines = super::ScenePipelines::new(device, "brute scene", &layout, colour_format);
         BruteRenderer {
-            pipeline,
+            pipelines,
             view_buffer,
             view_group,
             colour_format,
@@ -117,7 +109,7 @@ impl BruteRenderer {
             self.style.clear_colour(),
             timestamp_writes,
         );
-        pass.set_pipeline(&self.pipeline);
+        self.pipelines.set(&mut pass, scene);
         pass.set_bind_group(0, &self.view_group, &[]);
         scene.bind(&mut pass);
         draw(&mut pass);

@@ -17,8 +17,8 @@ pub use targets::{DepthTarget, OffscreenTarget, ReadbackError};
 pub use view::{SceneStyle, view_uniforms};
 
 use crate::camera::Camera;
-use crate::scene_gpu::SCENE_VERTEX_LAYOUT;
-use citywalk_shaders::ViewUniforms;
+use crate::scene_gpu::{SCENE_VERTEX_LAYOUT, SceneGpu};
+use citywalk_shaders::{SCENE_WGSL, ViewUniforms};
 
 /// Bind-group layout of group 0 in the scene-drawing shaders: the [`ViewUniforms`] uniform.
 pub(crate) fn view_bind_group_layout(device: &wgpu::Device, label: &str) -> wgpu::BindGroupLayout {
@@ -85,6 +85,62 @@ pub(crate) fn scene_pipeline(
     )
 }
 
+/// The scene pass's two pipelines over one view layout: flat-shaded (`fs_main`), and with the
+/// cluster meshes' baked textures (`fs_textured`, group 1 of
+/// [`crate::cluster_textures::bind_group_layout`]), for a scene that carries them.
+#[derive(Debug)]
+pub(crate) struct ScenePipelines {
+    flat: wgpu::RenderPipeline,
+    textured: wgpu::RenderPipeline,
+}
+
+impl ScenePipelines {
+    pub(crate) fn new(
+        device: &wgpu::Device,
+        label: &str,
+        view_layout: &wgpu::BindGroupLayout,
+        colour_format: wgpu::TextureFormat,
+    ) -> ScenePipelines {
+        let colour = Some(wgpu::ColorTargetState {
+            format: colour_format,
+            blend: None,
+            write_mask: wgpu::ColorWrites::ALL,
+        });
+        let depth = (Camera::DEPTH_COMPARE, true);
+        let textures = crate::cluster_textures::bind_group_layout(device);
+        ScenePipelines {
+            flat: scene_pipeline_with(
+                device,
+                label,
+                SCENE_WGSL,
+                view_layout,
+                depth,
+                colour.clone(),
+            ),
+            textured: scene_pipeline_entry(
+                device,
+                &format!("{label} (textured clusters)"),
+                SCENE_WGSL,
+                &[view_layout, &textures],
+                depth,
+                colour.map(|c| ("fs_textured", c)),
+            ),
+        }
+    }
+
+    /// Sets the pipeline `scene` is drawn with, and its cluster textures as group 1 where it
+    /// has them (group 0, the view, is the caller's).
+    pub(crate) fn set(&self, pass: &mut wgpu::RenderPass<'_>, scene: &SceneGpu) {
+        match &scene.texturing {
+            Some(texturing) => {
+                pass.set_pipeline(&self.textured);
+                pass.set_bind_group(1, texturing.bind_group(), &[]);
+            }
+            None => pass.set_pipeline(&self.flat),
+        }
+    }
+}
+
 /// [`scene_pipeline`] with the depth test `depth_compare`, depth writes when `depth_write`, and
 /// the colour target `colour` (`None`: depth only, no fragment stage).
 pub(crate) fn scene_pipeline_with(
@@ -92,11 +148,26 @@ pub(crate) fn scene_pipeline_with(
     label: &str,
     source: &str,
     layout: &wgpu::BindGroupLayout,
-    (depth_compare, depth_write): (wgpu::CompareFunction, bool),
+    depth: (wgpu::CompareFunction, bool),
     colour: Option<wgpu::ColorTargetState>,
 ) -> wgpu::RenderPipeline {
-    let colour_targets = colour.map(|target| [Some(target)]);
-    let (module, pipeline_layout) = module_and_layout(device, label, source, layout);
+    let colour = colour.map(|c| ("fs_main", c));
+    scene_pipeline_entry(device, label, source, &[layout], depth, colour)
+}
+
+/// [`scene_pipeline_with`] over the bind groups `layouts`, its colour target drawn by the
+/// fragment entry point named with it.
+fn scene_pipeline_entry(
+    device: &wgpu::Device,
+    label: &str,
+    source: &str,
+    layouts: &[&wgpu::BindGroupLayout],
+    (depth_compare, depth_write): (wgpu::CompareFunction, bool),
+    colour: Option<(&str, wgpu::ColorTargetState)>,
+) -> wgpu::RenderPipeline {
+    let entry_point = colour.as_ref().map(|(entry, _)| *entry);
+    let colour_targets = colour.map(|(_, target)| [Some(target)]);
+    let (module, pipeline_layout) = module_and_layouts(device, label, source, layouts);
     device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some(label),
         layout: Some(&pipeline_layout),
@@ -121,7 +192,7 @@ pub(crate) fn scene_pipeline_with(
         multisample: wgpu::MultisampleState::default(),
         fragment: colour_targets.as_ref().map(|targets| wgpu::FragmentState {
             module: &module,
-            entry_point: Some("fs_main"),
+            entry_point,
             compilation_options: Default::default(),
             targets,
         }),
@@ -137,13 +208,24 @@ fn module_and_layout(
     source: &str,
     layout: &wgpu::BindGroupLayout,
 ) -> (wgpu::ShaderModule, wgpu::PipelineLayout) {
+    module_and_layouts(device, label, source, &[layout])
+}
+
+/// The WGSL module `source` and a pipeline layout of the bind groups `layouts`, in order.
+fn module_and_layouts(
+    device: &wgpu::Device,
+    label: &str,
+    source: &str,
+    layouts: &[&wgpu::BindGroupLayout],
+) -> (wgpu::ShaderModule, wgpu::PipelineLayout) {
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some(label),
         source: wgpu::ShaderSource::Wgsl(source.into()),
     });
+    let groups: Vec<Option<&wgpu::BindGroupLayout>> = layouts.iter().map(|l| Some(*l)).collect();
     let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: Some(label),
-        bind_group_layouts: &[Some(layout)],
+        bind_group_layouts: &groups,
         immediate_size: 0,
     });
     (module, pipeline_layout)
