@@ -291,9 +291,10 @@ fn textured_clusters_look_more_like_the_full_city_than_flat_ones() {
     let tree = package.cluster_tree.clone().expect("a cluster tree");
     let (textures, _) =
         bake_cluster_textures(&gpu, &package.gpu_scene.view(), &tree, 512).expect("bake");
-    let scene = DrawableScene::upload_package(&gpu, &package.gpu_scene, Some(tree), None)
-        .expect("upload")
-        .with_cluster_textures(&gpu, &package.gpu_scene, textures, 64)
+    let mut scene =
+        DrawableScene::upload_package(&gpu, &package.gpu_scene, Some(tree), None).expect("upload");
+    scene
+        .add_cluster_textures(&gpu, &package.gpu_scene, textures, 64)
         .expect("textures within the budget");
     let texturing = scene.texturing().expect("the LOD scene is textured");
     assert!(

@@ -43,6 +43,7 @@ fn every_stage_combination_and_debug_view_renders_and_reports_its_counts() {
         gpu_scene: Some(package.gpu_scene.clone()),
         ground_surfaces: Some(package.ground_surfaces.clone()),
         package: None,
+        cluster_textures: None,
     };
     let features = scene.features();
     assert_eq!(
@@ -229,6 +230,7 @@ fn a_click_picks_the_building_under_the_cursor_and_tints_and_outlines_it() {
         gpu_scene: None,
         ground_surfaces: None,
         package: None,
+        cluster_textures: None,
     };
     let features = scene.features();
     let format = BruteRenderer::PNG_FORMAT;

@@ -32,6 +32,8 @@ pub struct Args {
     pub scenes: Vec<PathBuf>,
     #[command(flatten)]
     pub input: crate::input_args::InputArgs,
+    #[command(flatten)]
+    pub textures: crate::texture_args::TextureArgs,
     /// Output folder for frames.csv, bench.json, summary.md, path files and PNG frames.
     #[arg(long, required_unless_present = "list_modes")]
     pub out: Option<PathBuf>,
@@ -82,9 +84,14 @@ pub struct Args {
 /// are loaded; kept out of the shared `run_benchmark_with` signature.
 static LOD_CRITERION: std::sync::OnceLock<Option<LodCriterion>> = std::sync::OnceLock::new();
 
+/// The `--texture-budget-mib` of this run, set once by [`run`] (unset, as in `demo`: the
+/// default budget), read where the scenes are loaded, as [`LOD_CRITERION`].
+static TEXTURES: std::sync::OnceLock<crate::texture_args::TextureArgs> = std::sync::OnceLock::new();
+
 pub fn run(args: Args) -> anyhow::Result<()> {
     let lod_criterion = LodCriterion::parse(&args.lod_criterion).map_err(anyhow::Error::msg)?;
     let _ = LOD_CRITERION.set(lod_criterion);
+    let _ = TEXTURES.set(args.textures);
     if args.list_modes {
         println!("{}", Mode::NAMED.map(Mode::name).join(","));
         return Ok(());
@@ -215,8 +222,7 @@ pub fn run_benchmark_with(
             quadtree,
             occluders,
             cluster_tree,
-            // Not drawn yet: the runtime draws the cluster meshes untextured.
-            cluster_textures: _,
+            cluster_textures,
             gpu_scene,
             ground_surfaces,
         } = package.into_parts();
@@ -253,8 +259,9 @@ pub fn run_benchmark_with(
         // The frames draw from the GPU; only the decimated baseline meshes the city again (a
         // million buildings are a third of a gigabyte of heap).
         let city = baseline.is_some().then_some(city);
-        let mut drawable =
-            drawable.with_context(|| format!("cannot draw {}", scene_path.display()))?;
+        let drawable = drawable.with_context(|| format!("cannot draw {}", scene_path.display()))?;
+        let textures = TEXTURES.get().copied().unwrap_or_default();
+        let mut drawable = textures.apply(&gpu, drawable, &gpu_scene, cluster_textures)?;
         if let Some(lod) = &mut drawable.lod {
             lod.criterion = LOD_CRITERION.get().copied().flatten();
         }

@@ -17,21 +17,29 @@ pub struct TextureArgs {
     pub texture_budget_mib: u64,
 }
 
+impl Default for TextureArgs {
+    fn default() -> TextureArgs {
+        TextureArgs {
+            texture_budget_mib: DEFAULT_BUDGET_MIB,
+        }
+    }
+}
+
 impl TextureArgs {
     /// `scene` drawing the package's `textures` (when it has them and the budget is not 0),
     /// with a line on stderr saying what is textured.
     pub fn apply(
         &self,
         gpu: &GpuContext,
-        scene: DrawableScene,
+        mut scene: DrawableScene,
         gpu_scene: &GpuScene,
         textures: Option<ClusterTextures>,
     ) -> anyhow::Result<DrawableScene> {
         let Some(textures) = textures.filter(|_| self.texture_budget_mib > 0) else {
             return Ok(scene);
         };
-        let scene = scene
-            .with_cluster_textures(gpu, gpu_scene, textures, self.texture_budget_mib)
+        scene
+            .add_cluster_textures(gpu, gpu_scene, textures, self.texture_budget_mib)
             .context("cannot draw the cluster textures")?;
         if let Some(t) = scene.texturing() {
             let s = &t.summary;

@@ -24,6 +24,8 @@ pub struct Args {
     pub scene: PathBuf,
     #[command(flatten)]
     pub input: crate::input_args::InputArgs,
+    #[command(flatten)]
+    pub textures: crate::texture_args::TextureArgs,
     /// Start in fly mode at the overview camera (default: walk mode on a street near the centre).
     #[arg(long)]
     pub fly: bool,
@@ -140,7 +142,7 @@ fn start_settings(args: &Args) -> RenderSettings {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let started = std::time::Instant::now();
     let load = args.input.load_options(std::slice::from_ref(&args.scene))?;
-    let scene = load_scene(&args.scene, &load)?;
+    let scene = load_scene(&args.scene, &load, args.textures.texture_budget_mib)?;
     let city = &scene.city;
     let settings = start_settings(&args);
     let play = match &args.play {
@@ -178,7 +180,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 /// The one place the viewer loads its scene: a package's city, virtual occluders, cluster tree,
 /// urban blocks and B-Quadtree, or any other input's city as it is (no occluders, tree or
 /// quadtree: they come from preprocessing).
-fn load_scene(path: &Path, load: &citywalk_scenes::LoadOptions) -> anyhow::Result<ViewerScene> {
+fn load_scene(
+    path: &Path,
+    load: &citywalk_scenes::LoadOptions,
+    texture_budget_mib: u64,
+) -> anyhow::Result<ViewerScene> {
     let named_package = path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("cwk"));
@@ -199,6 +205,7 @@ fn load_scene(path: &Path, load: &citywalk_scenes::LoadOptions) -> anyhow::Resul
             gpu_scene: Some(parts.gpu_scene),
             ground_surfaces: Some(parts.ground_surfaces),
             package: Some(file),
+            cluster_textures: parts.cluster_textures.map(|t| (t, texture_budget_mib)),
         }
     } else {
         ViewerScene {
@@ -208,6 +215,7 @@ fn load_scene(path: &Path, load: &citywalk_scenes::LoadOptions) -> anyhow::Resul
             gpu_scene: None,
             ground_surfaces: None,
             package: None,
+            cluster_textures: None,
         }
     };
     let city = &scene.city;

@@ -85,16 +85,17 @@ impl DrawableScene {
     /// Draws the LOD scene's cluster meshes with a package's baked `textures`, keeping at most
     /// `budget_mib` MiB of page views on the GPU ([`ClusterTexturing`]); `gpu_scene` is the
     /// package's GPU scene this was uploaded from (its meshes are checked against the layout).
-    /// A scene without a cluster tree draws nothing textured and is returned as it is.
-    pub fn with_cluster_textures(
-        mut self,
+    /// A scene without a cluster tree draws nothing textured. On an error the scene is as it
+    /// was.
+    pub fn add_cluster_textures(
+        &mut self,
         gpu: &GpuContext,
         gpu_scene: &GpuScene,
         textures: ClusterTextures,
         budget_mib: u64,
-    ) -> Result<DrawableScene, TexturingError> {
+    ) -> Result<(), TexturingError> {
         let Some(lod) = &mut self.lod else {
-            return Ok(self);
+            return Ok(());
         };
         let view = gpu_scene.view();
         let meshes = MeshArrays {
@@ -107,7 +108,7 @@ impl DrawableScene {
         let texturing = ClusterTexturing::new(gpu, Arc::new(textures), meshes, budget_mib)?;
         view.release_resident(gpu_scene.bytes());
         lod.gpu_scene.texturing = Some(texturing);
-        Ok(self)
+        Ok(())
     }
 
     /// The LOD scene's cluster textures, if it draws any.

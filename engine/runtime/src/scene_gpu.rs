@@ -59,7 +59,7 @@ pub struct SceneGpu {
     /// Building triangles (the ground excluded).
     pub triangle_count: usize,
     /// The cluster meshes' baked textures, on the LOD scene of a package that has them
-    /// ([`crate::drawable::DrawableScene::with_cluster_textures`]): the scene pass draws
+    /// ([`crate::drawable::DrawableScene::add_cluster_textures`]): the scene pass draws
     /// textured where this is set.
     pub texturing: Option<ClusterTexturing>,
 }

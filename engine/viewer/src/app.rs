@@ -358,6 +358,10 @@ impl App {
                     tracing::info!("this scene has no cluster tree (it comes with scene packages)");
                 }
             }
+            Command::ToggleClusterTextures => {
+                self.settings.cluster_textures = !self.settings.cluster_textures;
+                tracing::info!(on = self.settings.cluster_textures, "cluster textures");
+            }
             Command::ToggleCriterion => {
                 let lod = &mut self.settings.lod;
                 lod.kind = lod.kind.next();

@@ -23,6 +23,7 @@ use citywalk_runtime::render::debug::{
 use citywalk_runtime::render::{DepthTarget, OutlineRenderer};
 use citywalk_runtime::runner::{Completion, FrameReport, FrameRunner, FrameTarget};
 use citywalk_runtime::upload::UploadError;
+use citywalk_scenes::cluster_texture::baked::ClusterTextures;
 
 /// What the viewer draws from, on the CPU.
 #[derive(Debug)]
@@ -40,6 +41,9 @@ pub struct ViewerScene {
     /// The package the scene was read from, mapped, for what drawing does not decode: a picked
     /// building's levels and tags ([`PackageFile::building_details`]).
     pub package: Option<PackageFile>,
+    /// A scene package's baked cluster textures, and the GPU memory they may take (MiB; 0:
+    /// the clusters are drawn flat).
+    pub cluster_textures: Option<(ClusterTextures, u64)>,
 }
 
 impl ViewerScene {
@@ -127,9 +131,15 @@ impl FrameDrawer {
         let surfaces = scene
             .ground_surfaces
             .unwrap_or_else(|| GroundSurfaces::build(&scene.city));
-        let drawable =
+        let mut drawable =
             DrawableScene::upload_package(gpu, &geometry, scene.cluster_tree, scene.blocks)?
                 .with_surfaces(gpu, &surfaces)?;
+        if let Some((textures, budget_mib)) = scene.cluster_textures.filter(|(_, b)| *b > 0) {
+            // Textures are a look, not the scene: one that cannot be drawn leaves clusters flat.
+            if let Err(e) = drawable.add_cluster_textures(gpu, &geometry, textures, budget_mib) {
+                tracing::warn!("cluster meshes drawn flat: {e}");
+            }
+        }
         let occluder_overlay_meshes = drawable.occluders.as_ref().map(OccluderOverlayMeshes::of);
         Ok(FrameDrawer {
             runner: FrameRunner::new(gpu, format),
@@ -257,6 +267,9 @@ impl FrameDrawer {
         } else {
             settings.plan(features)
         };
+        if let Some(texturing) = self.drawable.texturing() {
+            texturing.set_enabled(settings.cluster_textures);
+        }
         let start = std::time::Instant::now();
         let refs = self.drawable.refs();
         // The cluster view colours what this very frame drew: it waits for the frame's report.

@@ -41,6 +41,8 @@ pub enum Command {
     ToggleLod,
     /// K: LOD criterion Chang ↔ Yang.
     ToggleCriterion,
+    /// T: cluster meshes textured / flat (packages with cluster textures).
+    ToggleClusterTextures,
     /// G: the next debug view (off → pyramid → clusters → occluders → off).
     NextDebugView,
     /// `]`: a coarser pyramid level in the pyramid view.
@@ -65,6 +67,7 @@ impl Command {
             KeyCode::KeyB => Some(Command::ToggleFrustum),
             KeyCode::KeyL => Some(Command::ToggleLod),
             KeyCode::KeyK => Some(Command::ToggleCriterion),
+            KeyCode::KeyT => Some(Command::ToggleClusterTextures),
             KeyCode::KeyG => Some(Command::NextDebugView),
             KeyCode::BracketRight => Some(Command::CoarserMip),
             KeyCode::BracketLeft => Some(Command::FinerMip),
@@ -221,6 +224,7 @@ mod tests {
             (KeyCode::KeyP, Command::ToggleAuto),
             (KeyCode::KeyB, Command::ToggleFrustum),
             (KeyCode::KeyL, Command::ToggleLod),
+            (KeyCode::KeyT, Command::ToggleClusterTextures),
             (KeyCode::KeyK, Command::ToggleCriterion),
             (KeyCode::KeyG, Command::NextDebugView),
             (KeyCode::BracketRight, Command::CoarserMip),

@@ -251,6 +251,13 @@ fn stage_toggles(ui: &mut egui::Ui, features: SceneFeatures, settings: &mut Rend
 
 fn lod_controls(ui: &mut egui::Ui, features: SceneFeatures, settings: &mut RenderSettings) {
     let enabled = features.cluster_tree && settings.stages.lod;
+    ui.add_enabled(
+        enabled,
+        egui::Checkbox::new(
+            &mut settings.cluster_textures,
+            "cluster textures (T; packages preprocessed with --cluster-textures)",
+        ),
+    );
     let lod = &mut settings.lod;
     ui.add_enabled_ui(enabled, |ui| {
         ui.horizontal(|ui| {

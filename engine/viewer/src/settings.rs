@@ -176,6 +176,9 @@ pub struct RenderSettings {
     pub debug_view: DebugView,
     /// The pyramid level the pyramid view shows (clamped to the pyramid's last level).
     pub mip_level: u32,
+    /// Cluster meshes drawn with their baked textures (packages made with
+    /// `preprocess --cluster-textures`), else in flat colours.
+    pub cluster_textures: bool,
 }
 
 impl Default for RenderSettings {
@@ -191,6 +194,7 @@ impl Default for RenderSettings {
             lod: LodSettings::default(),
             debug_view: DebugView::Off,
             mip_level: 0,
+            cluster_textures: true,
         }
     }
 }

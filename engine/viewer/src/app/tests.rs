@@ -128,6 +128,7 @@ fn run_viewer(script: impl FnMut(&mut App, &ActiveEventLoop, u32) -> Next) -> Ap
         gpu_scene: None,
         ground_surfaces: None,
         package: None,
+        cluster_textures: None,
     };
     let options = ViewerOptions {
         mode: Mode::Walk,
