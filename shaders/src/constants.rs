@@ -27,6 +27,13 @@ pub const ID_OFFSET: u32 = 1;
 /// (the cluster texture tables of `wgsl/shared/cluster_textures.wgsl`).
 pub const NO_TEXTURE_PAGE: u32 = u32::MAX;
 
+/// How the textured scene pass shades cluster meshes: flat colours, baked textures, or each
+/// textured cluster in the colour of its texture bin (the viewer's bins debug view; an
+/// untextured cluster dark grey).
+pub const CLUSTER_SHADING_FLAT: u32 = 0;
+pub const CLUSTER_SHADING_TEXTURED: u32 = 1;
+pub const CLUSTER_SHADING_BINS: u32 = 2;
+
 /// Views of every cluster texture page (`citywalk_scenes::cluster_texture::AtlasView::ALL`,
 /// which asserts it): the side view, then the five roof views.
 pub const TEXTURE_PAGE_VIEWS: u32 = 6;
@@ -183,6 +190,9 @@ pub const WGSL_U32: &[(&str, u32)] = &[
     ("ID_OFFSET", ID_OFFSET),
     ("NO_TEXTURE_PAGE", NO_TEXTURE_PAGE),
     ("TEXTURE_PAGE_VIEWS", TEXTURE_PAGE_VIEWS),
+    ("CLUSTER_SHADING_FLAT", CLUSTER_SHADING_FLAT),
+    ("CLUSTER_SHADING_TEXTURED", CLUSTER_SHADING_TEXTURED),
+    ("CLUSTER_SHADING_BINS", CLUSTER_SHADING_BINS),
     ("HZB_BUILD_WORKGROUP", HZB_BUILD_WORKGROUP),
     ("HZB_CULL_WORKGROUP", HZB_CULL_WORKGROUP),
     ("CULL_VISIBLE", CULL_VISIBLE),

@@ -130,7 +130,8 @@ pub struct TexturedCluster {
     pub page: u32,
     /// The roof views' image in the page: x, y, width, height in texels.
     pub roof_rect_px: [f32; 4],
-    /// The box the roof views see (xyz; w unused).
+    /// The box the roof views see (xyz; `box_lo_m` w: the cluster's texture bin, for the
+    /// bins debug view; `box_hi_m` w unused).
     pub box_lo_m: [f32; 4],
     pub box_hi_m: [f32; 4],
 }
@@ -164,8 +165,8 @@ pub struct ClusterTexturingParams {
     pub building_count: u32,
     /// The roof view's index among a page's views (1..=5).
     pub roof_view: u32,
-    /// 0: draw every cluster in flat colours.
-    pub enabled: u32,
+    /// How clusters are shaded: `CLUSTER_SHADING_FLAT`, `_TEXTURED` or `_BINS`.
+    pub shading: u32,
 }
 
 #[cfg(test)]
@@ -241,7 +242,7 @@ mod tests {
                     offset_of!(ClusterTexturingParams, building_count),
                 ),
                 ("roof_view", offset_of!(ClusterTexturingParams, roof_view)),
-                ("enabled", offset_of!(ClusterTexturingParams, enabled)),
+                ("shading", offset_of!(ClusterTexturingParams, shading)),
             ],
         );
     }

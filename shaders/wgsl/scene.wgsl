@@ -140,14 +140,37 @@ fn cluster_albedo(in: VertexOutput, flat: vec3<f32>) -> vec3<f32> {
     return textureSampleLevel(pages, page_sampler, texel / texturing.page_px, layer, 0.0).rgb;
 }
 
+// The bins debug view: a textured cluster in its texture bin's colour, an untextured one dark.
+fn bin_albedo(in: VertexOutput) -> vec3<f32> {
+    let node = in.building_id - texturing.building_count;
+    if node >= arrayLength(&textured_clusters) || textured_clusters[node].page == NO_TEXTURE_PAGE {
+        return vec3<f32>(0.08);
+    }
+    let bin = u32(textured_clusters[node].box_lo_m.w);
+    var palette = array<vec3<f32>, 8>(
+        vec3<f32>(0.90, 0.10, 0.10),
+        vec3<f32>(0.95, 0.55, 0.05),
+        vec3<f32>(0.95, 0.90, 0.10),
+        vec3<f32>(0.20, 0.80, 0.20),
+        vec3<f32>(0.10, 0.75, 0.85),
+        vec3<f32>(0.15, 0.30, 0.95),
+        vec3<f32>(0.60, 0.20, 0.90),
+        vec3<f32>(0.95, 0.40, 0.75),
+    );
+    // Bins past the eighth repeat the colours, darker.
+    return palette[bin % 8u] * select(1.0, 0.45, bin >= 8u);
+}
+
 // fs_main with the cluster meshes' baked textures (group 1).
 @fragment
 fn fs_textured(in: VertexOutput) -> @location(0) vec4<f32> {
     let n = facing_normal(in);
     var albedo = flat_albedo(in, n);
     let cluster = in.building_id >= texturing.building_count && in.building_id < SURFACE_ID_BASE;
-    if texturing.enabled != 0u && cluster {
+    if cluster && texturing.shading == CLUSTER_SHADING_TEXTURED {
         albedo = cluster_albedo(in, albedo);
+    } else if cluster && texturing.shading == CLUSTER_SHADING_BINS {
+        albedo = bin_albedo(in);
     }
     return shade(in, albedo, n);
 }

@@ -13,6 +13,7 @@ pub mod run;
 
 pub use mode::Mode;
 pub use output::{
-    AdapterSummary, BenchReport, ModeSummary, SceneLoad, resident_mib, summarise, write_outputs,
+    AdapterSummary, BenchReport, ModeSummary, SceneLoad, TextureUse, resident_mib, summarise,
+    write_outputs,
 };
 pub use run::{BenchConfig, BenchError, BenchRenderers, BenchScene, FrameRecord, run_path};

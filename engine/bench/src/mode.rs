@@ -32,6 +32,10 @@ pub enum Mode {
     Occluders,
     /// + screen-space-error level of detail.
     Lod,
+    /// `lod` with the cluster meshes in flat colours, not their baked textures: the same cut,
+    /// for Chang et al. 2008 §9's comparison of textured and untextured clusters at equal
+    /// triangles (the same as `lod` for a package without cluster textures).
+    LodFlat,
     /// Everything on.
     All,
     /// The `auto` plan ([`citywalk_runtime::auto::AutoPlanner`]): the culling stages chosen frame by frame
@@ -47,13 +51,14 @@ pub enum Mode {
 
 impl Mode {
     /// The modes the command line knows, in order.
-    pub const NAMED: [Mode; 9] = [
+    pub const NAMED: [Mode; 10] = [
         Mode::Brute,
         Mode::Frustum,
         Mode::Quadtree,
         Mode::Hzb,
         Mode::Occluders,
         Mode::Lod,
+        Mode::LodFlat,
         Mode::All,
         Mode::Auto,
         Mode::Oracle,
@@ -67,6 +72,7 @@ impl Mode {
             Mode::Hzb => "hzb",
             Mode::Occluders => "occluders",
             Mode::Lod => "lod",
+            Mode::LodFlat => "lod-flat",
             Mode::All => "all",
             Mode::Auto => "auto",
             Mode::Oracle => "oracle",
@@ -122,7 +128,7 @@ impl Mode {
                 occluder_gate: true,
                 ..none
             },
-            Mode::Lod => FramePlan {
+            Mode::Lod | Mode::LodFlat => FramePlan {
                 lod: true,
                 frustum: true,
                 quadtree: true,

@@ -124,6 +124,24 @@ pub struct SceneLoad {
     /// GPU memory the device's allocator held when the scene was ready (MiB; `None` where the
     /// backend keeps no report): the scene's buffers and the frames' targets.
     pub gpu_allocated_mib: Option<f64>,
+    /// The cluster textures' residency after the scene's last frame (`None`: none drawn).
+    pub cluster_textures: Option<TextureUse>,
+}
+
+/// How a scene's cluster textures were held over its frames.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TextureUse {
+    /// `--texture-budget-mib`, and the page views it holds (the texture array's layers,
+    /// allocated at load: the GPU memory the textures take, whatever is resident).
+    pub budget_mib: u64,
+    pub layers: usize,
+    /// Page views resident after the last frame (a layer once filled stays filled, so this
+    /// is the most that was resident in any frame), their MiB, and how many were uploaded and
+    /// evicted in all.
+    pub resident: usize,
+    pub resident_mib: f64,
+    pub uploaded: u64,
+    pub evictions: u64,
 }
 
 /// Everything `bench.json` holds.

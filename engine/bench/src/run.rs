@@ -12,6 +12,7 @@ use crate::mode::Mode;
 use crate::pixel_error::pixel_error;
 use citywalk_runtime::auto::AutoPlanner;
 use citywalk_runtime::camera::Camera;
+use citywalk_runtime::cluster_textures::ClusterShading;
 use citywalk_runtime::cpu_clock::CpuClock;
 use citywalk_runtime::drawable::DrawableScene;
 use citywalk_runtime::frame::Visibility;
@@ -274,6 +275,13 @@ fn render_mode(
     }
     if plan.occluders && refs.occluders.is_none() {
         return Err(BenchError::NoOccluders(scene.name.clone()));
+    }
+    if let Some(texturing) = scene.drawable.texturing() {
+        texturing.set_shading(if mode == Mode::LodFlat {
+            ClusterShading::Flat
+        } else {
+            ClusterShading::Textured
+        });
     }
     let visibility = renderers.visibility.entry(mode).or_default();
     let report = renderers

@@ -11,7 +11,7 @@ use citywalk_bench::decimate::decimate_city;
 use citywalk_bench::plots::write_plots;
 use citywalk_bench::{
     AdapterSummary, BenchConfig, BenchRenderers, BenchReport, BenchScene, FrameRecord, Mode,
-    SceneLoad, resident_mib, run_path, summarise, write_outputs,
+    SceneLoad, TextureUse, resident_mib, run_path, summarise, write_outputs,
 };
 use citywalk_runtime::drawable::DrawableScene;
 use citywalk_runtime::gpu::GpuContext;
@@ -279,6 +279,7 @@ pub fn run_benchmark_with(
             ready_s: started.elapsed().as_secs_f64(),
             resident_mib: resident_mib().0,
             gpu_allocated_mib: gpu.allocated_mib(),
+            cluster_textures: None,
         };
         let mib = |m: Option<f64>| m.map_or("?".into(), |m| format!("{m:.0}"));
         eprintln!(
@@ -290,6 +291,11 @@ pub fn run_benchmark_with(
             mib(load.gpu_allocated_mib)
         );
         loads.push(load);
+        let budget_mib = TEXTURES
+            .get()
+            .copied()
+            .unwrap_or_default()
+            .texture_budget_mib;
         for path in &paths {
             let file = out.join(format!("{name}-{}.path", path.name));
             path.write(&file)
@@ -306,6 +312,21 @@ pub fn run_benchmark_with(
                 started.elapsed().as_secs_f64()
             );
             records.extend(rows);
+        }
+        if let (Some(texturing), Some(load)) = (scene.drawable.texturing(), loads.last_mut()) {
+            let r = texturing.residency();
+            eprintln!(
+                "{name}: cluster textures: {} of {} page views resident ({:.0} MiB of a {budget_mib} MiB budget), {} uploaded, {} evicted",
+                r.resident, r.layers, r.resident_mib, r.uploaded, r.evictions
+            );
+            load.cluster_textures = Some(TextureUse {
+                budget_mib,
+                layers: r.layers,
+                resident: r.resident,
+                resident_mib: r.resident_mib,
+                uploaded: r.uploaded,
+                evictions: r.evictions,
+            });
         }
         if let (Some(target), Some(city)) = (baseline, &city) {
             let started = Instant::now();

@@ -11,6 +11,7 @@ use super::overlay::StageCounts;
 use super::settings::{DebugView, RenderSettings};
 use citywalk_runtime::auto::AutoPlanner;
 use citywalk_runtime::camera::Camera;
+use citywalk_runtime::cluster_textures::ClusterShading;
 use citywalk_runtime::drawable::DrawableScene;
 use citywalk_runtime::frame::{FrameError, Visibility};
 use citywalk_runtime::gpu::GpuContext;
@@ -268,7 +269,11 @@ impl FrameDrawer {
             settings.plan(features)
         };
         if let Some(texturing) = self.drawable.texturing() {
-            texturing.set_enabled(settings.cluster_textures);
+            texturing.set_shading(match settings.debug_view {
+                DebugView::Bins => ClusterShading::Bins,
+                _ if settings.cluster_textures => ClusterShading::Textured,
+                _ => ClusterShading::Flat,
+            });
         }
         let start = std::time::Instant::now();
         let refs = self.drawable.refs();
@@ -323,8 +328,14 @@ impl FrameDrawer {
                 cpu_ms: 0.0,
                 gpu_ms: r.gpu.timed().map(|(p, ms)| (p.to_string(), ms)).collect(),
                 debug: None,
+                textures: None,
             };
         }
+        drawn.counts.textures = self
+            .drawable
+            .texturing()
+            .filter(|_| plan.lod)
+            .map(|t| t.residency());
         drawn.counts.renderer = if settings.auto {
             format!("auto: {}", plan.describe())
         } else {
@@ -367,6 +378,18 @@ impl FrameDrawer {
             });
         match settings.debug_view {
             DebugView::Off => return Ok(()),
+            // Drawn by the scene pass itself (the cluster shading set in `draw`).
+            DebugView::Bins => {
+                drawn.counts.debug = Some(match self.drawable.texturing() {
+                    Some(t) if drawn.lod_scene => format!(
+                        "{} textured clusters by texture bin",
+                        t.summary.textured_clusters
+                    ),
+                    Some(_) => "bins: switch the LOD cut on (L)".to_string(),
+                    None => "this scene has no cluster textures".to_string(),
+                });
+                return Ok(());
+            }
             DebugView::Pyramid => {
                 // The culling frame's own pyramid when it drew this frame; otherwise one built
                 // the same way from the depth of what was drawn.

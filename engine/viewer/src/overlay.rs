@@ -14,6 +14,7 @@ use winit::event::WindowEvent;
 use winit::window::Window;
 
 use super::settings::{CriterionKind, DebugView, LodSettings, RenderSettings, SceneFeatures};
+use citywalk_runtime::cluster_textures::{ClusterShading, TextureResidency};
 use citywalk_runtime::gpu::GpuContext;
 
 /// What the panel reports for the frame just drawn.
@@ -57,6 +58,8 @@ pub struct StageCounts {
     pub buildings_drawn: u32,
     /// Cluster meshes drawn (with LOD).
     pub clusters_drawn: Option<u32>,
+    /// The cluster textures' residency (a package with them, LOD on).
+    pub textures: Option<TextureResidency>,
     /// Triangles of the drawn buildings and clusters.
     pub triangles: u64,
     /// Non-empty draws issued.
@@ -181,6 +184,24 @@ fn stats_grid(ui: &mut egui::Ui, stats: &OverlayStats) {
             );
             if let Some(n) = c.clusters_drawn {
                 row("clusters", n.to_string());
+            }
+            if let Some(t) = &c.textures {
+                row(
+                    "cluster textures",
+                    format!(
+                        "{} of {} page views resident ({:.0} MiB), {} loading, {} evicted{}",
+                        t.resident,
+                        t.layers,
+                        t.resident_mib,
+                        t.loading,
+                        t.evictions,
+                        match t.shading {
+                            ClusterShading::Textured => "",
+                            ClusterShading::Flat => " (off)",
+                            ClusterShading::Bins => " (bins view)",
+                        }
+                    ),
+                );
             }
             row(
                 "triangles",
@@ -618,6 +639,13 @@ mod tests {
                     occlusion_culled: Some(222),
                     buildings_drawn: 17,
                     clusters_drawn: Some(6),
+                    textures: Some(TextureResidency {
+                        resident: 12,
+                        layers: 64,
+                        resident_mib: 48.0,
+                        evictions: 7,
+                        ..TextureResidency::default()
+                    }),
                     triangles: 98_765,
                     draw_calls: 19,
                     surfaces: (42, 4321),
@@ -640,6 +668,7 @@ mod tests {
                 "222",
                 "17 / 540",
                 "clusters",
+                "12 of 64 page views resident (48 MiB), 0 loading, 7 evicted",
                 "98765",
                 "19",
                 "streets, ground areas",

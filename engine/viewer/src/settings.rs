@@ -131,14 +131,18 @@ pub enum DebugView {
     Clusters,
     /// The virtual occluders over the frame, the selected ones highlighted.
     Occluders,
+    /// Every textured cluster mesh in the colour of its texture bin (Chang et al. 2008 §7),
+    /// untextured ones dark grey.
+    Bins,
 }
 
 impl DebugView {
-    pub const ALL: [DebugView; 4] = [
+    pub const ALL: [DebugView; 5] = [
         DebugView::Off,
         DebugView::Pyramid,
         DebugView::Clusters,
         DebugView::Occluders,
+        DebugView::Bins,
     ];
 
     pub fn name(self) -> &'static str {
@@ -147,6 +151,7 @@ impl DebugView {
             DebugView::Pyramid => "pyramid",
             DebugView::Clusters => "clusters",
             DebugView::Occluders => "occluders",
+            DebugView::Bins => "bins",
         }
     }
 
@@ -296,12 +301,13 @@ mod tests {
     fn debug_views_cycle_and_parse() {
         let mut v = DebugView::Off;
         let mut seen = Vec::new();
-        for _ in 0..4 {
+        for _ in 0..DebugView::ALL.len() {
             v = v.next();
             seen.push(v);
         }
         assert_eq!(seen.last(), Some(&DebugView::Off));
-        assert_eq!(seen.len(), 4);
+        assert_eq!(seen[2], DebugView::Occluders);
+        assert_eq!(seen[3], DebugView::Bins);
         for view in DebugView::ALL {
             assert_eq!(DebugView::parse(view.name()), Some(view));
         }

@@ -14,7 +14,7 @@ struct TexturedCluster {
     page: u32,
     // The roof views' image in the page: x, y, width, height (texels).
     roof_rect_px: vec4<f32>,
-    // The box the roof views see (w unused).
+    // The box the roof views see (box_lo_m.w: the cluster's texture bin; box_hi_m.w unused).
     box_lo_m: vec4<f32>,
     box_hi_m: vec4<f32>,
 }
@@ -39,8 +39,8 @@ struct ClusterTexturing {
     building_count: u32,
     // The roof view's index among a page's TEXTURE_PAGE_VIEWS views.
     roof_view: u32,
-    // 0: every cluster in flat colours.
-    enabled: u32,
+    // CLUSTER_SHADING_FLAT, _TEXTURED or _BINS.
+    shading: u32,
 }
 
 // The side-view texel (continuous, in the page) of the point `p` on wall `wall` of `cluster`:

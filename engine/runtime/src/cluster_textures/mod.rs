@@ -24,7 +24,9 @@ use std::sync::mpsc::{Receiver, Sender, channel};
 use citywalk_scenes::cluster_texture::atlas::AtlasView;
 use citywalk_scenes::cluster_texture::baked::{ClusterTextures, TextureImage};
 use citywalk_scenes::cluster_texture::roof_views::RoofView;
-use citywalk_shaders::constants::NO_TEXTURE_PAGE;
+use citywalk_shaders::constants::{
+    CLUSTER_SHADING_BINS, CLUSTER_SHADING_FLAT, CLUSTER_SHADING_TEXTURED, NO_TEXTURE_PAGE,
+};
 use citywalk_shaders::{ClusterTexturingParams, TexturedCluster, TexturedWall};
 use glam::Vec3;
 
@@ -54,6 +56,47 @@ pub struct TexturingSummary {
     pub page_px: u32,
 }
 
+/// How the scene pass shades the cluster meshes of a textured scene.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum ClusterShading {
+    /// One colour per wall and roof, as without textures.
+    Flat,
+    /// With their baked textures, where resident.
+    #[default]
+    Textured,
+    /// Each textured cluster in the colour of its texture bin, untextured ones dark grey.
+    Bins,
+}
+
+impl ClusterShading {
+    fn constant(self) -> u32 {
+        match self {
+            ClusterShading::Flat => CLUSTER_SHADING_FLAT,
+            ClusterShading::Textured => CLUSTER_SHADING_TEXTURED,
+            ClusterShading::Bins => CLUSTER_SHADING_BINS,
+        }
+    }
+}
+
+/// Where the page views' residency stands ([`ClusterTexturing::residency`]).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct TextureResidency {
+    pub shading: ClusterShading,
+    /// Page views resident, of `layers`, and their texels' size.
+    pub resident: usize,
+    pub layers: usize,
+    pub resident_mib: f64,
+    /// Loads in flight.
+    pub loading: usize,
+    /// Page views uploaded and evicted, in all.
+    pub uploaded: u64,
+    pub evictions: u64,
+    /// Page views the last frame wanted that found no layer (every layer needed by it).
+    pub starved: usize,
+    /// Page views that failed to decode (drawn flat), with the reason.
+    pub broken: Vec<(PageView, String)>,
+}
+
 /// The cluster textures on the GPU and their residency.
 #[derive(Debug)]
 pub struct ClusterTexturing {
@@ -76,7 +119,7 @@ struct State {
     residency: Residency,
     frame: u64,
     roof_view: RoofView,
-    enabled: bool,
+    shading: ClusterShading,
     requests: Sender<PageView>,
     decoded: Receiver<Decoded>,
     /// Page views that failed to decode: never asked for again, drawn flat.
@@ -288,7 +331,7 @@ impl ClusterTexturing {
                 residency: Residency::new(layers, MAX_LOADS_IN_FLIGHT),
                 frame: 0,
                 roof_view: RoofView::Top,
-                enabled: true,
+                shading: ClusterShading::Textured,
                 requests,
                 decoded,
                 broken: Vec::new(),
@@ -302,13 +345,13 @@ impl ClusterTexturing {
         &self.group
     }
 
-    /// Draws clusters textured (`true`, the default) or in flat colours.
-    pub fn set_enabled(&self, enabled: bool) {
-        self.state().enabled = enabled;
+    /// How the next frames shade cluster meshes (textured by default).
+    pub fn set_shading(&self, shading: ClusterShading) {
+        self.state().shading = shading;
     }
 
-    pub fn enabled(&self) -> bool {
-        self.state().enabled
+    pub fn shading(&self) -> ClusterShading {
+        self.state().shading
     }
 
     fn state(&self) -> std::sync::MutexGuard<'_, State> {
@@ -331,7 +374,7 @@ impl ClusterTexturing {
             roof_right: right.extend(0.0).to_array(),
             roof_down: down.extend(0.0).to_array(),
             roof_view: AtlasView::Roof(state.roof_view).index() as u32,
-            enabled: u32::from(state.enabled),
+            shading: state.shading.constant(),
             ..self.base_params
         };
         gpu.queue
@@ -342,7 +385,7 @@ impl ClusterTexturing {
     /// name the page views the next frames want; the missing ones start loading.
     pub fn note_drawn(&self, gpu: &GpuContext, draw_ids: &[u32]) {
         let mut state = self.state();
-        if !state.enabled {
+        if state.shading != ClusterShading::Textured {
             return;
         }
         state.frame += 1;
@@ -387,14 +430,22 @@ impl ClusterTexturing {
         self.state().residency.in_flight()
     }
 
-    /// Page views resident, uploaded so far in all, and those that failed to decode.
-    pub fn residency(&self) -> (usize, u64, Vec<(PageView, String)>) {
+    /// Where the residency stands.
+    pub fn residency(&self) -> TextureResidency {
         let state = self.state();
-        (
-            state.residency.resident(),
-            state.uploaded,
-            state.broken.clone(),
-        )
+        let resident = state.residency.resident();
+        TextureResidency {
+            shading: state.shading,
+            resident,
+            layers: state.residency.layers(),
+            resident_mib: (resident as u64 * u64::from(self.summary.page_px).pow(2) * 4) as f64
+                / f64::from(1 << 20),
+            loading: state.residency.in_flight(),
+            uploaded: state.uploaded,
+            evictions: state.residency.evictions,
+            starved: state.residency.starved,
+            broken: state.broken.clone(),
+        }
     }
 
     fn finish_load(

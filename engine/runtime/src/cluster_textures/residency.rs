@@ -37,6 +37,8 @@ pub struct Residency {
     max_in_flight: usize,
     /// Views wanted in the last frame that found no layer to take (all needed that frame).
     pub starved: usize,
+    /// Page views that gave their layer to another, in all.
+    pub evictions: u64,
 }
 
 impl Residency {
@@ -49,6 +51,7 @@ impl Residency {
             in_flight: 0,
             max_in_flight: max_in_flight.max(1),
             starved: 0,
+            evictions: 0,
         }
     }
 
@@ -83,6 +86,7 @@ impl Residency {
             };
             if let Some(old) = evicted {
                 self.by_view.remove(&old);
+                self.evictions += 1;
             }
             self.by_view.insert(view, layer);
             self.in_flight += 1;
@@ -127,6 +131,11 @@ impl Residency {
     /// Loads started and not finished.
     pub fn in_flight(&self) -> usize {
         self.in_flight
+    }
+
+    /// Layers in all.
+    pub fn layers(&self) -> usize {
+        self.layers.len()
     }
 
     /// Page views whose texels are on the GPU.

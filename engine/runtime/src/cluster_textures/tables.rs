@@ -117,7 +117,7 @@ fn cluster_entry(
         wall_count: n as u32,
         page: placement.page,
         roof_rect_px: [roof.x_px, roof.y_px, roof.width_px, roof.height_px].map(|v| v as f32),
-        box_lo_m: [lo[0], lo[1], lo[2], 0.0],
+        box_lo_m: [lo[0], lo[1], lo[2], placement.bin as f32],
         box_hi_m: [hi[0], hi[1], hi[2], 0.0],
     };
     Ok((cluster, walls))
