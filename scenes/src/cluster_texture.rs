@@ -11,3 +11,4 @@ pub mod baked;
 pub mod bins;
 pub mod roof_views;
 pub mod side_layout;
+pub mod tables;

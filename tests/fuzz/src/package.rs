@@ -15,6 +15,7 @@
 //! (kind, flags, offset, length, payload CRC-32, reserved).
 
 use citywalk_scenes::cluster_texture::atlas::AtlasView;
+use citywalk_scenes::cluster_texture::tables::{MeshArrays, TextureTables};
 use citywalk_scenes::package::{MAGIC, ScenePackage};
 
 const HEADER_LEN: usize = 16;
@@ -38,6 +39,21 @@ fn read(bytes: &[u8]) {
     // panic. Its verdict is not judged here: a package with recomputed checksums may be
     // inconsistent.
     let _verdict = package.check_invariants();
+    // The runtime's tables of a textured scene, built from the layout and the GPU scene's
+    // meshes as a load does: a damaged layout leaves clusters untextured, never a panic.
+    if let (Some(textures), Some(tree)) = (&package.cluster_textures, &package.cluster_tree) {
+        let view = package.gpu_scene.view();
+        let _tables = TextureTables::build(
+            &textures.layout,
+            MeshArrays {
+                building_count: view.building_count,
+                node_count: tree.nodes.len() as u32,
+                records: view.records,
+                vertices: view.vertices,
+                indices: view.indices,
+            },
+        );
+    }
     if let Some(textures) = &package.cluster_textures
         && textures.layout.page_px <= 256
     {

@@ -11,11 +11,10 @@
 //! its flat colours, so a frame never waits for a texture (the benchmark and `render` may,
 //! [`ClusterTexturing::settle`]). Per frame the CPU does O(drawn clusters) work.
 //!
-//! The scene pass's `fs_textured` entry point reads the tables of [`tables`]: which wall or
-//! roof of which cluster a fragment lies on, from the flat vertex index of its triangle.
+//! The scene pass's `fs_textured` entry point reads the tables of [`TextureTables`]: which wall
+//! or roof of which cluster a fragment lies on, from the flat vertex index of its triangle.
 
 pub mod residency;
-pub mod tables;
 
 use std::sync::Arc;
 use std::sync::Mutex;
@@ -33,8 +32,8 @@ use glam::Vec3;
 use crate::camera::Camera;
 use crate::gpu::GpuContext;
 use crate::upload::{UploadError, array_buffer};
+pub use citywalk_scenes::cluster_texture::tables::{MeshArrays, TextureTables};
 use residency::{PageView, Residency};
-pub use tables::{MeshArrays, TextureTables};
 
 /// The default GPU memory for resident page views.
 pub const DEFAULT_BUDGET_MIB: u64 = 256;
@@ -197,7 +196,7 @@ pub enum TexturingError {
 
 impl ClusterTexturing {
     /// Uploads the tables of `textures` over the scene's `meshes` and a texture array of as
-    /// many page views as `budget_mib` holds (no more than the package has, nor than the
+    /// many page views as `budget_mib` holds (no more than two per page, nor than the
     /// adapter's array layers); starts the decode worker. Nothing is resident yet.
     pub fn new(
         gpu: &GpuContext,
@@ -224,8 +223,11 @@ impl ClusterTexturing {
             });
         }
         let views = u64::from(layout.page_count) * AtlasView::ALL.len() as u64;
+        // A frame wants at most two views of a page (its side view and the frame's roof
+        // view): more layers would only keep old roof views, so a small scene does not take
+        // the whole budget.
         let layers = fit
-            .min(views.max(1))
+            .min(2 * u64::from(layout.page_count).max(1))
             .min(u64::from(limits.max_texture_array_layers)) as u32;
         let tables = TextureTables::build(layout, meshes);
         let node_pages = tables.clusters.iter().map(|c| c.page).collect();

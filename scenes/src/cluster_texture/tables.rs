@@ -1,11 +1,11 @@
-//! The tables the textured scene pass reads (`wgsl/shared/cluster_textures.wgsl`): per cluster
+//! The tables the runtime's textured scene pass reads (`wgsl/shared/cluster_textures.wgsl`): per cluster
 //! tree node where its textures lie, per wall of a textured cluster mesh its hull edge and its
 //! image in the side view. Built once at load from the package's atlas layout and the cluster
 //! meshes in the GPU scene's arrays, which are checked against the layout: a package is
 //! untrusted input, and a mesh that is not the extruded hull the layout describes is drawn in
 //! flat colours, with the reason, rather than sampled wrongly.
 
-use citywalk_scenes::cluster_texture::atlas::AtlasLayout;
+use super::atlas::{AtlasLayout, ClusterPlacement};
 use citywalk_shaders::constants::NO_TEXTURE_PAGE;
 use citywalk_shaders::{BuildingRecord, SceneVertex, TexturedCluster, TexturedWall};
 
@@ -67,7 +67,7 @@ impl TextureTables {
 /// The table entries of one placed cluster, its walls numbered from `first_wall`.
 fn cluster_entry(
     layout: &AtlasLayout,
-    placement: &citywalk_scenes::cluster_texture::atlas::ClusterPlacement,
+    placement: &ClusterPlacement,
     meshes: MeshArrays<'_>,
     first_wall: usize,
 ) -> Result<(TexturedCluster, Vec<TexturedWall>), String> {
@@ -166,10 +166,10 @@ fn hull_ring(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use citywalk_scenes::cluster_texture::atlas::{ClusterWalls, layout_atlas};
-    use citywalk_scenes::cluster_texture::roof_views::RoofView;
-    use citywalk_scenes::extrude::extrude_polygon;
-    use citywalk_scenes::scene_geometry::SceneGeometry;
+    use crate::cluster_texture::atlas::{ClusterWalls, layout_atlas};
+    use crate::cluster_texture::roof_views::RoofView;
+    use crate::extrude::{extrude_polygon, extruded_walls};
+    use crate::scene_geometry::SceneGeometry;
     use geo::polygon;
     use glam::Vec3;
     use std::borrow::Cow;
@@ -195,8 +195,7 @@ mod tests {
             .iter()
             .enumerate()
             .map(|(node, mesh)| {
-                let (ring, base_m, top_m) =
-                    citywalk_scenes::extrude::extruded_walls(mesh).expect("a hull");
+                let (ring, base_m, top_m) = extruded_walls(mesh).expect("a hull");
                 ClusterWalls {
                     node: node as u32,
                     negative_space_m2: node as f64,
