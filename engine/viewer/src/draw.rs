@@ -137,8 +137,24 @@ impl FrameDrawer {
                 .with_surfaces(gpu, &surfaces)?;
         if let Some((textures, budget_mib)) = scene.cluster_textures.filter(|(_, b)| *b > 0) {
             // Textures are a look, not the scene: one that cannot be drawn leaves clusters flat.
-            if let Err(e) = drawable.add_cluster_textures(gpu, &geometry, textures, budget_mib) {
-                tracing::warn!("cluster meshes drawn flat: {e}");
+            match drawable.add_cluster_textures(gpu, &geometry, textures, budget_mib) {
+                Ok(()) => {
+                    if let Some(s) = drawable.texturing().map(|t| &t.summary) {
+                        tracing::info!(
+                            textured = s.textured_clusters,
+                            layers = s.layers,
+                            page_px = s.page_px,
+                            "cluster textures"
+                        );
+                        if let Some((node, reason)) = s.rejected.first() {
+                            tracing::warn!(
+                                "{} placed clusters drawn flat (node {node}: {reason})",
+                                s.rejected.len()
+                            );
+                        }
+                    }
+                }
+                Err(e) => tracing::warn!("cluster meshes drawn flat: {e}"),
             }
         }
         let occluder_overlay_meshes = drawable.occluders.as_ref().map(OccluderOverlayMeshes::of);

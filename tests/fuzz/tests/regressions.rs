@@ -223,3 +223,27 @@ fn obj_overlay_assertion_in_the_footprint_repair_is_contained() {
         }
     }
 }
+
+/// `package`, run 9: a package (checksums recomputed) whose building footprint has nearly
+/// coincident edges; `check_invariants` asked geo's `Validation` about it and geo's relate
+/// graph panicked inside `edge_end_bundle_star.rs` (a debug assertion). The check now says the
+/// footprint's validity cannot be decided, naming geo's message, and goes on.
+#[test]
+fn package_footprint_geo_cannot_judge_is_reported_not_a_panic() {
+    let data = reproducer("package", "geo_relate_panic_in_validity");
+    let fixed = citywalk_fuzz::package::with_checksums(&data);
+    let verdicts: Vec<String> = [Some(data), fixed]
+        .into_iter()
+        .flatten()
+        .filter_map(|bytes| citywalk_scenes::package::ScenePackage::from_bytes(&bytes).ok())
+        .map(|package| format!("{:?}", package.check_invariants()))
+        .collect();
+    // With debug assertions (the AFL build) geo panics and the check says its validity cannot
+    // be decided; without, geo answers: either way the footprint is refused, not a crash.
+    assert!(
+        verdicts
+            .iter()
+            .any(|v| v.contains("part b2: footprint is invalid")),
+        "{verdicts:#?}"
+    );
+}

@@ -16,6 +16,7 @@
 
 pub mod residency;
 
+use std::collections::BTreeMap;
 use std::sync::Arc;
 use std::sync::Mutex;
 use std::sync::mpsc::{Receiver, Sender, channel};
@@ -122,7 +123,7 @@ struct State {
     requests: Sender<PageView>,
     decoded: Receiver<Decoded>,
     /// Page views that failed to decode: never asked for again, drawn flat.
-    broken: Vec<(PageView, String)>,
+    broken: BTreeMap<PageView, String>,
     uploaded: u64,
 }
 
@@ -336,7 +337,7 @@ impl ClusterTexturing {
                 shading: ClusterShading::Textured,
                 requests,
                 decoded,
-                broken: Vec::new(),
+                broken: BTreeMap::new(),
                 uploaded: 0,
             }),
         })
@@ -400,7 +401,7 @@ impl ClusterTexturing {
             .filter(|&page| page != NO_TEXTURE_PAGE);
         let wanted: Vec<PageView> = pages
             .flat_map(|page| [(page, 0u8), (page, roof)])
-            .filter(|view| !state.broken.iter().any(|(b, _)| b == view))
+            .filter(|view| !state.broken.contains_key(view))
             .collect();
         let frame = state.frame;
         for load in state.residency.want(wanted, frame) {
@@ -410,7 +411,7 @@ impl ClusterTexturing {
             // A closed channel means the worker is gone: the view stays flat, as broken.
             if state.requests.send(load.view).is_err() {
                 state.residency.failed(load.view);
-                state.broken.push((load.view, "the decoder stopped".into()));
+                state.broken.insert(load.view, "the decoder stopped".into());
             }
         }
     }
@@ -446,7 +447,11 @@ impl ClusterTexturing {
             uploaded: state.uploaded,
             evictions: state.residency.evictions,
             starved: state.residency.starved,
-            broken: state.broken.clone(),
+            broken: state
+                .broken
+                .iter()
+                .map(|(view, why)| (*view, why.clone()))
+                .collect(),
         }
     }
 
@@ -469,7 +474,7 @@ impl ClusterTexturing {
             Err(reason) => {
                 state.residency.failed(view);
                 tracing::warn!("cluster texture page {} view {}: {reason}", view.0, view.1);
-                state.broken.push((view, reason));
+                state.broken.insert(view, reason);
             }
         }
     }
