@@ -22,6 +22,7 @@ pub mod mesh_footprint;
 pub mod occluder;
 pub mod occluder_draws;
 mod overlay_guard;
+pub use overlay_guard::panic_message;
 pub mod package;
 pub mod quadtree;
 pub mod report;

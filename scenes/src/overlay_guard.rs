@@ -12,13 +12,18 @@ use crate::report::RejectReason;
 /// naming `what` failed and the panic's message.
 pub(crate) fn overlay_or_reject<T>(what: &str, op: impl FnOnce() -> T) -> Result<T, RejectReason> {
     catch_unwind(AssertUnwindSafe(op)).map_err(|panic| {
-        let why = panic
-            .downcast_ref::<&str>()
-            .map(|s| (*s).to_owned())
-            .or_else(|| panic.downcast_ref::<String>().cloned())
-            .unwrap_or_else(|| "no message".to_owned());
+        let why = panic_message(panic.as_ref());
         RejectReason::InvalidGeometry(format!("{what} failed inside i_overlay: {why}"))
     })
+}
+
+/// The message a caught panic carries (`panic!`'s text), or "no message".
+pub fn panic_message(panic: &(dyn std::any::Any + Send)) -> String {
+    panic
+        .downcast_ref::<&str>()
+        .map(|s| (*s).to_owned())
+        .or_else(|| panic.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "no message".to_owned())
 }
 
 #[cfg(test)]

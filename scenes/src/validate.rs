@@ -247,16 +247,12 @@ fn check_valid(mp: &MultiPolygon<f64>) -> Result<(), String> {
     })?;
     if let Some(contact) = met.first() {
         if edges <= MAX_TOUCHING_VERTICES {
-            // geo's relate graph can panic on nearly coincident edges ("found non-noded
-            // intersection", found by fuzzing, `tests/fuzz/README.md` run 9): such a
-            // footprint is invalid with that reason, never a crash.
+            // A debug assertion in geo's relate graph fires on nearly coincident edges (found
+            // by fuzzing, `tests/fuzz/README.md` run 9): such a footprint is invalid with that
+            // reason, never a crash.
             return catch_unwind(AssertUnwindSafe(|| mp.check_validation()))
                 .map_err(|panic| {
-                    let why = panic
-                        .downcast_ref::<&str>()
-                        .map(|s| (*s).to_owned())
-                        .or_else(|| panic.downcast_ref::<String>().cloned())
-                        .unwrap_or_else(|| "no message".to_owned());
+                    let why = crate::panic_message(panic.as_ref());
                     format!("its validity cannot be decided (geo's check failed: {why})")
                 })?
                 .map_err(|e| e.to_string());

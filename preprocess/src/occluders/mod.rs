@@ -210,11 +210,7 @@ fn occluders_or_reason(building: &Building, params: &OccluderParams) -> Building
         occluders_for_building(building, params)
     }))
     .unwrap_or_else(|panic| {
-        let what = panic
-            .downcast_ref::<&str>()
-            .map(|s| (*s).to_owned())
-            .or_else(|| panic.downcast_ref::<String>().cloned())
-            .unwrap_or_else(|| "unknown".to_owned());
+        let what = citywalk_scenes::panic_message(panic.as_ref());
         tracing::warn!(building = %building.source_id, %what, "occluder generation panicked");
         BuildingOccluders {
             occluders: Vec::new(),
