@@ -121,6 +121,16 @@ fn inspect_tree_draws_and_exports_the_packages_tree() {
         .filter_map(|w| w.parse().ok())
         .collect();
     assert!(matches!(numbers[..], [t, p] if 0 < p && p < t), "{header}");
+    // Level 0 is the root alone: its errors are the median and the maximum of its row.
+    let root = &tree.nodes[0];
+    let level_0 = stdout
+        .lines()
+        .find(|l| l.trim_start().starts_with("0 "))
+        .unwrap_or_else(|| panic!("no level 0 row:\n{stdout}"));
+    for error in [root.geometric_error_m, root.colour_error_m] {
+        let shown = format!("{error:.1} / ");
+        assert!(level_0.contains(&shown), "{shown} not in {level_0}");
+    }
 
     let image = image::open(&png).expect("the PNG decodes").to_rgb8();
     assert_eq!(image.width().max(image.height()), 300);

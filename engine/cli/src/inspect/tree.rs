@@ -19,7 +19,7 @@ use citywalk_preprocess::cluster::build_cluster_tree;
 use citywalk_preprocess::occluders::gltf_out::{GlbOptions, meshes_to_glb};
 use citywalk_preprocess::occluders::polygons::planar_face_count;
 use citywalk_scenes::cluster_tree::{
-    ClusterDistance, ClusterParams, ClusterTree, HullMerge, HullSimplify,
+    ClusterDistance, ClusterParams, ClusterNode, ClusterTree, HullMerge, HullSimplify,
 };
 use citywalk_scenes::extrude::building_mesh;
 use citywalk_scenes::{City, TriangleMesh};
@@ -211,7 +211,8 @@ fn print_merge_fallbacks(tree: &ClusterTree) {
 
 /// Triangles and polygons (planar faces, [`planar_face_count`]) drawn when the whole city is
 /// shown at each level of the tree, against the input (Chang et al. §9 report polygon counts
-/// per level: 285,039 → 131,409 at ε = 100, τ = 2).
+/// per level: 285,039 → 131,409 at ε = 100, τ = 2), and the errors of the level's cluster
+/// meshes (what holds a cut at that level: README "LOD criteria").
 fn print_level_polygons(tree: &ClusterTree, building_meshes: &[TriangleMesh]) {
     let building_counts: Vec<(usize, usize)> = building_meshes
         .iter()
@@ -221,7 +222,8 @@ fn print_level_polygons(tree: &ClusterTree, building_meshes: &[TriangleMesh]) {
         .iter()
         .fold((0, 0), |a, c| (a.0 + c.0, a.1 + c.1));
     println!(
-        "level  nodes  triangles  polygons  share of input ({} triangles, {} polygons)",
+        "level  nodes  triangles  polygons  share of input ({} triangles, {} polygons)  \
+         clusters' geometric error m (median / max)  colour error m (median / max)",
         input.0, input.1
     );
     for level in 0..=tree.max_depth() {
@@ -242,11 +244,26 @@ fn print_level_polygons(tree: &ClusterTree, building_meshes: &[TriangleMesh]) {
             })
             .fold((0, 0), |a, c| (a.0 + c.0, a.1 + c.1));
         let share = |x: usize, of: usize| 100.0 * x as f64 / of.max(1) as f64;
+        let clusters: Vec<_> = cut
+            .iter()
+            .map(|&n| &tree.nodes[n as usize])
+            .filter(|node| !node.is_leaf())
+            .collect();
+        let spread = |error: fn(&ClusterNode) -> f32| {
+            let mut errors: Vec<f32> = clusters.iter().map(|&node| error(node)).collect();
+            errors.sort_by(f32::total_cmp);
+            match (errors.get(errors.len() / 2), errors.last()) {
+                (Some(median), Some(max)) => format!("{median:>7.1} / {max:>7.1}"),
+                _ => format!("{:>17}", "–"),
+            }
+        };
         println!(
-            "{level:>5}  {:>5}  {triangles:>9}  {polygons:>8}  {:>6.1} % / {:>5.1} %",
+            "{level:>5}  {:>5}  {triangles:>9}  {polygons:>8}  {:>6.1} % / {:>5.1} %  {}  {}",
             cut.len(),
             share(triangles, input.0),
-            share(polygons, input.1)
+            share(polygons, input.1),
+            spread(|node| node.geometric_error_m),
+            spread(|node| node.colour_error_m),
         );
         if cut.iter().all(|&n| tree.nodes[n as usize].is_leaf()) {
             break;
