@@ -5,7 +5,8 @@
 //! WGSL `const`s, so they are defined once in Rust) and, for the top-level files, with all of
 //! `wgsl/shared/*.wgsl` (shared structs and helpers). Shared files are validated on their own
 //! (with the constants), top-level files composed. The composed sources are written to
-//! `$OUT_DIR/<name>.wgsl` and included by `src/lib.rs`.
+//! `$OUT_DIR/<name>.wgsl` and included by `src/lib.rs`, the prelude alone (constants and shared
+//! files) to `$OUT_DIR/shared.wgsl`.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -49,6 +50,9 @@ fn main() {
         }
     }
     let header = format!("{prelude}{shared_source}");
+    if let Err(e) = std::fs::write(out_dir.join("shared.wgsl"), &header) {
+        failures.push(format!("shared.wgsl: {e}"));
+    }
     for path in &top {
         println!("cargo::rerun-if-changed={}", path.display());
         let source = match std::fs::read_to_string(path) {

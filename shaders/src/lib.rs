@@ -21,6 +21,11 @@ pub use types::{
     SceneVertex, TexturedCluster, TexturedWall, ViewUniforms,
 };
 
+/// What every shader below starts with: the constants and every `wgsl/shared/*.wgsl`. A test
+/// composes its own entry points with it to run a shared helper on the GPU against its CPU
+/// reference (`tests/tests/cluster_textures.rs` does so for the texel mappings).
+pub const SHARED_WGSL: &str = include_str!(concat!(env!("OUT_DIR"), "/shared.wgsl"));
+
 /// Flat-shaded scene pass (`wgsl/scene.wgsl`): entry points `vs_main`, `fs_main`; group 0
 /// binding 0 is the [`ViewUniforms`] uniform; vertex buffer of [`SceneVertex`]. Entry point
 /// `fs_textured` also draws cluster meshes with their baked textures, from group 1: binding 0

@@ -482,3 +482,200 @@ fn one_textured_cluster_matches_golden() {
             .expect("size");
     assert_matches_golden("textured_cluster_161x97.png", &image, 8, 0.99);
 }
+
+/// The shader's texel mappings (`wall_texel`, `roof_texel` in
+/// `shaders/wgsl/shared/cluster_textures.wgsl`), run on the GPU through the tables a load
+/// builds, against their CPU reference: the layout's `SideLayout::uv` for a wall point and
+/// `ClusterPlacement::roof_uv` for a roof point seen by each of the five roof views, on the
+/// image axes the runtime gives the shader (`roof_image_axes`).
+#[test]
+fn the_shader_maps_walls_and_roofs_to_the_texels_of_the_layout() {
+    use citywalk_runtime::cluster_textures::{MeshArrays, TextureTables, roof_image_axes};
+    use glam::Vec3;
+    use wgpu::util::DeviceExt;
+
+    let Some(gpu) = gpu_or_skip("the_shader_maps_walls_and_roofs_to_the_texels_of_the_layout")
+    else {
+        return;
+    };
+    let city = boxes(&[
+        (0.0, 0.0, 10.0, 10.0, 8.0),
+        (10.0, 0.0, 20.0, 10.0, 14.0),
+        (20.0, 2.0, 31.0, 9.0, 11.0),
+        (40.0, 0.0, 50.0, 12.0, 10.0),
+        (40.0, 14.0, 50.0, 24.0, 12.0),
+        (52.0, 16.0, 60.0, 30.0, 25.0),
+    ]);
+    let package = preprocess(city, &PreprocessParams::default(), &NoProgress).expect("preprocess");
+    let tree = package.cluster_tree.as_ref().unwrap();
+    let layout = layout_atlas(&cluster_walls(tree), 1024);
+    let scene = package.gpu_scene.view();
+    let tables = TextureTables::build(
+        &layout,
+        MeshArrays {
+            building_count: scene.building_count,
+            node_count: tree.nodes.len() as u32,
+            records: scene.records,
+            vertices: scene.vertices,
+            indices: scene.indices,
+        },
+    );
+    assert!(tables.rejected.is_empty(), "{:?}", tables.rejected);
+    assert!(tables.textured() >= 2, "{} textured", tables.textured());
+
+    // Probes: (point, roof view or None for wall `wall`, cluster node, wall), and the texel
+    // the layout gives each.
+    let page = layout.page_px as f32;
+    let mut probes: Vec<(Vec3, Option<RoofView>, u32, u32)> = Vec::new();
+    let mut want: Vec<[f32; 2]> = Vec::new();
+    for placement in &layout.clusters {
+        let c = &tables.clusters[placement.node as usize];
+        let bin = &layout.bins[placement.bin as usize];
+        let [ox, oy] = bin.cell_origin_px(placement.cell).map(|v| v as f32);
+        let side = placement.sides.side_px as f32;
+        let record = &scene.records[(scene.building_count + placement.node) as usize];
+        let vertex =
+            |k: usize| Vec3::from(scene.vertices[record.base_vertex as usize + k].position_m);
+        let n = c.wall_count as usize;
+        for wall in 0..n {
+            let (a, b) = (vertex(2 * wall), vertex(2 * ((wall + 1) % n)));
+            for (along, up) in [(0.0, 0.0), (1.0, 1.0), (0.25, 0.6), (0.8, 0.1)] {
+                let z = c.box_lo_m[2] + up * (c.box_hi_m[2] - c.box_lo_m[2]);
+                probes.push((
+                    a.lerp(b, along).with_z(z),
+                    None,
+                    placement.node,
+                    wall as u32,
+                ));
+                let [u, v] = placement.sides.uv(wall, along, up);
+                want.push([ox + u * side, oy + v * side]);
+            }
+        }
+        let (lo, hi) = (
+            Vec3::from(placement.box_lo_m),
+            Vec3::from(placement.box_hi_m),
+        );
+        for view in RoofView::ALL {
+            for t in [
+                Vec3::new(0.0, 0.0, 1.0),
+                Vec3::new(1.0, 1.0, 1.0),
+                Vec3::new(0.3, 0.7, 1.0),
+                Vec3::new(0.9, 0.2, 0.5),
+                Vec3::new(0.5, 0.5, 0.0),
+            ] {
+                let point = lo + (hi - lo) * t;
+                probes.push((point, Some(view), placement.node, 0));
+                let [u, v] = placement.roof_uv(bin, layout.page_px, view, point);
+                want.push([u * page, v * page]);
+            }
+        }
+    }
+
+    // One 64-byte probe: point, right, down (vec4 each), then cluster, wall, roof flag.
+    let mut words: Vec<u32> = Vec::new();
+    for &(point, view, node, wall) in &probes {
+        let [right, down] = view.map_or([Vec3::ZERO; 2], roof_image_axes);
+        for v in [point, right, down] {
+            words.extend(v.extend(0.0).to_array().map(f32::to_bits));
+        }
+        words.extend([node, wall, u32::from(view.is_some()), 0]);
+    }
+    let source = format!(
+        "{}{}",
+        citywalk_shaders::SHARED_WGSL,
+        r#"
+struct TexelProbe { point: vec4<f32>, right: vec4<f32>, down: vec4<f32>, cluster: u32, wall: u32, roof: u32, pad: u32 }
+@group(0) @binding(0) var<storage, read> clusters: array<TexturedCluster>;
+@group(0) @binding(1) var<storage, read> walls: array<TexturedWall>;
+@group(0) @binding(2) var<storage, read> probes: array<TexelProbe>;
+@group(0) @binding(3) var<storage, read_write> texels: array<vec2<f32>>;
+@compute @workgroup_size(64)
+fn probe_texels(@builtin(global_invocation_id) id: vec3<u32>) {
+    if id.x >= arrayLength(&probes) { return; }
+    let p = probes[id.x];
+    let cluster = clusters[p.cluster];
+    if p.roof == 1u {
+        texels[id.x] = roof_texel(cluster, p.right.xyz, p.down.xyz, p.point.xyz);
+    } else {
+        texels[id.x] = wall_texel(cluster, walls[cluster.first_wall + p.wall], p.point.xyz);
+    }
+}
+"#
+    );
+    let device = &gpu.device;
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("texel probes"),
+        source: wgpu::ShaderSource::Wgsl(source.into()),
+    });
+    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some("texel probes"),
+        layout: None,
+        module: &module,
+        entry_point: Some("probe_texels"),
+        compilation_options: Default::default(),
+        cache: None,
+    });
+    let storage = |label: &str, contents: &[u8]| {
+        device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(label),
+            contents,
+            usage: wgpu::BufferUsages::STORAGE,
+        })
+    };
+    let clusters = storage("clusters", bytemuck::cast_slice(&tables.clusters));
+    let walls = storage("walls", bytemuck::cast_slice(&tables.walls));
+    let probe_buffer = storage("probes", bytemuck::cast_slice(&words));
+    let size = (probes.len() * 8) as u64;
+    let texels = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("texels"),
+        size,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    });
+    let readback = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("texels readback"),
+        size,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("texel probes"),
+        layout: &pipeline.get_bind_group_layout(0),
+        entries: &[&clusters, &walls, &probe_buffer, &texels]
+            .iter()
+            .enumerate()
+            .map(|(i, b)| wgpu::BindGroupEntry {
+                binding: i as u32,
+                resource: b.as_entire_binding(),
+            })
+            .collect::<Vec<_>>(),
+    });
+    let mut encoder = device.create_command_encoder(&Default::default());
+    {
+        let mut pass = encoder.begin_compute_pass(&Default::default());
+        pass.set_pipeline(&pipeline);
+        pass.set_bind_group(0, &bind_group, &[]);
+        pass.dispatch_workgroups((probes.len() as u32).div_ceil(64), 1, 1);
+    }
+    encoder.copy_buffer_to_buffer(&texels, 0, &readback, 0, size);
+    gpu.queue.submit([encoder.finish()]);
+    let bytes = citywalk_runtime::render::targets::map_read_prefix(&gpu, &readback, size)
+        .expect("texels read back");
+    let got: &[[f32; 2]] = bytemuck::cast_slice(&bytes);
+
+    for (i, ((point, view, node, wall), want)) in probes.iter().zip(&want).enumerate() {
+        let g = got[i];
+        assert!(
+            (g[0] - want[0]).abs() < 0.01 && (g[1] - want[1]).abs() < 0.01,
+            "probe {i}: node {node}, {} at {point}: shader {g:?}, layout {want:?}",
+            view.map_or(format!("wall {wall}"), |v| format!("roof view {v:?}"))
+        );
+    }
+    // The walls and every roof view were probed.
+    assert!(probes.iter().any(|p| p.1.is_none()));
+    assert!(
+        RoofView::ALL
+            .iter()
+            .all(|v| probes.iter().any(|p| p.1 == Some(*v)))
+    );
+}

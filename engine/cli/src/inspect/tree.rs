@@ -19,7 +19,7 @@ use citywalk_preprocess::cluster::build_cluster_tree;
 use citywalk_preprocess::occluders::gltf_out::{GlbOptions, meshes_to_glb};
 use citywalk_preprocess::occluders::polygons::planar_face_count;
 use citywalk_scenes::cluster_tree::{
-    ClusterDistance, ClusterParams, ClusterNode, ClusterTree, HullMerge, HullSimplify,
+    ClusterDistance, ClusterNode, ClusterParams, ClusterTree, HullMerge, HullSimplify,
 };
 use citywalk_scenes::extrude::building_mesh;
 use citywalk_scenes::{City, TriangleMesh};

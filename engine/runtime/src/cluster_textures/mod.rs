@@ -127,6 +127,14 @@ struct State {
     uploaded: u64,
 }
 
+/// The right and down axes of `view`'s image (unit, world space): what `fs_textured`'s
+/// `roof_texel` projects a roof point on (`ClusterTexturingParams::roof_right`, `roof_down`),
+/// the axes [`RoofView::frame`] gives the baker.
+pub fn roof_image_axes(view: RoofView) -> [Vec3; 2] {
+    let [right, down, _] = view.frame(Vec3::ZERO, Vec3::ONE).axes;
+    [right, down]
+}
+
 /// The bind-group layout of group 1 of the textured scene pass (`citywalk_shaders::SCENE_WGSL`).
 pub fn bind_group_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
     let fragment = wgpu::ShaderStages::FRAGMENT;
@@ -371,8 +379,7 @@ impl ClusterTexturing {
             self.finish_load(gpu, &mut state, view, image);
         }
         state.roof_view = RoofView::closest_to(camera.forward());
-        let frame = state.roof_view.frame(Vec3::ZERO, Vec3::ONE);
-        let [right, down, _] = frame.axes;
+        let [right, down] = roof_image_axes(state.roof_view);
         let params = ClusterTexturingParams {
             roof_right: right.extend(0.0).to_array(),
             roof_down: down.extend(0.0).to_array(),
