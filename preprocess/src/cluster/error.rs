@@ -53,23 +53,37 @@ const MAX_QUERIES: usize = 1024;
 /// When the search may stop: a plan distance `bound` adds nothing that matters to the
 /// geometric error over the `lower` one already measured.
 #[derive(Debug, Clone, Copy)]
-struct Tolerance {
+pub struct Tolerance {
     vertical_m: f64,
+    /// The node's error is at least this (its children's): a plan distance whose geometric
+    /// error stays below it cannot change the node's.
+    floor_m: f64,
     absolute_m: f64,
 }
 
 impl Tolerance {
-    fn new(vertical_m: f64, hull_size_m: f64) -> Tolerance {
+    /// For a node of vertical error `vertical_m` whose children's geometric error is
+    /// `floor_m`; [`plan_error_m`] sets the absolute part from the hull's size.
+    pub fn new(vertical_m: f64, floor_m: f64) -> Tolerance {
         Tolerance {
             vertical_m,
+            floor_m,
+            absolute_m: MIN_TOLERANCE_M,
+        }
+    }
+
+    fn for_hull(self, hull_size_m: f64) -> Tolerance {
+        Tolerance {
             absolute_m: MIN_TOLERANCE_M.max(hull_size_m / SIZE_TOLERANCE_DIVISOR),
+            ..self
         }
     }
 
     fn covers(&self, bound: f64, lower: f64) -> bool {
         let reached = (self.vertical_m * self.vertical_m + lower * lower).sqrt();
-        (self.vertical_m * self.vertical_m + bound * bound).sqrt()
-            <= reached + self.absolute_m.max(RELATIVE_TOLERANCE * reached)
+        let geometric = (self.vertical_m * self.vertical_m + bound * bound).sqrt();
+        geometric <= self.floor_m
+            || geometric <= reached + self.absolute_m.max(RELATIVE_TOLERANCE * reached)
     }
 }
 
@@ -190,8 +204,9 @@ impl Footprints<'_> {
 
 /// An upper bound (m) of the largest distance from a point of the hull `ring` to the
 /// footprints of the buildings `range` (the plan part of the geometric error), close enough
-/// to the true value that the geometric error it makes with `vertical_m` is within
-/// [`RELATIVE_TOLERANCE`] (or the absolute tolerance) of the true one.
+/// to the true value that the geometric error it makes with the tolerance's vertical error is
+/// within [`RELATIVE_TOLERANCE`] (or the absolute tolerance) of the true one, or below the
+/// tolerance's floor when the true one is (then the node's error is the floor anyway).
 ///
 /// Branch and bound over square cells, the way the pole of inaccessibility is found
 /// (Garcia-Castellanos & Lombardo 2007, "Poles of inaccessibility"): the distance is
@@ -207,14 +222,14 @@ pub fn plan_error_m(
     verts: &[Pt],
     ring: &[u32],
     range: (u32, u32),
-    vertical_m: f64,
+    tolerance: Tolerance,
 ) -> f64 {
     if ring.len() < 3 {
         return 0.0;
     }
     let (lo, hi) = ring_bounds(verts, ring);
     let half = 0.5 * (hi[0] - lo[0]).max(hi[1] - lo[1]);
-    let tolerance = Tolerance::new(vertical_m, 2.0 * half);
+    let tolerance = tolerance.for_hull(2.0 * half);
     let mut lower = 0.0f64;
     // The largest bound of a cell given up because it could not beat `lower` by the
     // tolerance: the result must still cover it.
@@ -368,44 +383,69 @@ pub fn fill_errors(
         .map(|b| heights(&city.buildings[b.index()]))
         .collect();
     let fp = Footprints::new(city, building_order);
-    // Each node's own error is independent of the others' (rayon's threads); the maximum with
-    // the children's then runs bottom-up.
-    let own: Vec<(f32, f32)> = nodes
-        .par_iter()
-        .map(|node| {
-            if node.is_leaf() {
-                return (0.0, 0.0);
-            }
-            let (s, e) = node.buildings;
-            let mine = &per_building[s as usize..e as usize];
-            let base = mine.iter().map(|h| h.base_m).fold(f32::INFINITY, f32::min);
-            // The mesh's base, as `build_meshes` extrudes it.
-            let base = base.min(node.height_m);
-            let vertical = mine
-                .iter()
-                .map(|h| {
-                    (node.height_m - h.lowest_top_m)
-                        .max(h.top_m - node.height_m)
-                        .max(h.base_m - base)
-                })
-                .fold(0.0f32, f32::max);
-            let plan = node.footprint.first().map_or(0.0, |ring| {
-                plan_error_m(&fp, verts, ring, (s, e), f64::from(vertical))
-            });
-            let colour = mine.iter().map(|h| h.colour_m).fold(0.0f32, f32::max);
-            (f64::from(vertical).hypot(plan) as f32, colour)
-        })
-        .collect();
-    for id in (0..nodes.len()).rev() {
-        let (mut geometric, mut colour) = own[id];
-        for &c in &nodes[id].children {
-            geometric = geometric.max(nodes[c as usize].geometric_error_m);
-            colour = colour.max(nodes[c as usize].colour_error_m);
-        }
-        let node = &mut nodes[id];
-        node.geometric_error_m = geometric;
-        node.colour_error_m = colour;
+    // Bottom-up, one depth at a time, the nodes of a depth on rayon's threads: a node's error
+    // is the maximum of its own and its children's, so its children's (already final) are a
+    // floor below which its own search need not look.
+    let deepest = nodes.iter().map(|n| n.depth as usize).max().unwrap_or(0);
+    let mut by_depth: Vec<Vec<usize>> = vec![Vec::new(); deepest + 1];
+    for (id, node) in nodes.iter().enumerate() {
+        by_depth[node.depth as usize].push(id);
     }
+    for ids in by_depth.iter().rev() {
+        let errors: Vec<(f32, f32)> = ids
+            .par_iter()
+            .map(|&id| {
+                let node = &nodes[id];
+                let (floor_geometric, floor_colour) =
+                    node.children
+                        .iter()
+                        .fold((0.0f32, 0.0f32), |(g, c), &child| {
+                            let child = &nodes[child as usize];
+                            (g.max(child.geometric_error_m), c.max(child.colour_error_m))
+                        });
+                let (geometric, colour) =
+                    own_errors(&fp, verts, &per_building, node, floor_geometric);
+                (geometric.max(floor_geometric), colour.max(floor_colour))
+            })
+            .collect();
+        for (&id, (geometric, colour)) in ids.iter().zip(errors) {
+            nodes[id].geometric_error_m = geometric;
+            nodes[id].colour_error_m = colour;
+        }
+    }
+}
+
+/// A node's own geometric and colour error (m), not yet the maximum with its children's; the
+/// geometric one found only as far as it can exceed `floor_m`.
+fn own_errors(
+    fp: &Footprints<'_>,
+    verts: &[Pt],
+    per_building: &[Heights],
+    node: &ClusterNode,
+    floor_m: f32,
+) -> (f32, f32) {
+    if node.is_leaf() {
+        return (0.0, 0.0);
+    }
+    let (s, e) = node.buildings;
+    let mine = &per_building[s as usize..e as usize];
+    let base = mine.iter().map(|h| h.base_m).fold(f32::INFINITY, f32::min);
+    // The mesh's base, as `build_meshes` extrudes it.
+    let base = base.min(node.height_m);
+    let vertical = mine
+        .iter()
+        .map(|h| {
+            (node.height_m - h.lowest_top_m)
+                .max(h.top_m - node.height_m)
+                .max(h.base_m - base)
+        })
+        .fold(0.0f32, f32::max);
+    let plan = node.footprint.first().map_or(0.0, |ring| {
+        let tolerance = Tolerance::new(f64::from(vertical), f64::from(floor_m));
+        plan_error_m(fp, verts, ring, (s, e), tolerance)
+    });
+    let colour = mine.iter().map(|h| h.colour_m).fold(0.0f32, f32::max);
+    (f64::from(vertical).hypot(plan) as f32, colour)
 }
 
 #[cfg(test)]
@@ -451,26 +491,47 @@ mod tests {
         let fp = Footprints::new(&city, &order);
         let verts = vec![[0.0, 0.0], [26.0, 0.0], [26.0, 10.0], [0.0, 10.0]];
         // The bound is within the tolerance of the true value.
-        let e = plan_error_m(&fp, &verts, &[0, 1, 2, 3], (0, 2), 0.0);
+        let e = plan_error_m(&fp, &verts, &[0, 1, 2, 3], (0, 2), Tolerance::new(0.0, 0.0));
         assert!(e >= 3.0, "{e} below the true 3 m");
         assert!(
             e <= 3.0 + MIN_TOLERANCE_M + 1e-9,
             "{e} far above the true 3 m"
         );
         // Only building 0 belongs to the node: the far end of the hull is 16 m from it.
-        let e0 = plan_error_m(&fp, &verts, &[0, 1, 2, 3], (0, 1), 0.0);
+        let e0 = plan_error_m(&fp, &verts, &[0, 1, 2, 3], (0, 1), Tolerance::new(0.0, 0.0));
         assert!(e0 >= 16.0, "{e0}");
         assert!(e0 <= 16.0 * (1.0 + RELATIVE_TOLERANCE) + 1e-9, "{e0}");
         // A hull equal to the footprints has only the tolerance.
         let tight = vec![[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]];
-        assert!(plan_error_m(&fp, &tight, &[0, 1, 2, 3], (0, 1), 0.0) <= MIN_TOLERANCE_M + 1e-9);
+        assert!(
+            plan_error_m(&fp, &tight, &[0, 1, 2, 3], (0, 1), Tolerance::new(0.0, 0.0))
+                <= MIN_TOLERANCE_M + 1e-9
+        );
         // Beside a vertical error of 4 m, the plan error of the gap (3 m) is found only as
         // closely as the geometric error √(4² + 3²) = 5 m needs.
-        let v = plan_error_m(&fp, &verts, &[0, 1, 2, 3], (0, 2), 4.0);
+        let v = plan_error_m(&fp, &verts, &[0, 1, 2, 3], (0, 2), Tolerance::new(4.0, 0.0));
         assert!(
             v >= 3.0 && 4f64.hypot(v) <= 5.0 * (1.0 + RELATIVE_TOLERANCE) + 1e-9,
             "{v}"
         );
+        // Children's error of 20 m, above the node's own 16 m: the search may stop anywhere
+        // below 20 m; with a floor of 10 m it still finds the 16 m.
+        let under = plan_error_m(
+            &fp,
+            &verts,
+            &[0, 1, 2, 3],
+            (0, 1),
+            Tolerance::new(0.0, 20.0),
+        );
+        assert!(under <= 20.0, "{under}");
+        let found = plan_error_m(
+            &fp,
+            &verts,
+            &[0, 1, 2, 3],
+            (0, 1),
+            Tolerance::new(0.0, 10.0),
+        );
+        assert!(found >= 16.0, "{found}");
     }
 
     proptest::proptest! {
@@ -496,7 +557,7 @@ mod tests {
             let fp = Footprints::new(&city, &order);
             let verts = vec![lo, [hi[0], lo[1]], hi, [lo[0], hi[1]]];
             let range = (0, order.len() as u32);
-            let e = plan_error_m(&fp, &verts, &[0, 1, 2, 3], range, 0.0);
+            let e = plan_error_m(&fp, &verts, &[0, 1, 2, 3], range, Tolerance::new(0.0, 0.0));
             let step = 0.5;
             let mut sampled = 0.0f64;
             let (nx, ny) = (((hi[0] - lo[0]) / step).ceil() as usize, ((hi[1] - lo[1]) / step).ceil() as usize);
@@ -515,7 +576,7 @@ mod tests {
                 proptest::prop_assert!((direct - indexed).abs() < 1e-9, "{direct} against {indexed} at {p:?}");
             }
             proptest::prop_assert!(
-                Tolerance::new(0.0, size).covers(e, most),
+                Tolerance::new(0.0, 0.0).for_hull(size).covers(e, most),
                 "{e} above the tolerance over {sampled}"
             );
         }
