@@ -95,9 +95,8 @@ pub struct Footprints<'a> {
     order: &'a [citywalk_scenes::BuildingId],
     edges: RTree<GeomWithData<Line<Pt>, u32>>,
     boxes: RTree<GeomWithData<Rectangle<Pt>, u32>>,
-    /// Every footprint edge (every ring), the buildings' in their tree order: the edges of
-    /// the building at position `p` are `flat[first_edge[p] .. first_edge[p + 1]]`.
-    flat: Vec<[Pt; 2]>,
+    /// Footprint edges (every ring) of the buildings before each position in the tree order:
+    /// `order[a .. b]` has `first_edge[b] - first_edge[a]` edges.
     first_edge: Vec<u32>,
 }
 
@@ -110,17 +109,15 @@ impl<'a> Footprints<'a> {
     pub fn new(city: &'a City, order: &'a [citywalk_scenes::BuildingId]) -> Footprints<'a> {
         let mut edges = Vec::new();
         let mut boxes = Vec::new();
-        let mut flat = Vec::new();
         let mut first_edge = Vec::with_capacity(order.len() + 1);
         for (pos, b) in order.iter().enumerate() {
             let building = &city.buildings[b.index()];
-            first_edge.push(flat.len() as u32);
+            first_edge.push(edges.len() as u32);
             for poly in &building.footprint.0 {
                 for ring in std::iter::once(poly.exterior()).chain(poly.interiors()) {
                     for l in ring.lines() {
-                        let seg = [[l.start.x, l.start.y], [l.end.x, l.end.y]];
-                        flat.push(seg);
-                        edges.push(GeomWithData::new(Line::new(seg[0], seg[1]), pos as u32));
+                        let seg = Line::new([l.start.x, l.start.y], [l.end.x, l.end.y]);
+                        edges.push(GeomWithData::new(seg, pos as u32));
                     }
                 }
             }
@@ -129,16 +126,13 @@ impl<'a> Footprints<'a> {
                 boxes.push(GeomWithData::new(rect, pos as u32));
             }
         }
+        first_edge.push(edges.len() as u32);
         Footprints {
             city,
             order,
             edges: RTree::bulk_load(edges),
             boxes: RTree::bulk_load(boxes),
-            first_edge: {
-                first_edge.push(flat.len() as u32);
-                first_edge
-            },
-            flat,
+            first_edge,
         }
     }
 
@@ -177,15 +171,21 @@ impl<'a> Footprints<'a> {
 }
 
 impl Footprints<'_> {
-    /// [`Footprints::distance_m`] over the node's own edges: 0 inside a footprint (crossing
-    /// parity over each building's rings, holes included), else the nearest edge.
+    /// [`Footprints::distance_m`] over the node's own footprints, read from the city (no copy
+    /// of the edges): 0 inside a footprint (crossing parity over each building's rings, holes
+    /// included), else the nearest edge.
     fn distance_direct_m(&self, p: Pt, range: (u32, u32)) -> f64 {
         let mut nearest2 = f64::INFINITY;
         for pos in range.0..range.1 {
-            let edges = &self.flat[self.first_edge[pos as usize] as usize
-                ..self.first_edge[pos as usize + 1] as usize];
+            let footprint = &self.city.buildings[self.order[pos as usize].index()].footprint;
+            let edges = footprint.0.iter().flat_map(|poly| {
+                std::iter::once(poly.exterior())
+                    .chain(poly.interiors())
+                    .flat_map(|ring| ring.lines())
+                    .map(|l| [[l.start.x, l.start.y], [l.end.x, l.end.y]])
+            });
             let mut inside = false;
-            for &[a, b] in edges {
+            for [a, b] in edges {
                 if (a[1] > p[1]) != (b[1] > p[1])
                     && p[0] < a[0] + (p[1] - a[1]) / (b[1] - a[1]) * (b[0] - a[0])
                 {
