@@ -31,7 +31,7 @@ use rayon::prelude::*;
 use rstar::RTree;
 use rstar::primitives::{GeomWithData, Line, Rectangle};
 
-use super::geom::{Pt, Side, locate, ring_bounds};
+use super::geom::{Pt, Side, closest_point_on_segment, locate, ring_bounds};
 
 /// The geometric error (the plan error combined with the vertical one) is found to within this
 /// share of itself, or within [`MIN_TOLERANCE_M`] or the hull's size over
@@ -191,7 +191,7 @@ impl Footprints<'_> {
                 {
                     inside = !inside;
                 }
-                let q = closest_on_segment(p, a, b);
+                let q = closest_point_on_segment(p, a, b);
                 nearest2 = nearest2.min((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2));
             }
             if inside {
@@ -316,24 +316,13 @@ fn nearest_on_ring(verts: &[Pt], ring: &[u32], p: Pt) -> (f64, Pt) {
             verts[ring[i] as usize],
             verts[ring[(i + 1) % ring.len()] as usize],
         );
-        let q = closest_on_segment(p, a, b);
+        let q = closest_point_on_segment(p, a, b);
         let d2 = (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2);
         if d2 < best.0 {
             best = (d2, q);
         }
     }
     (best.0.sqrt(), best.1)
-}
-
-fn closest_on_segment(p: Pt, a: Pt, b: Pt) -> Pt {
-    let ab = [b[0] - a[0], b[1] - a[1]];
-    let len2 = ab[0] * ab[0] + ab[1] * ab[1];
-    let t = if len2 > 0.0 {
-        (((p[0] - a[0]) * ab[0] + (p[1] - a[1]) * ab[1]) / len2).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    [a[0] + t * ab[0], a[1] + t * ab[1]]
 }
 
 /// A building's heights as the vertical error reads them.
@@ -516,21 +505,18 @@ mod tests {
         );
         // Children's error of 20 m, above the node's own 16 m: the search may stop anywhere
         // below 20 m; with a floor of 10 m it still finds the 16 m.
-        let under = plan_error_m(
-            &fp,
-            &verts,
-            &[0, 1, 2, 3],
-            (0, 1),
-            Tolerance::new(0.0, 20.0),
-        );
+        let of_building_0 = |floor_m: f64| {
+            plan_error_m(
+                &fp,
+                &verts,
+                &[0, 1, 2, 3],
+                (0, 1),
+                Tolerance::new(0.0, floor_m),
+            )
+        };
+        let under = of_building_0(20.0);
         assert!(under <= 20.0, "{under}");
-        let found = plan_error_m(
-            &fp,
-            &verts,
-            &[0, 1, 2, 3],
-            (0, 1),
-            Tolerance::new(0.0, 10.0),
-        );
+        let found = of_building_0(10.0);
         assert!(found >= 16.0, "{found}");
     }
 

@@ -386,8 +386,8 @@ pub fn convex_hull(verts: &[Pt], idx: impl IntoIterator<Item = u32>) -> Vec<u32>
     hull
 }
 
-/// Distance from `p` to segment `ab`.
-pub fn point_segment_distance(p: Pt, a: Pt, b: Pt) -> f64 {
+/// The point of segment `ab` nearest `p` (`a` for a segment of no length).
+pub fn closest_point_on_segment(p: Pt, a: Pt, b: Pt) -> Pt {
     let ab = [b[0] - a[0], b[1] - a[1]];
     let len2 = ab[0] * ab[0] + ab[1] * ab[1];
     let t = if len2 > 0.0 {
@@ -395,7 +395,12 @@ pub fn point_segment_distance(p: Pt, a: Pt, b: Pt) -> f64 {
     } else {
         0.0
     };
-    let q = [a[0] + t * ab[0], a[1] + t * ab[1]];
+    [a[0] + t * ab[0], a[1] + t * ab[1]]
+}
+
+/// Distance from `p` to segment `ab`.
+pub fn point_segment_distance(p: Pt, a: Pt, b: Pt) -> f64 {
+    let q = closest_point_on_segment(p, a, b);
     ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)).sqrt()
 }
 
