@@ -135,7 +135,9 @@ fn stages(c: &mut Criterion) {
         });
         let merges = rebalance(leaves.len(), &binary, &blocks, &centres);
         let mut stats = ClusterStats::default();
-        let hulls = merge_hulls(&mut store, &leaves, &merges, &params, &mut stats, true);
+        let hulls = merge_hulls(
+            &mut store, &leaves, &merges, &blocks, &params, &mut stats, true,
+        );
         // Hull merging: every merge of the tree on its recorded (simplified) children, in a
         // fresh copy of the vertex array (intersection points found again get their index).
         let store_after = store.verts.clone();

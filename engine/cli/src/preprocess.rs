@@ -51,8 +51,9 @@ pub struct Args {
     /// (Chang: 1024).
     #[arg(long, default_value_t = CHANG_BIN_SIDE_PX, value_parser = clap::value_parser!(u32).range(16..=8192))]
     texture_bin_px: u32,
-    /// Threads for the stages that run in parallel (occluders, cluster meshes; 0: one per
-    /// core). The package is the same for every count.
+    /// Threads for the work that runs in parallel (occluders; the cluster tree's clustering,
+    /// hulls, errors and meshes block by block or node by node; 0: one per core). The package
+    /// is the same for every count.
     #[arg(long, default_value_t = 0)]
     threads: usize,
 }

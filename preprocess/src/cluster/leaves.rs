@@ -9,7 +9,7 @@ use super::geom::{Pt, convex_hull, ring_is_simple_ccw, signed_area};
 
 /// The shared vertex array (Yang et al. 2011 §3.3.1): equal coordinates get one index, so
 /// buildings that share corners share vertices and hull merging finds the contact exactly.
-#[derive(Debug, Default)]
+#[derive(Debug, Clone, Default)]
 pub struct VertexStore {
     pub verts: Vec<Pt>,
     index: HashMap<(u64, u64), u32>,

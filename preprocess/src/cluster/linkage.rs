@@ -233,7 +233,57 @@ impl Ord for Entry {
     }
 }
 
-/// The agglomeration state: union-find over buildings, neighbour maps on cluster roots.
+/// Chang's avgClusterSize: the sum of sizes and the count of the current non-leaf clusters.
+#[derive(Debug, Clone, Copy, Default)]
+struct InnerSizes {
+    sum: f64,
+    count: f64,
+}
+
+impl InnerSizes {
+    /// The distance a merge of clusters of `sizes` at `base` records (Chang eq. 1 with the
+    /// average taken before the merge; `base` itself for Yang's distance).
+    fn recorded(&self, mode: ClusterDistance, sizes: [u32; 2], base: f64) -> f64 {
+        match mode {
+            ClusterDistance::ChangSizeWeighted => {
+                let avg = if self.count > 0.0 {
+                    self.sum / self.count
+                } else {
+                    1.0
+                };
+                f64::from(sizes[0]) * f64::from(sizes[1]) * base / (avg * avg)
+            }
+            ClusterDistance::YangAdjacent => base,
+        }
+    }
+
+    /// The two clusters of `sizes` are now one.
+    fn merged(&mut self, sizes: [u32; 2]) {
+        for s in sizes {
+            if s > 1 {
+                self.sum -= f64::from(s);
+                self.count -= 1.0;
+            }
+        }
+        self.sum += f64::from(sizes[0] + sizes[1]);
+        self.count += 1.0;
+    }
+}
+
+/// A merge as the agglomeration took it: its place in the heap's order (the key, then the
+/// pair's buildings, then its cluster roots' ids) and the inputs of its recorded distance.
+#[derive(Debug, Clone, Copy)]
+struct Taken {
+    key: f64,
+    size: u32,
+    roots: [u32; 2],
+    sizes: [u32; 2],
+    base: f64,
+}
+
+/// The agglomeration state: union-find over buildings, neighbour maps on cluster roots. It
+/// runs on local indices: `global[i]` is the building of index `i` (the identity for the whole
+/// city; one block's buildings, ascending, for a block), so ties break as on global ids.
 struct Agglomeration<'a> {
     parent: Vec<u32>,
     size: Vec<u32>,
@@ -242,15 +292,37 @@ struct Agglomeration<'a> {
     nbrs: Vec<HashMap<u32, f64>>,
     heap: BinaryHeap<Entry>,
     merges: Vec<Merge>,
+    /// Per merge, how it was taken (see [`Taken`]).
+    taken: Vec<Taken>,
+    /// Leaves of this agglomeration's node numbering (merge k creates node `n + k`).
     n: u32,
     mode: ClusterDistance,
-    /// Sum of sizes and count of the current non-leaf clusters (Chang's avgClusterSize).
-    inner_size_sum: f64,
-    inner_count: f64,
+    inner: InnerSizes,
     blocks: &'a [u32],
+    global: Vec<u32>,
 }
 
-impl Agglomeration<'_> {
+impl<'a> Agglomeration<'a> {
+    /// Every building of `global` its own cluster.
+    fn new(global: Vec<u32>, blocks: &'a [u32], mode: ClusterDistance) -> Self {
+        let n = global.len() as u32;
+        Agglomeration {
+            parent: (0..n).collect(),
+            size: vec![1; n as usize],
+            node: (0..n).collect(),
+            version: vec![0; n as usize],
+            nbrs: vec![HashMap::new(); n as usize],
+            heap: BinaryHeap::new(),
+            merges: Vec::with_capacity(n.saturating_sub(1) as usize),
+            taken: Vec::with_capacity(n.saturating_sub(1) as usize),
+            n,
+            mode,
+            inner: InnerSizes::default(),
+            blocks,
+            global,
+        }
+    }
+
     fn find(&mut self, mut x: u32) -> u32 {
         while self.parent[x as usize] != x {
             let p = self.parent[x as usize];
@@ -282,7 +354,7 @@ impl Agglomeration<'_> {
         });
     }
 
-    /// Adds a candidate pair of buildings with its base distance.
+    /// Adds a candidate pair of buildings (local indices) with its base distance.
     fn add_pair(&mut self, x: u32, y: u32, base: f64) {
         let (a, b) = (self.find(x), self.find(y));
         if a == b {
@@ -297,25 +369,19 @@ impl Agglomeration<'_> {
     }
 
     fn merge(&mut self, a: u32, b: u32, base: f64) {
-        let recorded = match self.mode {
-            ClusterDistance::ChangSizeWeighted => {
-                let avg = if self.inner_count > 0.0 {
-                    self.inner_size_sum / self.inner_count
-                } else {
-                    1.0
-                };
-                f64::from(self.size[a as usize]) * f64::from(self.size[b as usize]) * base
-                    / (avg * avg)
-            }
-            ClusterDistance::YangAdjacent => base,
-        };
-        for r in [a, b] {
-            if self.size[r as usize] > 1 {
-                self.inner_size_sum -= f64::from(self.size[r as usize]);
-                self.inner_count -= 1.0;
-            }
-        }
-        let within_block = self.blocks[a as usize] == self.blocks[b as usize];
+        let sizes = [self.size[a as usize], self.size[b as usize]];
+        let (lo, hi) = (a.min(b), a.max(b));
+        self.taken.push(Taken {
+            key: self.key(a, b, base),
+            size: sizes[0] + sizes[1],
+            roots: [self.global[lo as usize], self.global[hi as usize]],
+            sizes,
+            base,
+        });
+        let recorded = self.inner.recorded(self.mode, sizes, base);
+        self.inner.merged(sizes);
+        let within_block = self.blocks[self.global[a as usize] as usize]
+            == self.blocks[self.global[b as usize] as usize];
         self.merges.push(Merge {
             a: self.node[a as usize],
             b: self.node[b as usize],
@@ -329,8 +395,6 @@ impl Agglomeration<'_> {
         };
         self.parent[small as usize] = big;
         self.size[big as usize] += self.size[small as usize];
-        self.inner_size_sum += f64::from(self.size[big as usize]);
-        self.inner_count += 1.0;
         self.node[big as usize] = self.n + self.merges.len() as u32 - 1;
         self.version[big as usize] += 1;
         self.version[small as usize] += 1;
@@ -373,19 +437,18 @@ impl Agglomeration<'_> {
         }
     }
 
-    /// Joins what is still apart in `members` (a disconnected candidate graph, e.g. all
-    /// sites on one point): chains the clusters by centre x, at their centre distance.
+    /// Joins what is still apart in `members` (local indices; a disconnected candidate graph,
+    /// e.g. all sites on one point): chains the clusters by centre x, at their centre distance.
     fn join_rest(&mut self, members: &[u32], leaves: &[Leaf]) {
+        let centre = |ag: &Self, x: u32| leaves[ag.global[x as usize] as usize].centre;
         let mut roots: Vec<u32> = members.iter().map(|&m| self.find(m)).collect();
         roots.sort_unstable();
         roots.dedup();
-        roots.sort_by(|&x, &y| {
-            leaves[x as usize].centre[0].total_cmp(&leaves[y as usize].centre[0])
-        });
+        roots.sort_by(|&x, &y| centre(self, x)[0].total_cmp(&centre(self, y)[0]));
         for w in 1..roots.len() {
             let (a, b) = (self.find(roots[w - 1]), self.find(roots[w]));
             if a != b {
-                let (ca, cb) = (leaves[a as usize].centre, leaves[b as usize].centre);
+                let (ca, cb) = (centre(self, a), centre(self, b));
                 let d = ((ca[0] - cb[0]).powi(2) + (ca[1] - cb[1]).powi(2)).sqrt();
                 self.nbrs[a as usize].insert(b, d);
                 self.nbrs[b as usize].insert(a, d);
@@ -393,6 +456,143 @@ impl Agglomeration<'_> {
             }
         }
     }
+}
+
+/// One block clustered on its own (phase 1): its merges on the block's local numbering
+/// (leaves `0..m` for `members`, merge k is node `m + k`), the first `popped` taken from the
+/// heap, the rest joining what the candidate pairs left apart.
+struct BlockRun {
+    members: Vec<u32>,
+    merges: Vec<Merge>,
+    taken: Vec<Taken>,
+    popped: usize,
+    /// The local index of the block's one cluster root.
+    root: u32,
+}
+
+/// Clusters one block's buildings (`members`, ascending) among themselves.
+fn cluster_block(
+    members: &[u32],
+    leaves: &[Leaf],
+    verts: &[Pt],
+    blocks: &[u32],
+    mode: ClusterDistance,
+    base: &(dyn Fn(u32, u32) -> f64 + Sync),
+) -> Result<BlockRun, ClusterError> {
+    let mut pairs = Vec::new();
+    delaunay_pairs(sites_of(leaves, verts, members, mode), &mut pairs)?;
+    pairs.sort_unstable();
+    pairs.dedup();
+    let local = |x: u32| members.binary_search(&x).expect("a block's own building") as u32;
+    let mut ag = Agglomeration::new(members.to_vec(), blocks, mode);
+    for &(x, y) in &pairs {
+        ag.add_pair(local(x), local(y), base(x, y));
+    }
+    ag.run();
+    let popped = ag.merges.len();
+    let all: Vec<u32> = (0..members.len() as u32).collect();
+    ag.join_rest(&all, leaves);
+    let root = ag.find(0);
+    Ok(BlockRun {
+        members: members.to_vec(),
+        merges: ag.merges,
+        taken: ag.taken,
+        popped,
+        root,
+    })
+}
+
+/// The whole city's agglomeration after phase 1, from its blocks clustered apart: their
+/// merges in the order one heap over all blocks takes them (a block's own merges come off
+/// that heap in the block's order, and the keys never decrease, so the city's order is the
+/// blocks' orders merged by key), then each block's joins in block order, as
+/// [`Agglomeration::join_rest`] would add them block by block.
+fn after_blocks<'a>(
+    n: u32,
+    runs: &[BlockRun],
+    blocks: &'a [u32],
+    mode: ClusterDistance,
+) -> Agglomeration<'a> {
+    let mut order: Vec<(usize, usize)> = runs
+        .iter()
+        .enumerate()
+        .flat_map(|(r, run)| (0..run.popped).map(move |k| (r, k)))
+        .collect();
+    order.sort_unstable_by(|&(r, k), &(s, l)| {
+        let (x, y) = (&runs[r].taken[k], &runs[s].taken[l]);
+        x.key
+            .total_cmp(&y.key)
+            .then(x.size.cmp(&y.size))
+            .then(x.roots.cmp(&y.roots))
+    });
+    order.extend(
+        runs.iter()
+            .enumerate()
+            .flat_map(|(r, run)| (run.popped..run.merges.len()).map(move |k| (r, k))),
+    );
+    let mut ag = Agglomeration::new((0..n).collect(), blocks, mode);
+    // Global node id of each block's local merge.
+    let mut merge_node: Vec<Vec<u32>> = runs.iter().map(|r| vec![0; r.merges.len()]).collect();
+    for (k, &(r, l)) in order.iter().enumerate() {
+        merge_node[r][l] = n + k as u32;
+    }
+    for &(r, l) in &order {
+        let (run, m, t) = (&runs[r], runs[r].merges[l], runs[r].taken[l]);
+        let local_len = run.members.len() as u32;
+        let node = |x: u32| {
+            if x < local_len {
+                run.members[x as usize]
+            } else {
+                merge_node[r][(x - local_len) as usize]
+            }
+        };
+        ag.merges.push(Merge {
+            a: node(m.a),
+            b: node(m.b),
+            distance: ag.inner.recorded(mode, t.sizes, t.base),
+            within_block: true,
+        });
+        ag.inner.merged(t.sizes);
+        ag.taken.push(t);
+    }
+    for (r, run) in runs.iter().enumerate() {
+        let root = run.members[run.root as usize];
+        for &x in &run.members {
+            ag.parent[x as usize] = root;
+        }
+        ag.size[root as usize] = run.members.len() as u32;
+        ag.node[root as usize] = match run.merges.len() {
+            0 => root,
+            len => merge_node[r][len - 1],
+        };
+    }
+    ag
+}
+
+/// The distance of buildings `x` and `y` before any cluster weighting: their centres' (Chang)
+/// or their footprints' adjacent distance (Yang).
+fn base_distance(
+    leaves: &[Leaf],
+    verts: &[Pt],
+    mode: ClusterDistance,
+    lambda: f64,
+    x: u32,
+    y: u32,
+) -> f64 {
+    let (lx, ly) = (&leaves[x as usize], &leaves[y as usize]);
+    match mode {
+        ClusterDistance::ChangSizeWeighted => {
+            ((lx.centre[0] - ly.centre[0]).powi(2) + (lx.centre[1] - ly.centre[1]).powi(2)).sqrt()
+        }
+        ClusterDistance::YangAdjacent => adjacent_distance(verts, &lx.ring, &ly.ring, lambda),
+    }
+}
+
+/// Every building, ascending within its block, and the blocks' runs of it.
+fn group_by_block(blocks: &[u32]) -> Vec<u32> {
+    let mut by_block: Vec<u32> = (0..blocks.len() as u32).collect();
+    by_block.sort_by_key(|&i| (blocks[i as usize], i));
+    by_block
 }
 
 /// Clusters `leaves` (one per building) into `n − 1` merges, blocks first.
@@ -404,69 +604,81 @@ pub fn single_link(
     lambda: f64,
 ) -> Result<Vec<Merge>, ClusterError> {
     let n = leaves.len() as u32;
-    let mut ag = Agglomeration {
-        parent: (0..n).collect(),
-        size: vec![1; n as usize],
-        node: (0..n).collect(),
-        version: vec![0; n as usize],
-        nbrs: vec![HashMap::new(); n as usize],
-        heap: BinaryHeap::new(),
-        merges: Vec::with_capacity(n.saturating_sub(1) as usize),
-        n,
-        mode,
-        inner_size_sum: 0.0,
-        inner_count: 0.0,
-        blocks,
-    };
-    let base = |x: u32, y: u32| -> f64 {
-        let (lx, ly) = (&leaves[x as usize], &leaves[y as usize]);
-        match mode {
-            ClusterDistance::ChangSizeWeighted => ((lx.centre[0] - ly.centre[0]).powi(2)
-                + (lx.centre[1] - ly.centre[1]).powi(2))
-            .sqrt(),
-            ClusterDistance::YangAdjacent => adjacent_distance(verts, &lx.ring, &ly.ring, lambda),
-        }
-    };
-    // The blocks' triangulations and the pairs' distances are independent: they run on rayon's
-    // threads; the pairs are then sorted and taken in order, as on one thread.
-    let with_distances =
-        |pairs: &[(u32, u32)]| -> Vec<f64> { pairs.par_iter().map(|&(x, y)| base(x, y)).collect() };
-    // Phase 1: inside each block.
-    let mut by_block: Vec<u32> = (0..n).collect();
-    by_block.sort_by_key(|&i| (blocks[i as usize], i));
+    let base = |x: u32, y: u32| base_distance(leaves, verts, mode, lambda, x, y);
+    // Phase 1: inside each block. The blocks are independent: each is clustered on rayon's
+    // threads, and their merges are put in the order one heap over the city would take them.
+    let by_block = group_by_block(blocks);
     let groups: Vec<&[u32]> = by_block
         .chunk_by(|&x, &y| blocks[x as usize] == blocks[y as usize])
         .collect();
-    let per_block: Vec<Vec<(u32, u32)>> = groups
+    let runs: Vec<BlockRun> = groups
         .par_iter()
-        .map(|g| {
-            let mut pairs = Vec::new();
-            delaunay_pairs(sites_of(leaves, verts, g, mode), &mut pairs).map(|()| pairs)
-        })
+        .map(|g| cluster_block(g, leaves, verts, blocks, mode, &base))
         .collect::<Result<_, _>>()?;
-    let mut pairs: Vec<(u32, u32)> = per_block.into_iter().flatten().collect();
+    let mut ag = after_blocks(n, &runs, blocks, mode);
+    drop(runs);
+    between_blocks(&mut ag, &by_block, groups.len(), leaves, verts, &base)?;
+    Ok(ag.merges)
+}
+
+/// Phase 2: the blocks' clusters joined along the Delaunay pairs of buildings of different
+/// blocks (`by_block`: every building, grouped by block).
+fn between_blocks(
+    ag: &mut Agglomeration<'_>,
+    by_block: &[u32],
+    block_count: usize,
+    leaves: &[Leaf],
+    verts: &[Pt],
+    base: &(dyn Fn(u32, u32) -> f64 + Sync),
+) -> Result<(), ClusterError> {
+    if block_count < 2 {
+        return Ok(());
+    }
+    let blocks = ag.blocks;
+    let mut cross = Vec::new();
+    delaunay_pairs(sites_of(leaves, verts, by_block, ag.mode), &mut cross)?;
+    cross.retain(|&(x, y)| blocks[x as usize] != blocks[y as usize]);
+    cross.sort_unstable();
+    cross.dedup();
+    let distances: Vec<f64> = cross.par_iter().map(|&(x, y)| base(x, y)).collect();
+    for (&(x, y), d) in cross.iter().zip(distances) {
+        ag.add_pair(x, y, d);
+    }
+    ag.run();
+    ag.join_rest(by_block, leaves);
+    Ok(())
+}
+
+/// [`single_link`] with phase 1 as one heap over the whole city, the definition the blocks'
+/// separate runs reproduce (for the tests).
+#[cfg(test)]
+pub(super) fn single_link_one_heap(
+    leaves: &[Leaf],
+    verts: &[Pt],
+    blocks: &[u32],
+    mode: ClusterDistance,
+    lambda: f64,
+) -> Result<Vec<Merge>, ClusterError> {
+    let base = |x: u32, y: u32| base_distance(leaves, verts, mode, lambda, x, y);
+    let by_block = group_by_block(blocks);
+    let groups: Vec<&[u32]> = by_block
+        .chunk_by(|&x, &y| blocks[x as usize] == blocks[y as usize])
+        .collect();
+    let mut ag = Agglomeration::new((0..leaves.len() as u32).collect(), blocks, mode);
+    let mut pairs = Vec::new();
+    for g in &groups {
+        delaunay_pairs(sites_of(leaves, verts, g, mode), &mut pairs)?;
+    }
     pairs.sort_unstable();
     pairs.dedup();
-    for (&(x, y), d) in pairs.iter().zip(with_distances(&pairs)) {
-        ag.add_pair(x, y, d);
+    for &(x, y) in &pairs {
+        ag.add_pair(x, y, base(x, y));
     }
     ag.run();
     for g in &groups {
         ag.join_rest(g, leaves);
     }
-    // Phase 2: between blocks.
-    if groups.len() > 1 {
-        let mut cross = Vec::new();
-        delaunay_pairs(sites_of(leaves, verts, &by_block, mode), &mut cross)?;
-        cross.retain(|&(x, y)| blocks[x as usize] != blocks[y as usize]);
-        cross.sort_unstable();
-        cross.dedup();
-        for (&(x, y), d) in cross.iter().zip(with_distances(&cross)) {
-            ag.add_pair(x, y, d);
-        }
-        ag.run();
-        ag.join_rest(&by_block, leaves);
-    }
+    between_blocks(&mut ag, &by_block, groups.len(), leaves, verts, &base)?;
     Ok(ag.merges)
 }
 

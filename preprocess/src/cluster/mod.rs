@@ -15,6 +15,7 @@
 pub mod depth;
 pub mod error;
 pub mod geom;
+pub mod hulls;
 pub mod leaves;
 pub mod linkage;
 pub mod merge;
@@ -24,13 +25,12 @@ pub mod simplify;
 use citywalk_scenes::City;
 use citywalk_scenes::city::TriangleMesh;
 pub use citywalk_scenes::cluster_tree::{ClusterDistance, ClusterParams};
-use citywalk_scenes::cluster_tree::{
-    ClusterNode, ClusterStats, ClusterTree, HullSimplify, MergeFallback,
-};
+use citywalk_scenes::cluster_tree::{ClusterNode, ClusterStats, ClusterTree, HullSimplify};
 use citywalk_scenes::extrude::extrude_polygon;
 use rayon::prelude::*;
 
-use geom::{convex_hull, ring_bounds, signed_area};
+use geom::{convex_hull, ring_bounds};
+pub use hulls::{Hulls, merge_hulls};
 use leaves::{LeafKind, VertexStore};
 
 /// Why a cluster tree could not be built.
@@ -91,6 +91,7 @@ pub fn build_cluster_tree(
         });
     }
     let mut stats = ClusterStats::default();
+    let mut lap = Lap::start();
     let mut store = VertexStore::default();
     let leaves = leaves::build_leaves(&mut store, &city.buildings);
     for (i, l) in leaves.iter().enumerate() {
@@ -106,6 +107,7 @@ pub fn build_cluster_tree(
             "degenerate footprints replaced by their bounding boxes grown by 0.25 m"
         );
     }
+    lap.step("leaves");
     let merges = linkage::single_link(
         &leaves,
         &store.verts,
@@ -114,12 +116,19 @@ pub fn build_cluster_tree(
         params.adjacency_lambda,
     )?;
     let centres: Vec<[f64; 2]> = leaves.iter().map(|l| l.centre).collect();
+    lap.step("single-link clustering");
     let merges = rebalance::rebalance(n, &merges, blocks, &centres);
-    let hulls = merge_hulls(&mut store, &leaves, &merges, params, &mut stats, false);
+    lap.step("rebalancing");
+    let hulls = merge_hulls(
+        &mut store, &leaves, &merges, blocks, params, &mut stats, false,
+    );
+    lap.step("hull merging");
     stats.binary_inner_nodes = merges.len() as u32;
     let (mut nodes, building_order) =
         assemble_nodes(city, blocks, &store.verts, &leaves, &merges, hulls, params);
+    lap.step("depth reduction, node data and errors");
     build_meshes(city, &store.verts, &building_order, &mut nodes);
+    lap.step("meshes");
 
     Ok(ClusterTree {
         vertices: store.verts,
@@ -129,6 +138,23 @@ pub fn build_cluster_tree(
         params: params.clone(),
         stats,
     })
+}
+
+/// Times the steps of the tree stage for the debug log (`RUST_LOG=citywalk_preprocess=debug`).
+struct Lap(std::time::Instant);
+
+impl Lap {
+    fn start() -> Self {
+        Lap(std::time::Instant::now())
+    }
+
+    fn step(&mut self, name: &str) {
+        tracing::debug!(
+            seconds = self.0.elapsed().as_secs_f64(),
+            "cluster tree: {name}"
+        );
+        self.0 = std::time::Instant::now();
+    }
 }
 
 /// Stages 4–5: depth reduction and balancing of the binary tree ([`depth`]), the final nodes
@@ -268,103 +294,6 @@ pub fn build_meshes(
             n.mesh = cluster_mesh(verts, &n.footprint[0], base[id].min(n.height_m), n.height_m);
         }
     });
-}
-
-/// The binary merge tree with its hulls (stage 3).
-#[derive(Debug, Clone, Default)]
-pub struct Hulls {
-    /// Hull ring per binary node (leaves `0..n`, merge k is node `n + k`).
-    pub rings: Vec<Vec<u32>>,
-    /// Hull area per binary node (m²).
-    pub areas: Vec<f64>,
-    /// Monotone merge distance per binary node (0 for leaves).
-    pub dist: Vec<f64>,
-    /// The two children of every merge.
-    pub bin_children: Vec<[u32; 2]>,
-    /// With `record`: per merge, the merged ring before simplification and the
-    /// simplification target inputs `(children's edges, a_ave)`, for the per-stage bench.
-    pub merged: Vec<(Vec<u32>, usize, f64)>,
-}
-
-/// Stage 3: hulls merged bottom-up along the merge order ([`merge::merge_rings`]) and
-/// simplified ([`simplify_hull`]).
-pub fn merge_hulls(
-    store: &mut VertexStore,
-    leaves: &[leaves::Leaf],
-    merges: &[linkage::Merge],
-    params: &ClusterParams,
-    stats: &mut ClusterStats,
-    record: bool,
-) -> Hulls {
-    let n = leaves.len();
-    let input_edges: usize = leaves.iter().map(|l| l.ring.len()).sum();
-    let mut rings: Vec<Vec<u32>> = leaves.iter().map(|l| l.ring.clone()).collect();
-    let mut dist = vec![0.0f64; n];
-    let mut bin_children: Vec<[u32; 2]> = Vec::with_capacity(merges.len());
-    let mut areas: Vec<f64> = rings.iter().map(|r| signed_area(&store.verts, r)).collect();
-    let mut level_area_sum: f64 = areas.iter().sum();
-    let mut level_count = n as f64;
-    let mut recorded = Vec::new();
-    for (k, m) in merges.iter().enumerate() {
-        let (a, b) = (m.a as usize, m.b as usize);
-        let merged = merge::merge_rings(
-            store,
-            &rings[a],
-            &rings[b],
-            params.merge,
-            params.adjacency_lambda,
-        );
-        if let Some(reason) = merged.failure {
-            stats.merge_fallback_log.push(MergeFallback {
-                merge: k as u32,
-                reason,
-                convex_hull: merged.convex_hull,
-            });
-            if merged.convex_hull {
-                stats.merge_fallbacks += 1;
-                tracing::warn!(
-                    merge = k,
-                    ?reason,
-                    "merged hull fell back to the convex hull"
-                );
-            }
-        }
-        let child_edges = rings[a].len() + rings[b].len();
-        let a_ave = level_area_sum / level_count.max(1.0);
-        let ring = simplify_hull(
-            &store.verts,
-            &merged.ring,
-            child_edges,
-            input_edges,
-            a_ave,
-            params,
-        );
-        // Growth-only removals keep the ring simple by construction; verify, and keep the
-        // unsimplified ring (counted) should that ever fail.
-        let ring = if geom::ring_is_simple_ccw(&store.verts, &ring) {
-            ring
-        } else {
-            stats.simplify_fallbacks += 1;
-            merged.ring.clone()
-        };
-        if record {
-            recorded.push((merged.ring, child_edges, a_ave));
-        }
-        let area = signed_area(&store.verts, &ring);
-        level_area_sum += area - areas[a] - areas[b];
-        level_count -= 1.0;
-        areas.push(area);
-        rings.push(ring);
-        dist.push(m.distance.max(dist[a]).max(dist[b]));
-        bin_children.push([m.a, m.b]);
-    }
-    Hulls {
-        rings,
-        areas,
-        dist,
-        bin_children,
-        merged: recorded,
-    }
 }
 
 /// Simplifies one merged hull: Chang's smallest-area removal down to max(2/3 of the

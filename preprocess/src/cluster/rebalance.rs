@@ -22,8 +22,9 @@
 //! distance threshold cuts the chain into pieces no coarser than single-link's clusters (a
 //! few balanced pieces instead of one: the LOD cut is never coarser). Paths never mix the
 //! levels below and above the urban blocks, so no node below the block level spans two
-//! blocks. The merges are emitted by distance, as single-link made them (Yang's δa = a_ave/50
-//! follows the running mean cluster area), and their number is unchanged (n − 1).
+//! blocks. The merges are emitted by distance, as single-link made them (between blocks Yang's
+//! δa = a_ave/50 follows the city's running mean cluster area), and their number is unchanged
+//! (n − 1).
 
 use super::linkage::Merge;
 
@@ -192,7 +193,7 @@ pub fn rebalance(n: usize, merges: &[Merge], blocks: &[u32], centres: &[[f64; 2]
         post.push(k);
     }
     // Merge order by distance (stable: children stay before parents), as single-link merged:
-    // the hull stage's running mean cluster area (Yang's a_ave) depends on it.
+    // the hull stage's running mean cluster areas (Yang's a_ave) depend on it.
     post.sort_by(|&x, &y| eff[x as usize].total_cmp(&eff[y as usize]));
     let mut id_of_new: Vec<u32> = vec![u32::MAX; new.len()];
     let mut node_block: Vec<Option<u32>> = vec![None; new.len()];

@@ -979,3 +979,89 @@ fn real_extracts_build_valid_trees_without_convex_hulls() {
         }
     }
 }
+
+/// Generated cities with street blocks, random cities (touching, nested and coincident
+/// buildings) and three buildings on one spot (no Delaunay pair: joined by `join_rest`).
+fn block_test_cities() -> Vec<(City, Vec<u32>)> {
+    use proptest::strategy::ValueTree;
+    let mut cities = Vec::new();
+    for seed in [3, 11] {
+        let params = citywalk_scenes::generate::GenerateParams::new(1500, seed);
+        let c = citywalk_scenes::generate::generate_city(&params).expect("generated city");
+        let blocks = crate::blocks::build_blocks(&c).block_of_building;
+        cities.push((c, blocks));
+    }
+    let mut runner = TestRunner::new_with_rng(
+        Config::default(),
+        TestRng::from_seed(RngAlgorithm::ChaCha, &[11; 32]),
+    );
+    for _ in 0..24 {
+        let tree = random_city().new_tree(&mut runner).expect("a random city");
+        cities.push(tree.current());
+    }
+    let same = (0..3).map(|i| rect(i, 0.0, 0.0, 4.0, 4.0, 10.0)).collect();
+    cities.push((city(same, Vec::new()), vec![0, 0, 0]));
+    cities
+}
+
+/// The blocks clustered apart on rayon's threads give the merges one heap over the whole city
+/// gives, in the same order, for both distances.
+#[test]
+fn blocks_clustered_apart_merge_as_one_heap_over_the_city() {
+    for (c, blocks) in &block_test_cities() {
+        let mut store = VertexStore::default();
+        let leaves = leaves::build_leaves(&mut store, &c.buildings);
+        for mode in [
+            ClusterDistance::YangAdjacent,
+            ClusterDistance::ChangSizeWeighted,
+        ] {
+            let apart = linkage::single_link(&leaves, &store.verts, blocks, mode, 0.6);
+            let one_heap = linkage::single_link_one_heap(&leaves, &store.verts, blocks, mode, 0.6);
+            let (apart, one_heap) = (apart.expect("clustering"), one_heap.expect("clustering"));
+            assert_eq!(apart.len() + 1, c.buildings.len());
+            assert!(
+                apart == one_heap,
+                "{mode:?}: {} buildings",
+                c.buildings.len()
+            );
+        }
+    }
+}
+
+/// Each block's hulls made apart (in a vertex array of its own, on rayon's threads) are the
+/// hulls made one merge after another in the city's array: the same points, areas and
+/// fallbacks. Chang's simplification, whose target does not read Yang's a_ave (the one input
+/// that differs: a block's own running mean area inside it).
+#[test]
+fn blocks_hulls_made_apart_are_those_made_in_merge_order() {
+    for (c, blocks) in &block_test_cities() {
+        for merge in [HullMerge::YangDelaunay, HullMerge::ChangCases] {
+            let params = ClusterParams {
+                merge,
+                simplify: HullSimplify::ChangSmallestArea,
+                ..ClusterParams::default()
+            };
+            let mut store = VertexStore::default();
+            let leaves = leaves::build_leaves(&mut store, &c.buildings);
+            let merges = linkage::single_link(&leaves, &store.verts, blocks, params.distance, 0.6)
+                .expect("clustering");
+            let made = |apart: Option<&[u32]>| {
+                let mut store = store.clone();
+                let mut stats = ClusterStats::default();
+                let hulls = hulls::merge_hulls_with(
+                    &mut store, &leaves, &merges, apart, &params, &mut stats, false,
+                );
+                let points: Vec<Vec<geom::Pt>> = hulls
+                    .rings
+                    .iter()
+                    .map(|r| r.iter().map(|&v| store.verts[v as usize]).collect())
+                    .collect();
+                (points, hulls.areas, stats)
+            };
+            let (apart, in_order) = (made(Some(blocks)), made(None));
+            assert!(apart.0 == in_order.0, "{merge:?}: the rings differ");
+            assert!(apart.1 == in_order.1, "{merge:?}: the areas differ");
+            assert_eq!(apart.2, in_order.2, "{merge:?}");
+        }
+    }
+}
