@@ -657,3 +657,35 @@ fn ground_areas_load_by_class() {
         r.warnings
     );
 }
+
+/// A file that cannot be memory-mapped (a named pipe) is read through a buffered reader
+/// instead, BOM and all, into the same city as the mapped file.
+#[cfg(unix)]
+#[test]
+fn a_pipe_loads_like_the_mapped_file() {
+    let text = collection(vec![
+        polygon(0.0, 0.0, 0.0001, json!({"height": 10, "name": "a"})),
+        polygon(0.001, 0.0, 0.0001, json!({"building:levels": 3})),
+    ])
+    .to_string();
+    let bytes = [b"\xEF\xBB\xBF".as_slice(), text.as_bytes()].concat();
+    let mapped = geojson::load(
+        &temp_file("mapped.geojson", &bytes),
+        &LoadOptions::default(),
+    )
+    .expect("the mapped file");
+    let fifo = std::env::temp_dir().join(format!("citywalk-pipe-{}.geojson", std::process::id()));
+    let _ = std::fs::remove_file(&fifo);
+    let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+    assert!(made.is_ok_and(|s| s.success()), "mkfifo failed");
+    let writer = {
+        let (fifo, bytes) = (fifo.clone(), bytes.clone());
+        std::thread::spawn(move || std::fs::write(&fifo, &bytes))
+    };
+    let piped = geojson::load(&fifo, &LoadOptions::default());
+    writer.join().expect("the writer").expect("written");
+    let _ = std::fs::remove_file(&fifo);
+    let piped = piped.expect("the pipe");
+    assert_eq!(piped.buildings.len(), 2);
+    assert!(piped.buildings == mapped.buildings);
+}

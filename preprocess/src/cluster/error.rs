@@ -100,9 +100,8 @@ pub struct Footprints<'a> {
     first_edge: Vec<u32>,
 }
 
-/// Below this many edges a node's distance is measured over its own edges directly: on the
-/// small nodes (most of a tree) that is several times cheaper than walking the R-tree's
-/// nearest neighbours, which also meets the other nodes' edges.
+/// Below this many edges a node's distance is measured over its own edges directly
+/// ([`NodeFootprints`]).
 const DIRECT_EDGES: u32 = 192;
 
 impl<'a> Footprints<'a> {
@@ -139,15 +138,37 @@ impl<'a> Footprints<'a> {
     /// Distance (m) from `p` to the footprints of the buildings at `order[range.0 .. range.1]`;
     /// 0 inside or on one.
     pub fn distance_m(&self, p: Pt, range: (u32, u32)) -> f64 {
+        self.of_node(range).distance_m(p)
+    }
+
+    /// The footprints of the buildings `range` (a node's), ready for many distance queries.
+    fn of_node(&self, range: (u32, u32)) -> NodeFootprints<'_> {
         let (first, end) = (
             self.first_edge[range.0 as usize],
             self.first_edge[range.1 as usize],
         );
         if end - first <= DIRECT_EDGES {
-            self.distance_direct_m(p, range)
+            self.direct(range)
         } else {
-            self.distance_indexed_m(p, range)
+            NodeFootprints::Indexed { fp: self, range }
         }
+    }
+
+    /// The node's own edges, copied once from the city for the node's queries (a few kB).
+    fn direct(&self, range: (u32, u32)) -> NodeFootprints<'_> {
+        let mut edges = Vec::new();
+        let mut ends = Vec::with_capacity((range.1 - range.0) as usize);
+        for pos in range.0..range.1 {
+            let footprint = &self.city.buildings[self.order[pos as usize].index()].footprint;
+            edges.extend(footprint.0.iter().flat_map(|poly| {
+                std::iter::once(poly.exterior())
+                    .chain(poly.interiors())
+                    .flat_map(|ring| ring.lines())
+                    .map(|l| [[l.start.x, l.start.y], [l.end.x, l.end.y]])
+            }));
+            ends.push(edges.len());
+        }
+        NodeFootprints::Direct { edges, ends }
     }
 
     /// [`Footprints::distance_m`] through the R-trees of all the footprints.
@@ -170,22 +191,34 @@ impl<'a> Footprints<'a> {
     }
 }
 
-impl Footprints<'_> {
-    /// [`Footprints::distance_m`] over the node's own footprints, read from the city (no copy
-    /// of the edges): 0 inside a footprint (crossing parity over each building's rings, holes
-    /// included), else the nearest edge.
-    fn distance_direct_m(&self, p: Pt, range: (u32, u32)) -> f64 {
+/// One node's footprints for its distance queries. Small nodes (most of a tree) measure over
+/// their own edges directly, several times cheaper than walking the R-tree's nearest
+/// neighbours, which also meets the other nodes' edges.
+enum NodeFootprints<'a> {
+    /// The node's edges, building after building: building k's end at `ends[k]`.
+    Direct {
+        edges: Vec<[Pt; 2]>,
+        ends: Vec<usize>,
+    },
+    Indexed {
+        fp: &'a Footprints<'a>,
+        range: (u32, u32),
+    },
+}
+
+impl NodeFootprints<'_> {
+    /// Distance (m) from `p` to the node's footprints: 0 inside one (crossing parity over each
+    /// building's rings, holes included), else the nearest edge.
+    fn distance_m(&self, p: Pt) -> f64 {
+        let (edges, ends) = match self {
+            NodeFootprints::Indexed { fp, range } => return fp.distance_indexed_m(p, *range),
+            NodeFootprints::Direct { edges, ends } => (edges, ends),
+        };
         let mut nearest2 = f64::INFINITY;
-        for pos in range.0..range.1 {
-            let footprint = &self.city.buildings[self.order[pos as usize].index()].footprint;
-            let edges = footprint.0.iter().flat_map(|poly| {
-                std::iter::once(poly.exterior())
-                    .chain(poly.interiors())
-                    .flat_map(|ring| ring.lines())
-                    .map(|l| [[l.start.x, l.start.y], [l.end.x, l.end.y]])
-            });
+        let mut start = 0;
+        for &end in ends {
             let mut inside = false;
-            for [a, b] in edges {
+            for &[a, b] in &edges[start..end] {
                 if (a[1] > p[1]) != (b[1] > p[1])
                     && p[0] < a[0] + (p[1] - a[1]) / (b[1] - a[1]) * (b[0] - a[0])
                 {
@@ -197,6 +230,7 @@ impl Footprints<'_> {
             if inside {
                 return 0.0;
             }
+            start = end;
         }
         nearest2.sqrt()
     }
@@ -230,6 +264,7 @@ pub fn plan_error_m(
     let (lo, hi) = ring_bounds(verts, ring);
     let half = 0.5 * (hi[0] - lo[0]).max(hi[1] - lo[1]);
     let tolerance = tolerance.for_hull(2.0 * half);
+    let footprints = fp.of_node(range);
     let mut lower = 0.0f64;
     // The largest bound of a cell given up because it could not beat `lower` by the
     // tolerance: the result must still cover it.
@@ -242,11 +277,11 @@ pub fn plan_error_m(
             if edge_distance > radius {
                 return None;
             }
-            let d = fp.distance_m(nearest, range);
+            let d = footprints.distance_m(nearest);
             *lower = lower.max(d);
             d + edge_distance + radius
         } else {
-            let d = fp.distance_m(centre, range);
+            let d = footprints.distance_m(centre);
             *lower = lower.max(d);
             d + radius
         };
@@ -558,7 +593,7 @@ mod tests {
             proptest::prop_assert!(e >= sampled - 1e-9, "{e} below a sampled {sampled}");
             // The direct measure of small nodes agrees with the R-tree's.
             for p in [lo, hi, [0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1])], [lo[0] + 3.0, hi[1] - 2.0]] {
-                let (direct, indexed) = (fp.distance_direct_m(p, range), fp.distance_indexed_m(p, range));
+                let (direct, indexed) = (fp.direct(range).distance_m(p), fp.distance_indexed_m(p, range));
                 proptest::prop_assert!((direct - indexed).abs() < 1e-9, "{direct} against {indexed} at {p:?}");
             }
             proptest::prop_assert!(

@@ -611,42 +611,56 @@ pub fn single_link(
     let groups: Vec<&[u32]> = by_block
         .chunk_by(|&x, &y| blocks[x as usize] == blocks[y as usize])
         .collect();
-    let runs: Vec<BlockRun> = groups
-        .par_iter()
-        .map(|g| cluster_block(g, leaves, verts, blocks, mode, &base))
-        .collect::<Result<_, _>>()?;
-    let mut ag = after_blocks(n, &runs, blocks, mode);
-    drop(runs);
-    between_blocks(&mut ag, &by_block, groups.len(), leaves, verts, &base)?;
+    // Phase 2's candidate pairs do not depend on phase 1: found beside it (the triangulation
+    // of every site of the city is one sequential job, seconds at a million buildings).
+    let (runs, cross) = rayon::join(
+        || {
+            groups
+                .par_iter()
+                .map(|g| cluster_block(g, leaves, verts, blocks, mode, &base))
+                .collect::<Result<Vec<BlockRun>, _>>()
+        },
+        || cross_pairs(leaves, verts, blocks, &by_block, groups.len(), mode, &base),
+    );
+    let mut ag = after_blocks(n, &runs?, blocks, mode);
+    join_blocks(&mut ag, &cross?, &by_block, leaves);
     Ok(ag.merges)
 }
 
-/// Phase 2: the blocks' clusters joined along the Delaunay pairs of buildings of different
-/// blocks (`by_block`: every building, grouped by block).
-fn between_blocks(
-    ag: &mut Agglomeration<'_>,
-    by_block: &[u32],
-    block_count: usize,
+/// Phase 2's candidates: the Delaunay pairs of buildings of different blocks (`by_block`:
+/// every building, grouped by block; `block_count` groups) with their base distances.
+fn cross_pairs(
     leaves: &[Leaf],
     verts: &[Pt],
+    blocks: &[u32],
+    by_block: &[u32],
+    block_count: usize,
+    mode: ClusterDistance,
     base: &(dyn Fn(u32, u32) -> f64 + Sync),
-) -> Result<(), ClusterError> {
+) -> Result<Vec<(u32, u32, f64)>, ClusterError> {
     if block_count < 2 {
-        return Ok(());
+        return Ok(Vec::new());
     }
-    let blocks = ag.blocks;
     let mut cross = Vec::new();
-    delaunay_pairs(sites_of(leaves, verts, by_block, ag.mode), &mut cross)?;
+    delaunay_pairs(sites_of(leaves, verts, by_block, mode), &mut cross)?;
     cross.retain(|&(x, y)| blocks[x as usize] != blocks[y as usize]);
     cross.sort_unstable();
     cross.dedup();
-    let distances: Vec<f64> = cross.par_iter().map(|&(x, y)| base(x, y)).collect();
-    for (&(x, y), d) in cross.iter().zip(distances) {
+    Ok(cross.par_iter().map(|&(x, y)| (x, y, base(x, y))).collect())
+}
+
+/// Phase 2: the blocks' clusters joined along the `cross` pairs, then whatever they left apart.
+fn join_blocks(
+    ag: &mut Agglomeration<'_>,
+    cross: &[(u32, u32, f64)],
+    by_block: &[u32],
+    leaves: &[Leaf],
+) {
+    for &(x, y, d) in cross {
         ag.add_pair(x, y, d);
     }
     ag.run();
     ag.join_rest(by_block, leaves);
-    Ok(())
 }
 
 /// [`single_link`] with phase 1 as one heap over the whole city, the definition the blocks'
@@ -678,7 +692,8 @@ pub(super) fn single_link_one_heap(
     for g in &groups {
         ag.join_rest(g, leaves);
     }
-    between_blocks(&mut ag, &by_block, groups.len(), leaves, verts, &base)?;
+    let cross = cross_pairs(leaves, verts, blocks, &by_block, groups.len(), mode, &base)?;
+    join_blocks(&mut ag, &cross, &by_block, leaves);
     Ok(ag.merges)
 }
 

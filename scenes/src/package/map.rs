@@ -132,13 +132,14 @@ pub(crate) fn release_resident(map: &memmap2::Mmap, bytes: &[u8]) {
     reason = "memmap2::Mmap::map is unsafe because another process could change the file \
               while it is mapped; this is the only unsafe call of the package reader"
 )]
-fn map_read_only(file: &std::fs::File) -> std::io::Result<memmap2::Mmap> {
+pub(crate) fn map_read_only(file: &std::fs::File) -> std::io::Result<memmap2::Mmap> {
     // SAFETY: the mapping is read-only and only ever read as `&[u8]`, or through
     // `bytemuck::cast_slice` as `Pod` arrays (for which every bit pattern is valid): every
     // section is checksummed before it is decoded and decoding validates it, so a file changed
     // underneath us can at worst produce a checksum or decode error or wrong numbers, not
-    // undefined behaviour in our code. Truncation of the file while
+    // undefined behaviour in our code. An input file mapped by a loader is parsed as bytes the
+    // same way: a change underneath gives a parse error or other numbers. Truncation of the file while
     // mapped (SIGBUS) is the documented hazard of memory maps that callers accept by
-    // reading packages they own.
+    // reading packages (and inputs) they own.
     unsafe { memmap2::Mmap::map(file) }
 }

@@ -28,6 +28,7 @@ mod error;
 pub mod format;
 pub mod gpu_scene;
 mod map;
+pub(crate) use map::map_read_only;
 
 pub use error::PackageError;
 pub use format::{BuildingDetails, Decode, FORMAT_VERSION, MAGIC, SectionKind};
