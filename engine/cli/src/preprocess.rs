@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
+use citywalk_bench::output::resident_mib;
 use citywalk_preprocess::pipeline::{PreprocessParams, ProgressSink, Stage, preprocess};
 use citywalk_runtime::gpu::GpuContext;
 use citywalk_runtime::texture_bake::{BakeStats, bake_cluster_textures};
@@ -58,10 +59,31 @@ pub struct Args {
     threads: usize,
 }
 
-/// One spinner per stage.
+/// One spinner per stage; the process's memory at the end of each.
 struct Bars {
     multi: MultiProgress,
     bars: std::cell::RefCell<Vec<(Stage, ProgressBar)>>,
+    memory: std::cell::RefCell<Vec<StepMemory>>,
+}
+
+/// The process's resident memory at the end of a step of the run, and its peak so far (MiB;
+/// `None` off Linux): where the memory of a large city goes.
+#[derive(Debug, Serialize)]
+struct StepMemory {
+    step: String,
+    resident_mib: Option<f64>,
+    peak_mib: Option<f64>,
+}
+
+impl StepMemory {
+    fn now(step: &str) -> StepMemory {
+        let (resident_mib, peak_mib) = resident_mib();
+        StepMemory {
+            step: step.into(),
+            resident_mib,
+            peak_mib,
+        }
+    }
 }
 
 impl std::fmt::Debug for Bars {
@@ -82,6 +104,7 @@ impl ProgressSink for Bars {
     }
 
     fn stage_finished(&self, stage: Stage, seconds: f64, summary: &str) {
+        self.memory.borrow_mut().push(StepMemory::now(stage.name()));
         if let Some((_, bar)) = self.bars.borrow().iter().find(|(s, _)| *s == stage) {
             bar.finish_with_message(format!("{}: {summary} ({seconds:.2} s)", stage.name()));
         }
@@ -119,18 +142,12 @@ struct Summary {
     write_seconds: f64,
     total_seconds: f64,
     peak_memory_bytes: Option<u64>,
+    /// After the load, each stage and the write: resident memory and the peak so far.
+    step_memory: Vec<StepMemory>,
     warnings: Vec<String>,
     skipped_stages: Vec<String>,
     /// `None` without `--cluster-textures`.
     cluster_textures: Option<TextureSummary>,
-}
-
-/// Peak resident memory (VmHWM from /proc/self/status), on Linux.
-pub fn peak_memory_bytes() -> Option<u64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
-    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kib * 1024)
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -156,6 +173,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let city = load_cities(&args.inputs, &load_options).context("cannot load the inputs")?;
     let load_seconds = start.elapsed().as_secs_f64();
     load.finish_with_message(format!("load: {} ({load_seconds:.2} s)", city.report));
+    let loaded = StepMemory::now("load");
 
     let params = PreprocessParams {
         load: load_options,
@@ -166,10 +184,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let bars = Bars {
         multi: MultiProgress::new(),
         bars: Default::default(),
+        memory: std::cell::RefCell::new(vec![loaded]),
     };
     let mut package = preprocess(city, &params, &bars).context("preprocessing failed")?;
     let textures = if args.cluster_textures {
-        Some(bake_textures(&mut package, args.texture_bin_px)?)
+        let baked = bake_textures(&mut package, args.texture_bin_px)?;
+        bars.memory
+            .borrow_mut()
+            .push(StepMemory::now("cluster textures"));
+        Some(baked)
     } else {
         None
     };
@@ -183,9 +206,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         )
         .context("cannot write the package")?;
     let write_seconds = write_start.elapsed().as_secs_f64();
+    bars.memory.borrow_mut().push(StepMemory::now("write"));
 
     let mut summary = summarise(&package, &args, bytes, load_seconds, write_seconds, start);
     summary.cluster_textures = textures.map(TextureSummary::from);
+    summary.step_memory = bars.memory.take();
     if args.json {
         println!("{}", serde_json::to_string_pretty(&summary)?);
     } else {
@@ -300,7 +325,8 @@ fn summarise(
             .collect(),
         write_seconds,
         total_seconds: start.elapsed().as_secs_f64(),
-        peak_memory_bytes: peak_memory_bytes(),
+        peak_memory_bytes: resident_mib().1.map(|mib| (mib * 1048576.0) as u64),
+        step_memory: Vec::new(),
         warnings: package.provenance.warnings.clone(),
         skipped_stages: package.provenance.skipped_stages.clone(),
         cluster_textures: None,
@@ -369,6 +395,18 @@ fn print_summary(s: &Summary) {
     }
     if let Some(peak) = s.peak_memory_bytes {
         println!("peak memory: {:.0} MiB", peak as f64 / 1048576.0);
+    }
+    let mib = |v: Option<f64>| v.map_or("-".to_string(), |m| format!("{m:.0}"));
+    let steps: Vec<String> = s
+        .step_memory
+        .iter()
+        .map(|m| format!("{} {} / {}", m.step, mib(m.resident_mib), mib(m.peak_mib)))
+        .collect();
+    if !steps.is_empty() {
+        println!(
+            "memory (MiB resident / peak so far, after each step): {}",
+            steps.join(", ")
+        );
     }
     for w in &s.warnings {
         println!("warning: {w}");

@@ -106,6 +106,22 @@ fn y_up_obj_preprocesses_with_its_heights_and_keeps_the_terrain() {
     ]));
     assert_eq!(pre["buildings_found"], 2, "{pre}");
     assert_eq!(pre["buildings_loaded"], 2, "{pre}");
+    // The memory after each step: the load, the stages in order, the write; peaks never fall.
+    let steps = pre["step_memory"].as_array().expect("step_memory");
+    let names: Vec<&str> = steps.iter().filter_map(|m| m["step"].as_str()).collect();
+    assert_eq!(names.first(), Some(&"load"), "{names:?}");
+    assert_eq!(names.last(), Some(&"write"), "{names:?}");
+    let tree = names.iter().position(|&n| n == "cluster tree");
+    let occluders = names.iter().position(|&n| n == "occluders");
+    assert!(occluders.is_some() && occluders < tree, "{names:?}");
+    let mib = |m: &serde_json::Value, key: &str| m[key].as_f64().expect("memory on Linux");
+    let peaks: Vec<f64> = steps.iter().map(|m| mib(m, "peak_mib")).collect();
+    assert!(peaks.windows(2).all(|w| w[0] <= w[1]), "{peaks:?}");
+    assert!(
+        steps
+            .iter()
+            .all(|m| mib(m, "resident_mib") <= mib(m, "peak_mib"))
+    );
 
     let inspected = json(&citywalk(&["inspect", path_str(&package), "--json"]));
     assert_eq!(inspected["buildings"], 2, "{inspected}");
