@@ -292,7 +292,8 @@ struct Agglomeration<'a> {
     nbrs: Vec<HashMap<u32, f64>>,
     heap: BinaryHeap<Entry>,
     merges: Vec<Merge>,
-    /// Per merge, how it was taken (see [`Taken`]).
+    /// Per merge this agglomeration made, how it was taken: a block's are put in the city's
+    /// order by them ([`after_blocks`]).
     taken: Vec<Taken>,
     /// Leaves of this agglomeration's node numbering (merge k creates node `n + k`).
     n: u32,
@@ -314,7 +315,7 @@ impl<'a> Agglomeration<'a> {
             nbrs: vec![HashMap::new(); n as usize],
             heap: BinaryHeap::new(),
             merges: Vec::with_capacity(n.saturating_sub(1) as usize),
-            taken: Vec::with_capacity(n.saturating_sub(1) as usize),
+            taken: Vec::new(),
             n,
             mode,
             inner: InnerSizes::default(),
@@ -553,7 +554,6 @@ fn after_blocks<'a>(
             within_block: true,
         });
         ag.inner.merged(t.sizes);
-        ag.taken.push(t);
     }
     for (r, run) in runs.iter().enumerate() {
         let root = run.members[run.root as usize];
