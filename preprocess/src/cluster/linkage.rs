@@ -588,11 +588,18 @@ fn base_distance(
     }
 }
 
-/// Every building, ascending within its block, and the blocks' runs of it.
+/// Every building, ascending within its block.
 fn group_by_block(blocks: &[u32]) -> Vec<u32> {
     let mut by_block: Vec<u32> = (0..blocks.len() as u32).collect();
     by_block.sort_by_key(|&i| (blocks[i as usize], i));
     by_block
+}
+
+/// The blocks' runs of `by_block` ([`group_by_block`]): each block's buildings.
+fn block_runs<'b>(by_block: &'b [u32], blocks: &[u32]) -> Vec<&'b [u32]> {
+    by_block
+        .chunk_by(|&x, &y| blocks[x as usize] == blocks[y as usize])
+        .collect()
 }
 
 /// Clusters `leaves` (one per building) into `n − 1` merges, blocks first.
@@ -608,9 +615,7 @@ pub fn single_link(
     // Phase 1: inside each block. The blocks are independent: each is clustered on rayon's
     // threads, and their merges are put in the order one heap over the city would take them.
     let by_block = group_by_block(blocks);
-    let groups: Vec<&[u32]> = by_block
-        .chunk_by(|&x, &y| blocks[x as usize] == blocks[y as usize])
-        .collect();
+    let groups = block_runs(&by_block, blocks);
     // Phase 2's candidate pairs do not depend on phase 1: found beside it (the triangulation
     // of every site of the city is one sequential job, seconds at a million buildings).
     let (runs, cross) = rayon::join(
@@ -675,9 +680,7 @@ pub(super) fn single_link_one_heap(
 ) -> Result<Vec<Merge>, ClusterError> {
     let base = |x: u32, y: u32| base_distance(leaves, verts, mode, lambda, x, y);
     let by_block = group_by_block(blocks);
-    let groups: Vec<&[u32]> = by_block
-        .chunk_by(|&x, &y| blocks[x as usize] == blocks[y as usize])
-        .collect();
+    let groups = block_runs(&by_block, blocks);
     let mut ag = Agglomeration::new((0..leaves.len() as u32).collect(), blocks, mode);
     let mut pairs = Vec::new();
     for g in &groups {
