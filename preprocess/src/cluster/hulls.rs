@@ -6,7 +6,8 @@
 //! city's array block by block afterwards, so the package is the same for every thread count.
 //! The merges between blocks follow, in merge order.
 //!
-//! Yang et al. 2011 §3.2 sets the concave-triangle threshold δa = a_ave / 50, a_ave "the
+//! Yang et al. 2011 §3.2 sets the concave-triangle threshold δa = a_ave / 50 (citywalk's
+//! default divisor is 20: [`ClusterParams::concave_area_divisor`]), a_ave "the
 //! average area of all the footprints at the level" of the merged children. Below the block
 //! level the tree is the block's own (clustering runs inside each block first, Lynch's paths),
 //! so a merge inside a block takes a_ave over the block's current clusters; a merge between

@@ -23,7 +23,7 @@
 //! few balanced pieces instead of one: the LOD cut is never coarser). Paths never mix the
 //! levels below and above the urban blocks, so no node below the block level spans two
 //! blocks. The merges are emitted by distance, as single-link made them (between blocks Yang's
-//! δa = a_ave/50 follows the city's running mean cluster area), and their number is unchanged
+//! δa = a_ave/divisor follows the city's running mean cluster area), and their number is unchanged
 //! (n − 1).
 
 use super::linkage::Merge;

@@ -5,8 +5,8 @@
 //!   positive area, never self-intersecting; stop at max(2/3 of the children's edges, 1 % of
 //!   the input edges, the convex hull's edge count).
 //! - Yang et al. 2011 §3.2 (after Visvalingam & Whyatt 1993): remove the smallest concave
-//!   triangle while its area is under δa = a_ave/50, then remove vertices between two sides
-//!   meeting at more than 175°.
+//!   triangle while its area is under δa = a_ave/50 (the divisor is a parameter, citywalk's
+//!   default 20), then remove vertices between two sides meeting at more than 175°.
 //!
 //! Only reflex (concave) or collinear vertices are removed, and only when the triangle they
 //! cut off holds no other vertex of the ring. The new ring is then the old ring plus that

@@ -185,8 +185,8 @@ pub struct AtlasLayout {
     pub page_px: u32,
     pub bins: Vec<BinCells>,
     pub page_count: u32,
-    /// Sorted by node; a cluster whose walls do not fit one texel each in its cell is left
-    /// out (drawn untextured).
+    /// Sorted by node; a cluster whose walls fit no bin's cell at one texel each is left out
+    /// (drawn untextured).
     pub clusters: Vec<ClusterPlacement>,
 }
 
@@ -202,22 +202,45 @@ impl AtlasLayout {
 
 /// Lays out `clusters` (any order, each node once) in bins of `page_px²` texels per view, on
 /// pages of that size (at most [`MAX_PAGE_PX`]: a larger `page_px` is taken as that).
+///
+/// A cluster whose walls do not fit its bin's cell at one texel each (a ragged hull of many
+/// walls in a first bin of small cells) joins the first later bin whose cell holds them,
+/// rather than staying untextured: that bin then takes more than Chang's equal share, as the
+/// first bins do when [`super::bins::MIN_CELL_PX`] floors their cells. Only a cluster that no
+/// bin's cell holds (or a wall-less or flat one) is left out.
 pub fn layout_atlas(clusters: &[ClusterWalls], page_px: u32) -> AtlasLayout {
     let page_px = page_px.clamp(1, MAX_PAGE_PX);
     let areas: Vec<f64> = clusters.iter().map(|c| c.negative_space_m2).collect();
     let texels = texture_bins(&areas, page_px);
     let bin_count = texels.iter().map(|t| t.bin + 1).max().unwrap_or(0) as usize;
-    let mut members: Vec<Vec<usize>> = vec![Vec::new(); bin_count];
-    for (i, t) in texels.iter().enumerate() {
-        members[t.bin as usize].push(i);
+    // A cell is never larger than a page: bins give at most the page's texels. Cells grow
+    // from bin to bin.
+    let mut cell_px = vec![0u32; bin_count];
+    for t in &texels {
+        cell_px[t.bin as usize] = t.side_px.min(page_px);
+    }
+    let mut members: Vec<Vec<(usize, SideLayout)>> = vec![Vec::new(); bin_count];
+    for (i, (c, t)) in clusters.iter().zip(&texels).enumerate() {
+        let lengths = c.wall_lengths_m();
+        let height = f64::from(c.top_m) - f64::from(c.base_m);
+        let bin = (t.bin as usize..bin_count)
+            .find(|&b| side_layout::walls_fit(&lengths, height, cell_px[b]));
+        if let Some(bin) = bin
+            && let Some(sides) = layout_sides(&lengths, height, cell_px[bin])
+        {
+            members[bin].push((i, sides));
+        }
     }
     let mut bins = Vec::with_capacity(bin_count);
     let mut placements = Vec::with_capacity(clusters.len());
     let mut page_count = 0u32;
-    for (bin, members) in members.iter().enumerate() {
+    // Bins every cluster left for a later one are dropped, so every bin has a page.
+    for (cell_px, mut members) in cell_px.into_iter().zip(members) {
+        if members.is_empty() {
+            continue;
+        }
+        let bin = bins.len() as u32;
         let count = members.len() as u32;
-        // A cell is never larger than a page: bins give at most the page's texels.
-        let cell_px = texels[members[0]].side_px.min(page_px);
         let per_row = (page_px / cell_px.max(1)).max(1);
         let cells = BinCells {
             cell_px,
@@ -228,15 +251,10 @@ pub fn layout_atlas(clusters: &[ClusterWalls], page_px: u32) -> AtlasLayout {
         page_count += cells.page_count;
         bins.push(cells);
         // Cells in the order of the nodes, so that a bin's texture reads like the tree.
-        let mut members = members.clone();
-        members.sort_by_key(|&i| clusters[i].node);
-        for (k, &i) in members.iter().enumerate() {
+        members.sort_by_key(|(i, _)| clusters[*i].node);
+        for (k, (i, sides)) in members.into_iter().enumerate() {
             let c = &clusters[i];
             let k = k as u32;
-            let height = f64::from(c.top_m) - f64::from(c.base_m);
-            let Some(sides) = layout_sides(&c.wall_lengths_m(), height, cell_px) else {
-                continue;
-            };
             let (mut lo, mut hi) = ([f32::MAX; 2], [f32::MIN; 2]);
             for p in &c.ring {
                 for axis in 0..2 {
@@ -246,7 +264,7 @@ pub fn layout_atlas(clusters: &[ClusterWalls], page_px: u32) -> AtlasLayout {
             }
             placements.push(ClusterPlacement {
                 node: c.node,
-                bin: bin as u32,
+                bin,
                 page: cells.first_page + k / cells.per_page(),
                 cell: k % cells.per_page(),
                 sides,
@@ -357,6 +375,63 @@ mod tests {
         assert_eq!(last.box_hi_m, [22.0, 22.0, 12.0]);
         assert_packed(&layout);
         assert!(layout.placement(5).is_none());
+    }
+
+    /// A cluster of `walls` walls on a circle of 50 m, 12 m tall.
+    fn ragged(node: u32, walls: usize, area: f64) -> ClusterWalls {
+        let ring = (0..walls)
+            .map(|i| {
+                let a = i as f32 / walls as f32 * std::f32::consts::TAU;
+                [50.0 * a.cos(), 50.0 * a.sin()]
+            })
+            .collect();
+        ClusterWalls {
+            ring,
+            ..square(node, 1.0, area)
+        }
+    }
+
+    #[test]
+    fn a_cluster_of_more_walls_than_its_cell_holds_moves_to_a_later_bin() {
+        // Pages of 32²: bins of 4, 2, 1 and 1 clusters, cells of 16 (the least: 25 walls of
+        // one texel with their borders), 20 (36 walls) and 32 texels (100 walls).
+        let clusters = [
+            ragged(0, 30, 0.0),
+            ragged(1, 40, 1.0),
+            ragged(2, 4, 2.0),
+            ragged(3, 150, 3.0),
+            ragged(4, 4, 4.0),
+            ragged(5, 4, 5.0),
+            ragged(6, 4, 6.0),
+            ragged(7, 4, 7.0),
+        ];
+        let layout = layout_atlas(&clusters, 32);
+        let cells: Vec<u32> = layout.bins.iter().map(|b| b.cell_px).collect();
+        assert_eq!(cells, [16, 20, 32, 32]);
+        let bin_of = |node| layout.placement(node).map(|p| p.bin);
+        // 30 walls: one bin on; 40: two bins on; 4 walls: where Chang's order puts them.
+        assert_eq!(bin_of(0), Some(1));
+        assert_eq!(bin_of(1), Some(2));
+        assert_eq!(bin_of(2), Some(0));
+        // No cell holds 150 walls: untextured.
+        assert_eq!(bin_of(3), None);
+        assert_eq!(bin_of(4), Some(1));
+        assert_eq!(bin_of(7), Some(3));
+        assert_eq!(layout.clusters.len(), 7);
+        assert_packed(&layout);
+    }
+
+    #[test]
+    fn a_bin_every_cluster_leaves_is_dropped() {
+        // Both clusters of the first bin (cells of 20 texels: 36 walls) have 40 walls; the
+        // second bin's 32 texels hold them.
+        let clusters = [ragged(0, 40, 0.0), ragged(1, 40, 1.0), ragged(2, 4, 2.0)];
+        let layout = layout_atlas(&clusters, 32);
+        assert_eq!(layout.bins.len(), 1);
+        assert_eq!((layout.bins[0].cell_px, layout.bins[0].page_count), (32, 3));
+        assert_eq!(layout.clusters.len(), 3);
+        assert!(layout.clusters.iter().all(|p| p.bin == 0));
+        assert_packed(&layout);
     }
 
     #[test]

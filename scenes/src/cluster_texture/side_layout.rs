@@ -54,13 +54,10 @@ impl SideLayout {
 /// its untextured colour (at a few texels the texture would be that colour anyway). A face
 /// length that is not a positive finite number gets one texel's width.
 pub fn layout_sides(face_lengths_m: &[f64], height_m: f64, side_px: u32) -> Option<SideLayout> {
-    if face_lengths_m.is_empty() || !(height_m.is_finite() && height_m > 0.0) {
+    if !walls_fit(face_lengths_m, height_m, side_px) {
         return None;
     }
-    let lengths: Vec<f64> = face_lengths_m
-        .iter()
-        .map(|&l| if l.is_finite() && l > 0.0 { l } else { 0.0 })
-        .collect();
+    let lengths = usable_lengths(face_lengths_m);
     let longest = lengths.iter().copied().fold(height_m, f64::max);
     let inner = f64::from(side_px.checked_sub(2 * BORDER_PX)?);
     // The densest layout conceivable puts the longest face across the whole texture.
@@ -82,6 +79,29 @@ pub fn layout_sides(face_lengths_m: &[f64], height_m: f64, side_px: u32) -> Opti
         texels_per_m: fits,
         faces: best,
     })
+}
+
+/// Whether [`layout_sides`] can lay these walls out in `side_px` texels: one texel a face
+/// and its border fit, and the height is a positive length.
+pub fn walls_fit(face_lengths_m: &[f64], height_m: f64, side_px: u32) -> bool {
+    !face_lengths_m.is_empty()
+        && height_m.is_finite()
+        && height_m > 0.0
+        && place(
+            &usable_lengths(face_lengths_m),
+            height_m,
+            f64::MIN_POSITIVE,
+            side_px,
+        )
+        .is_some()
+}
+
+/// A length that is not a positive finite number counts as 0 (one texel's width).
+fn usable_lengths(face_lengths_m: &[f64]) -> Vec<f64> {
+    face_lengths_m
+        .iter()
+        .map(|&l| if l.is_finite() && l > 0.0 { l } else { 0.0 })
+        .collect()
 }
 
 /// The faces at `density` texels per metre, row after row, or `None` when they overflow.
@@ -208,6 +228,8 @@ mod tests {
     fn too_many_faces_for_the_texture_keep_the_cluster_untextured() {
         // One texel and its border per face: 100 faces need more than 8 × 8 texels.
         assert_eq!(layout_sides(&[1.0; 100], 10.0, 8), None);
+        assert!(!walls_fit(&[1.0; 100], 10.0, 8));
+        assert!(walls_fit(&[1.0; 100], 10.0, 32));
         assert!(layout_sides(&[1.0; 4], 10.0, 8).is_some());
         assert_eq!(layout_sides(&[], 10.0, 64), None);
         assert_eq!(layout_sides(&[5.0], 0.0, 64), None);
@@ -239,6 +261,7 @@ mod tests {
             } else {
                 // Only when one texel per face does not fit.
                 prop_assert!(place(&lengths, height_m, f64::MIN_POSITIVE, side_px).is_none());
+                prop_assert!(!walls_fit(&lengths, height_m, side_px));
             }
         }
     }
