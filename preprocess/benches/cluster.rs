@@ -185,14 +185,14 @@ fn stages(c: &mut Criterion) {
             b.iter_batched(
                 || hulls.clone(),
                 |h| {
-                    let (nodes, _) =
+                    let assembled =
                         assemble_nodes(&city, &blocks, &store.verts, &leaves, &merges, h, &params);
-                    black_box(nodes.len())
+                    black_box(assembled.nodes.len())
                 },
                 BatchSize::LargeInput,
             )
         });
-        let (nodes, order) = assemble_nodes(
+        let assembled = assemble_nodes(
             &city,
             &blocks,
             &store.verts,
@@ -203,9 +203,15 @@ fn stages(c: &mut Criterion) {
         );
         group.bench_function(format!("{label}/meshes"), |b| {
             b.iter_batched(
-                || nodes.clone(),
+                || assembled.nodes.clone(),
                 |mut ns| {
-                    build_meshes(&city, &store.verts, &order, &mut ns);
+                    build_meshes(
+                        &city,
+                        &store.verts,
+                        &assembled.building_order,
+                        &assembled.plan_slack_m,
+                        &mut ns,
+                    );
                     black_box(ns.len())
                 },
                 BatchSize::LargeInput,

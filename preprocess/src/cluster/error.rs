@@ -13,6 +13,8 @@
 //!   [`plan_error_m`].
 //! - The geometric error is `√(vertical² + plan²)`: every point of the cluster mesh is within it
 //!   of a building's surface and every point of a building's surface within it of the mesh.
+//!   The mesh's hull may then be cut inside the buildings by up to `√(error² − vertical²)` in
+//!   plan ([`fill_errors`]' plan slack, [`super::simplify::cut_corners`]) without breaking that.
 //! - **Colour**: the untextured mesh paints all its buildings one colour, so a pixel of a
 //!   building's face may differ however small the geometric error is; it stays within the face's
 //!   inradius of the face's edges. Bounded per building by half the second-smallest side of its
@@ -395,13 +397,18 @@ fn heights(b: &Building) -> Heights {
 }
 
 /// Fills `geometric_error_m` and `colour_error_m` of every node (heights and footprints
-/// already set; nodes in depth-first preorder, children after their parent).
+/// already set; nodes in depth-first preorder, children after their parent). Returns each
+/// node's plan slack (m): the horizontal departure its geometric error allows beside its own
+/// vertical one, `√(error² − vertical²)`, at least its measured plan error; its cluster mesh
+/// may leave a building's point this far outside without raising the error
+/// ([`super::simplify::cut_corners`]).
 pub fn fill_errors(
     city: &City,
     verts: &[Pt],
     building_order: &[citywalk_scenes::BuildingId],
     nodes: &mut [ClusterNode],
-) {
+) -> Vec<f32> {
+    let mut plan_slack_m = vec![0.0f32; nodes.len()];
     let per_building: Vec<Heights> = building_order
         .iter()
         .map(|b| heights(&city.buildings[b.index()]))
@@ -416,7 +423,7 @@ pub fn fill_errors(
         by_depth[node.depth as usize].push(id);
     }
     for ids in by_depth.iter().rev() {
-        let errors: Vec<(f32, f32)> = ids
+        let errors: Vec<(f32, f32, f32)> = ids
             .par_iter()
             .map(|&id| {
                 let node = &nodes[id];
@@ -427,29 +434,45 @@ pub fn fill_errors(
                             let child = &nodes[child as usize];
                             (g.max(child.geometric_error_m), c.max(child.colour_error_m))
                         });
-                let (geometric, colour) =
-                    own_errors(&fp, verts, &per_building, node, floor_geometric);
-                (geometric.max(floor_geometric), colour.max(floor_colour))
+                let own = own_errors(&fp, verts, &per_building, node, floor_geometric);
+                let geometric = own.geometric_m.max(floor_geometric);
+                let slack = (geometric * geometric - own.vertical_m * own.vertical_m)
+                    .max(0.0)
+                    .sqrt();
+                (geometric, own.colour_m.max(floor_colour), slack)
             })
             .collect();
-        for (&id, (geometric, colour)) in ids.iter().zip(errors) {
+        for (&id, (geometric, colour, slack)) in ids.iter().zip(errors) {
             nodes[id].geometric_error_m = geometric;
             nodes[id].colour_error_m = colour;
+            plan_slack_m[id] = slack;
         }
     }
+    plan_slack_m
 }
 
-/// A node's own geometric and colour error (m), not yet the maximum with its children's; the
-/// geometric one found only as far as it can exceed `floor_m`.
+/// A node's own errors (m), before the maximum with its children's.
+struct OwnErrors {
+    geometric_m: f32,
+    vertical_m: f32,
+    colour_m: f32,
+}
+
+/// A node's own geometric, vertical and colour error (m), not yet the maximum with its
+/// children's; the geometric one found only as far as it can exceed `floor_m`.
 fn own_errors(
     fp: &Footprints<'_>,
     verts: &[Pt],
     per_building: &[Heights],
     node: &ClusterNode,
     floor_m: f32,
-) -> (f32, f32) {
+) -> OwnErrors {
     if node.is_leaf() {
-        return (0.0, 0.0);
+        return OwnErrors {
+            geometric_m: 0.0,
+            vertical_m: 0.0,
+            colour_m: 0.0,
+        };
     }
     let (s, e) = node.buildings;
     let mine = &per_building[s as usize..e as usize];
@@ -469,7 +492,11 @@ fn own_errors(
         plan_error_m(fp, verts, ring, (s, e), tolerance)
     });
     let colour = mine.iter().map(|h| h.colour_m).fold(0.0f32, f32::max);
-    (f64::from(vertical).hypot(plan) as f32, colour)
+    OwnErrors {
+        geometric_m: f64::from(vertical).hypot(plan) as f32,
+        vertical_m: vertical,
+        colour_m: colour,
+    }
 }
 
 #[cfg(test)]

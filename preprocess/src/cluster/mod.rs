@@ -124,10 +124,19 @@ pub fn build_cluster_tree(
     );
     lap.step("hull merging");
     stats.binary_inner_nodes = merges.len() as u32;
-    let (mut nodes, building_order) =
-        assemble_nodes(city, blocks, &store.verts, &leaves, &merges, hulls, params);
+    let Assembled {
+        mut nodes,
+        building_order,
+        plan_slack_m,
+    } = assemble_nodes(city, blocks, &store.verts, &leaves, &merges, hulls, params);
     lap.step("depth reduction, node data and errors");
-    build_meshes(city, &store.verts, &building_order, &mut nodes);
+    build_meshes(
+        city,
+        &store.verts,
+        &building_order,
+        &plan_slack_m,
+        &mut nodes,
+    );
     lap.step("meshes");
 
     Ok(ClusterTree {
@@ -157,6 +166,18 @@ impl Lap {
     }
 }
 
+/// The final nodes with their data, before their meshes.
+#[derive(Debug, Clone)]
+pub struct Assembled {
+    /// In depth-first preorder.
+    pub nodes: Vec<ClusterNode>,
+    /// Leaf order: every node's buildings are a contiguous range of it.
+    pub building_order: Vec<citywalk_scenes::BuildingId>,
+    /// Per node, the plan departure its geometric error allows its mesh
+    /// ([`error::fill_errors`]).
+    pub plan_slack_m: Vec<f32>,
+}
+
 /// Stages 4–5: depth reduction and balancing of the binary tree ([`depth`]), the final nodes
 /// in depth-first preorder, and their data (heights, errors, bounds, landmarks; no meshes).
 pub fn assemble_nodes(
@@ -167,7 +188,7 @@ pub fn assemble_nodes(
     merges: &[linkage::Merge],
     hulls: Hulls,
     params: &ClusterParams,
-) -> (Vec<ClusterNode>, Vec<citywalk_scenes::BuildingId>) {
+) -> Assembled {
     let n = leaves.len();
     let Hulls {
         mut rings,
@@ -259,17 +280,23 @@ pub fn assemble_nodes(
         &mut nodes,
         params,
     );
-    error::fill_errors(city, verts, &building_order, &mut nodes);
+    let plan_slack_m = error::fill_errors(city, verts, &building_order, &mut nodes);
 
-    (nodes, building_order)
+    Assembled {
+        nodes,
+        building_order,
+        plan_slack_m,
+    }
 }
 
-/// Stage 6: cluster meshes, the hull of every inner node extruded from its lowest base to
-/// its height (walls and a constrained-Delaunay roof).
+/// Stage 6: cluster meshes, the hull of every inner node with its corners cut within the
+/// node's plan slack ([`simplify::cut_corners`]), extruded from its lowest base to its height
+/// (walls and a constrained-Delaunay roof).
 pub fn build_meshes(
     city: &City,
     verts: &[geom::Pt],
     building_order: &[citywalk_scenes::BuildingId],
+    plan_slack_m: &[f32],
     nodes: &mut [ClusterNode],
 ) {
     // Lowest building base per node, bottom-up (children follow their parent in preorder).
@@ -291,7 +318,8 @@ pub fn build_meshes(
     // Each node's mesh is its own: made on rayon's threads, each into its node's slot.
     nodes.par_iter_mut().enumerate().for_each(|(id, n)| {
         if !n.is_leaf() {
-            n.mesh = cluster_mesh(verts, &n.footprint[0], base[id].min(n.height_m), n.height_m);
+            let ring = simplify::cut_corners(verts, &n.footprint[0], f64::from(plan_slack_m[id]));
+            n.mesh = cluster_mesh(verts, &ring, base[id].min(n.height_m), n.height_m);
         }
     });
 }

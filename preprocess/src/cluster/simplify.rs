@@ -13,11 +13,14 @@
 //! triangle: still simple, and still containing every building (the papers' "non
 //! self-intersecting" and "contains its buildings" by construction). A convex vertex at more
 //! than 175° is kept: removing it would cut a corner off a building.
+//!
+//! The hull a node merges upwards stays so; only its cluster mesh is cut further, convex
+//! corners included, within the plan slack its geometric error allows ([`cut_corners`]).
 
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
 
-use super::geom::{Pt, orient};
+use super::geom::{Pt, orient, point_segment_distance};
 
 #[derive(Debug, Clone, Copy)]
 struct Cand {
@@ -115,19 +118,16 @@ impl<'a> Linked<'a> {
         let (a, v, b) = (self.p(ia), self.p(i), self.p(ib));
         let lo = [a[0].min(v[0]).min(b[0]), a[1].min(v[1]).min(b[1])];
         let hi = [a[0].max(v[0]).max(b[0]), a[1].max(v[1]).max(b[1])];
-        // The triangle a, b, v is counter-clockwise for a reflex v.
         let mut k = self.next[ib as usize];
         while k != ia {
             let q = self.p(k);
             if q[0] >= lo[0] && q[0] <= hi[0] && q[1] >= lo[1] && q[1] <= hi[1] {
-                let inside =
-                    orient(a, b, q) >= 0.0 && orient(b, v, q) >= 0.0 && orient(v, a, q) >= 0.0;
-                let on_ab = orient(a, b, q) == 0.0
-                    && q[0] >= a[0].min(b[0])
-                    && q[0] <= a[0].max(b[0])
-                    && q[1] >= a[1].min(b[1])
-                    && q[1] <= a[1].max(b[1]);
-                if inside || on_ab || q == a || q == b || q == v {
+                // In the closed triangle, whichever way round it turns (counter-clockwise
+                // for a reflex `v`, clockwise for a convex one); inside the box, a point
+                // on the line through a collinear a, v, b is on the segment.
+                let turns = [orient(a, v, q), orient(v, b, q), orient(b, a, q)];
+                let inside = turns.iter().all(|&o| o >= 0.0) || turns.iter().all(|&o| o <= 0.0);
+                if inside || q == a || q == b || q == v {
                     return false;
                 }
             }
@@ -196,6 +196,59 @@ impl<'a> Linked<'a> {
     }
 }
 
+/// Cuts convex corners off a simplified hull for its cluster mesh while every point cut away
+/// stays within `max_depth_m` of the new ring, the flattest cut first.
+///
+/// Both simplifications above only grow a hull, so a coarse node keeps every corner of its
+/// convex hull (about 20 at any depth of a generated city) and its mesh as many triangles as
+/// a fine one. The slack is what the node's geometric error already allows (its error
+/// carries at least this much plan departure): a building point the cut leaves outside the
+/// mesh lies within it of a wall, so the error, and the cut's bound, are unchanged.
+///
+/// Each side carries how far behind it a point cut away may lie: removing corner `v` between
+/// `a` and `b` gives side `a b` the larger depth of `a v` and `v b` plus the distance from `v`
+/// to `a b` (every point behind those sides is that close to the triangle, every point of the
+/// triangle that close to `a b`: the distance to a segment is convex, largest at a corner). Only a corner whose triangle holds no other vertex is cut,
+/// so the ring stays simple.
+pub fn cut_corners(verts: &[Pt], ring: &[u32], max_depth_m: f64) -> Vec<u32> {
+    let mut l = Linked::new(verts, ring);
+    // depth[i]: the depth carried by the side from vertex i to its successor.
+    let mut depth = vec![0.0f64; ring.len()];
+    let cut_depth = |l: &Linked, depth: &[f64], i: u32| -> Option<f64> {
+        let (ia, ib) = (l.prev[i as usize], l.next[i as usize]);
+        let (a, v, b) = (l.p(ia), l.p(i), l.p(ib));
+        if orient(a, v, b) <= 0.0 {
+            return None;
+        }
+        let d = depth[ia as usize].max(depth[i as usize]) + point_segment_distance(v, a, b);
+        (d <= max_depth_m).then_some(d)
+    };
+    let push = |heap: &mut BinaryHeap<Cand>, l: &Linked, depth: &[f64], i: u32| {
+        if let Some(d) = cut_depth(l, depth, i) {
+            heap.push(Cand {
+                area: d,
+                at: i,
+                stamp: l.stamp[i as usize],
+            });
+        }
+    };
+    let mut heap = BinaryHeap::new();
+    for i in 0..ring.len() as u32 {
+        push(&mut heap, &l, &depth, i);
+    }
+    while let Some(c) = heap.pop() {
+        if !l.alive[c.at as usize] || l.stamp[c.at as usize] != c.stamp || !l.removable(c.at) {
+            continue;
+        }
+        let (a, b) = (l.prev[c.at as usize], l.next[c.at as usize]);
+        depth[a as usize] = c.area;
+        l.remove(c.at);
+        push(&mut heap, &l, &depth, a);
+        push(&mut heap, &l, &depth, b);
+    }
+    l.into_ring()
+}
+
 /// Chang et al. 2008 §6: removes smallest-gain vertices until the ring has `target` vertices
 /// or no vertex can be removed.
 pub fn simplify_chang(verts: &[Pt], ring: &[u32], target: usize) -> Vec<u32> {
@@ -218,7 +271,7 @@ pub fn simplify_yang(verts: &[Pt], ring: &[u32], delta_a_m2: f64, straight_deg: 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cluster::geom::{ring_contains_ring, ring_is_simple_ccw, signed_area};
+    use crate::cluster::geom::{Side, locate, ring_contains_ring, ring_is_simple_ccw, signed_area};
 
     /// A comb: a 10 × 2 bar with three 1 m wide teeth of height 3 and notches between.
     fn comb() -> (Vec<Pt>, Vec<u32>) {
@@ -238,6 +291,87 @@ mod tests {
         ];
         let ring = (0..pts.len() as u32).collect();
         (pts, ring)
+    }
+
+    /// How far a point of `ring` lies outside `cut`: 0 inside or on it, else its distance to
+    /// the nearest side; sampled along every side of `ring`.
+    fn farthest_outside(v: &[Pt], ring: &[u32], cut: &[u32]) -> f64 {
+        let mut worst = 0.0f64;
+        for k in 0..ring.len() {
+            let (a, b) = (v[ring[k] as usize], v[ring[(k + 1) % ring.len()] as usize]);
+            for t in 0..=16 {
+                let t = f64::from(t) / 16.0;
+                let p = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
+                if locate(v, cut, p) != Side::Outside {
+                    continue;
+                }
+                let d = (0..cut.len())
+                    .map(|j| {
+                        let (c, e) = (v[cut[j] as usize], v[cut[(j + 1) % cut.len()] as usize]);
+                        point_segment_distance(p, c, e)
+                    })
+                    .fold(f64::INFINITY, f64::min);
+                worst = worst.max(d);
+            }
+        }
+        worst
+    }
+
+    /// A 24-gon of radius 100 m: every corner 3.4 m above the chord of its neighbours.
+    fn round() -> (Vec<Pt>, Vec<u32>) {
+        let pts: Vec<Pt> = (0..24)
+            .map(|k| {
+                let a = f64::from(k) * std::f64::consts::TAU / 24.0;
+                [100.0 * a.cos(), 100.0 * a.sin()]
+            })
+            .collect();
+        let ring = (0..pts.len() as u32).collect();
+        (pts, ring)
+    }
+
+    #[test]
+    fn corners_are_cut_only_within_the_depth() {
+        let (v, r) = round();
+        assert_eq!(cut_corners(&v, &r, 3.0), r, "no corner is 3 m deep");
+        for depth in [4.0, 8.0, 30.0] {
+            let cut = cut_corners(&v, &r, depth);
+            assert!(cut.len() < r.len(), "{depth} m cuts a corner");
+            assert!(ring_is_simple_ccw(&v, &cut));
+            assert!(ring_contains_ring(&v, &r, &cut), "cutting only removes");
+            let out = farthest_outside(&v, &r, &cut);
+            assert!(out <= depth + 1e-9, "{out} m cut away at {depth} m");
+        }
+        assert!(cut_corners(&v, &r, 30.0).len() < cut_corners(&v, &r, 8.0).len());
+        let (v, r) = comb();
+        let cut = cut_corners(&v, &r, 0.4);
+        assert_eq!(cut, r, "the comb's corners are deeper than 0.4 m");
+    }
+
+    proptest::proptest! {
+        /// Star-shaped random rings cut at random depths stay simple, inside the ring, and
+        /// leave no point of it farther than the depth outside.
+        #[test]
+        fn cut_rings_stay_simple_and_within_their_depth(
+            radii in proptest::collection::vec(20.0f64..100.0, 5..40),
+            depth in 0.0f64..40.0,
+        ) {
+            let n = radii.len();
+            let v: Vec<Pt> = radii
+                .iter()
+                .enumerate()
+                .map(|(k, r)| {
+                    let a = k as f64 * std::f64::consts::TAU / n as f64;
+                    [r * a.cos(), r * a.sin()]
+                })
+                .collect();
+            let r: Vec<u32> = (0..n as u32).collect();
+            let cut = cut_corners(&v, &r, depth);
+            proptest::prop_assert!(cut.len() >= 3);
+            proptest::prop_assert!(ring_is_simple_ccw(&v, &cut));
+            proptest::prop_assert!(ring_contains_ring(&v, &r, &cut));
+            let out = farthest_outside(&v, &r, &cut);
+            proptest::prop_assert!(out <= depth + 1e-6, "{} m cut away at {} m", out, depth);
+        }
     }
 
     #[test]
