@@ -13,8 +13,8 @@
 //!   [`plan_error_m`].
 //! - The geometric error is `√(vertical² + plan²)`: every point of the cluster mesh is within it
 //!   of a building's surface and every point of a building's surface within it of the mesh.
-//!   The mesh's hull may then be cut inside the buildings by up to `√(error² − vertical²)` in
-//!   plan ([`fill_errors`]' plan slack, [`super::simplify::cut_corners`]) without breaking that.
+//!   The mesh's hull may then be cut inside the buildings by up to `√(error² − rise²)` in
+//!   plan (rise: the most a building's top rises above the mesh's roof) ([`fill_errors`]' plan slack, [`super::simplify::cut_corners`]) without breaking that.
 //! - **Colour**: the untextured mesh paints all its buildings one colour, so a pixel of a
 //!   building's face may differ however small the geometric error is; it stays within the face's
 //!   inradius of the face's edges. Bounded per building by half the second-smallest side of its
@@ -398,9 +398,10 @@ fn heights(b: &Building) -> Heights {
 
 /// Fills `geometric_error_m` and `colour_error_m` of every node (heights and footprints
 /// already set; nodes in depth-first preorder, children after their parent). Returns each
-/// node's plan slack (m): the horizontal departure its geometric error allows beside its own
-/// vertical one, `√(error² − vertical²)`, at least its measured plan error; its cluster mesh
-/// may leave a building's point this far outside without raising the error
+/// node's plan slack (m): the horizontal departure its geometric error allows a building point
+/// left outside the mesh's walls, beside the most a building rises through its roof,
+/// `√(error² − rise²)`; its cluster mesh may leave a building's point this far outside
+/// without raising the error
 /// ([`super::simplify::cut_corners`]).
 pub fn fill_errors(
     city: &City,
@@ -436,7 +437,7 @@ pub fn fill_errors(
                         });
                 let own = own_errors(&fp, verts, &per_building, node, floor_geometric);
                 let geometric = own.geometric_m.max(floor_geometric);
-                let slack = (geometric * geometric - own.vertical_m * own.vertical_m)
+                let slack = (geometric * geometric - own.rise_m * own.rise_m)
                     .max(0.0)
                     .sqrt();
                 (geometric, own.colour_m.max(floor_colour), slack)
@@ -454,7 +455,10 @@ pub fn fill_errors(
 /// A node's own errors (m), before the maximum with its children's.
 struct OwnErrors {
     geometric_m: f32,
-    vertical_m: f32,
+    /// The most a building rises through the mesh's roof: the only vertical distance from a
+    /// building point that a cut corner leaves outside the walls to the mesh (the walls span
+    /// the lowest base to the roof).
+    rise_m: f32,
     colour_m: f32,
 }
 
@@ -470,7 +474,7 @@ fn own_errors(
     if node.is_leaf() {
         return OwnErrors {
             geometric_m: 0.0,
-            vertical_m: 0.0,
+            rise_m: 0.0,
             colour_m: 0.0,
         };
     }
@@ -492,9 +496,13 @@ fn own_errors(
         plan_error_m(fp, verts, ring, (s, e), tolerance)
     });
     let colour = mine.iter().map(|h| h.colour_m).fold(0.0f32, f32::max);
+    let rise = mine
+        .iter()
+        .map(|h| h.top_m - node.height_m)
+        .fold(0.0f32, f32::max);
     OwnErrors {
         geometric_m: f64::from(vertical).hypot(plan) as f32,
-        vertical_m: vertical,
+        rise_m: rise,
         colour_m: colour,
     }
 }

@@ -201,30 +201,41 @@ impl<'a> Linked<'a> {
 ///
 /// Both simplifications above only grow a hull, so a coarse node keeps every corner of its
 /// convex hull (about 20 at any depth of a generated city) and its mesh as many triangles as
-/// a fine one. The slack is what the node's geometric error already allows (its error
-/// carries at least this much plan departure): a building point the cut leaves outside the
-/// mesh lies within it of a wall, so the error, and the cut's bound, are unchanged.
+/// a fine one. The slack is what the node's geometric error already allows
+/// ([`super::error::fill_errors`]): a building point the cut leaves outside the mesh lies
+/// within it of a wall, so the error, and the cut's bound, are unchanged.
 ///
-/// Each side carries how far behind it a point cut away may lie: removing corner `v` between
-/// `a` and `b` gives side `a b` the larger depth of `a v` and `v b` plus the distance from `v`
-/// to `a b` (every point behind those sides is that close to the triangle, every point of the
-/// triangle that close to `a b`: the distance to a segment is convex, largest at a corner). Only a corner whose triangle holds no other vertex is cut,
-/// so the ring stays simple.
+/// What a new side `a b` cuts away is the region between it and the input ring's vertices
+/// from `a` to `b`: within the convex hull of those vertices, so no farther from `a b` than
+/// the farthest of them (the distance to a segment is convex). Only a corner whose triangle
+/// holds no other vertex is cut, so the ring stays simple.
 pub fn cut_corners(verts: &[Pt], ring: &[u32], max_depth_m: f64) -> Vec<u32> {
+    let n = ring.len();
     let mut l = Linked::new(verts, ring);
-    // depth[i]: the depth carried by the side from vertex i to its successor.
-    let mut depth = vec![0.0f64; ring.len()];
-    let cut_depth = |l: &Linked, depth: &[f64], i: u32| -> Option<f64> {
+    let cut_depth = |l: &Linked, i: u32| -> Option<f64> {
         let (ia, ib) = (l.prev[i as usize], l.next[i as usize]);
         let (a, v, b) = (l.p(ia), l.p(i), l.p(ib));
         if orient(a, v, b) <= 0.0 {
             return None;
         }
-        let d = depth[ia as usize].max(depth[i as usize]) + point_segment_distance(v, a, b);
-        (d <= max_depth_m).then_some(d)
+        // The input ring's vertices strictly between a and b (the linked list keeps
+        // positions in the input ring).
+        let chain = (ib as usize + n - ia as usize) % n;
+        let mut d = 0.0f64;
+        for k in 1..chain {
+            d = d.max(point_segment_distance(
+                l.p(((ia as usize + k) % n) as u32),
+                a,
+                b,
+            ));
+            if d > max_depth_m {
+                return None;
+            }
+        }
+        Some(d)
     };
-    let push = |heap: &mut BinaryHeap<Cand>, l: &Linked, depth: &[f64], i: u32| {
-        if let Some(d) = cut_depth(l, depth, i) {
+    let push = |heap: &mut BinaryHeap<Cand>, l: &Linked, i: u32| {
+        if let Some(d) = cut_depth(l, i) {
             heap.push(Cand {
                 area: d,
                 at: i,
@@ -233,18 +244,17 @@ pub fn cut_corners(verts: &[Pt], ring: &[u32], max_depth_m: f64) -> Vec<u32> {
         }
     };
     let mut heap = BinaryHeap::new();
-    for i in 0..ring.len() as u32 {
-        push(&mut heap, &l, &depth, i);
+    for i in 0..n as u32 {
+        push(&mut heap, &l, i);
     }
     while let Some(c) = heap.pop() {
         if !l.alive[c.at as usize] || l.stamp[c.at as usize] != c.stamp || !l.removable(c.at) {
             continue;
         }
         let (a, b) = (l.prev[c.at as usize], l.next[c.at as usize]);
-        depth[a as usize] = c.area;
         l.remove(c.at);
-        push(&mut heap, &l, &depth, a);
-        push(&mut heap, &l, &depth, b);
+        push(&mut heap, &l, a);
+        push(&mut heap, &l, b);
     }
     l.into_ring()
 }
