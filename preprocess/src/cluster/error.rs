@@ -14,7 +14,8 @@
 //! - The geometric error is `√(vertical² + plan²)`: every point of the cluster mesh is within it
 //!   of a building's surface and every point of a building's surface within it of the mesh.
 //!   The mesh's hull may then be cut inside the buildings by up to `√(error² − rise²)` in
-//!   plan (rise: the most a building's top rises above the mesh's roof) ([`fill_errors`]' plan slack, [`super::simplify::cut_corners`]) without breaking that.
+//!   plan without breaking that (rise: the most a building's top rises above the mesh's
+//!   roof; [`fill_errors`]' plan slack, [`super::simplify::cut_corners`]).
 //! - **Colour**: the untextured mesh paints all its buildings one colour, so a pixel of a
 //!   building's face may differ however small the geometric error is; it stays within the face's
 //!   inradius of the face's edges. Bounded per building by half the second-smallest side of its
@@ -401,8 +402,7 @@ fn heights(b: &Building) -> Heights {
 /// node's plan slack (m): the horizontal departure its geometric error allows a building point
 /// left outside the mesh's walls, beside the most a building rises through its roof,
 /// `√(error² − rise²)`; its cluster mesh may leave a building's point this far outside
-/// without raising the error
-/// ([`super::simplify::cut_corners`]).
+/// without raising the error ([`super::simplify::cut_corners`]).
 pub fn fill_errors(
     city: &City,
     verts: &[Pt],
@@ -462,7 +462,7 @@ struct OwnErrors {
     colour_m: f32,
 }
 
-/// A node's own geometric, vertical and colour error (m), not yet the maximum with its
+/// A node's own geometric and colour error and its rise (m), not yet the maximum with its
 /// children's; the geometric one found only as far as it can exceed `floor_m`.
 fn own_errors(
     fp: &Footprints<'_>,

@@ -24,7 +24,8 @@ use super::geom::{Pt, orient, point_segment_distance};
 
 #[derive(Debug, Clone, Copy)]
 struct Cand {
-    area: f64,
+    /// Smallest first: the area a removal adds, or the depth a corner cut reaches.
+    key: f64,
     at: u32,
     stamp: u32,
 }
@@ -42,7 +43,7 @@ impl PartialOrd for Cand {
 }
 impl Ord for Cand {
     fn cmp(&self, o: &Self) -> Ordering {
-        o.area.total_cmp(&self.area).then(o.at.cmp(&self.at))
+        o.key.total_cmp(&self.key).then(o.at.cmp(&self.at))
     }
 }
 
@@ -151,7 +152,7 @@ impl<'a> Linked<'a> {
             && filter(self, i, area)
         {
             heap.push(Cand {
-                area,
+                key: area,
                 at: i,
                 stamp: self.stamp[i as usize],
             });
@@ -207,12 +208,25 @@ impl<'a> Linked<'a> {
 ///
 /// What a new side `a b` cuts away is the region between it and the input ring's vertices
 /// from `a` to `b`: within the convex hull of those vertices, so no farther from `a b` than
-/// the farthest of them (the distance to a segment is convex). Only a corner whose triangle
-/// holds no other vertex is cut, so the ring stays simple.
+/// the farthest of them (the distance to a segment is convex). Past [`CHAIN_SCAN`] of them
+/// the depth is bounded in O(1) instead: the larger depth of sides `a v` and `v b` plus the
+/// distance from `v` to `a b` (what lies behind those sides is that close to the triangle,
+/// the triangle that close to `a b`), so a ring of thousands of vertices costs no more than
+/// linear time. Only a corner whose triangle holds no other vertex is cut, so the ring stays
+/// simple.
 pub fn cut_corners(verts: &[Pt], ring: &[u32], max_depth_m: f64) -> Vec<u32> {
+    cut_corners_scanning(verts, ring, max_depth_m, CHAIN_SCAN)
+}
+
+/// Input vertices a corner cut measures exactly before it bounds its depth instead.
+const CHAIN_SCAN: usize = 32;
+
+fn cut_corners_scanning(verts: &[Pt], ring: &[u32], max_depth_m: f64, scan: usize) -> Vec<u32> {
     let n = ring.len();
     let mut l = Linked::new(verts, ring);
-    let cut_depth = |l: &Linked, i: u32| -> Option<f64> {
+    // depth[i]: how far behind the side from vertex i to its successor a cut-away point lies.
+    let mut depth = vec![0.0f64; n];
+    let cut_depth = |l: &Linked, depth: &[f64], i: u32| -> Option<f64> {
         let (ia, ib) = (l.prev[i as usize], l.next[i as usize]);
         let (a, v, b) = (l.p(ia), l.p(i), l.p(ib));
         if orient(a, v, b) <= 0.0 {
@@ -221,23 +235,19 @@ pub fn cut_corners(verts: &[Pt], ring: &[u32], max_depth_m: f64) -> Vec<u32> {
         // The input ring's vertices strictly between a and b (the linked list keeps
         // positions in the input ring).
         let chain = (ib as usize + n - ia as usize) % n;
-        let mut d = 0.0f64;
-        for k in 1..chain {
-            d = d.max(point_segment_distance(
-                l.p(((ia as usize + k) % n) as u32),
-                a,
-                b,
-            ));
-            if d > max_depth_m {
-                return None;
-            }
-        }
-        Some(d)
+        let d = if chain <= scan + 1 {
+            (1..chain)
+                .map(|k| point_segment_distance(l.p(((ia as usize + k) % n) as u32), a, b))
+                .fold(0.0f64, f64::max)
+        } else {
+            depth[ia as usize].max(depth[i as usize]) + point_segment_distance(v, a, b)
+        };
+        (d <= max_depth_m).then_some(d)
     };
-    let push = |heap: &mut BinaryHeap<Cand>, l: &Linked, i: u32| {
-        if let Some(d) = cut_depth(l, i) {
+    let push = |heap: &mut BinaryHeap<Cand>, l: &Linked, depth: &[f64], i: u32| {
+        if let Some(d) = cut_depth(l, depth, i) {
             heap.push(Cand {
-                area: d,
+                key: d,
                 at: i,
                 stamp: l.stamp[i as usize],
             });
@@ -245,16 +255,17 @@ pub fn cut_corners(verts: &[Pt], ring: &[u32], max_depth_m: f64) -> Vec<u32> {
     };
     let mut heap = BinaryHeap::new();
     for i in 0..n as u32 {
-        push(&mut heap, &l, i);
+        push(&mut heap, &l, &depth, i);
     }
     while let Some(c) = heap.pop() {
         if !l.alive[c.at as usize] || l.stamp[c.at as usize] != c.stamp || !l.removable(c.at) {
             continue;
         }
         let (a, b) = (l.prev[c.at as usize], l.next[c.at as usize]);
+        depth[a as usize] = c.key;
         l.remove(c.at);
-        push(&mut heap, &l, a);
-        push(&mut heap, &l, b);
+        push(&mut heap, &l, &depth, a);
+        push(&mut heap, &l, &depth, b);
     }
     l.into_ring()
 }
@@ -375,12 +386,15 @@ mod tests {
                 })
                 .collect();
             let r: Vec<u32> = (0..n as u32).collect();
-            let cut = cut_corners(&v, &r, depth);
-            proptest::prop_assert!(cut.len() >= 3);
-            proptest::prop_assert!(ring_is_simple_ccw(&v, &cut));
-            proptest::prop_assert!(ring_contains_ring(&v, &r, &cut));
-            let out = farthest_outside(&v, &r, &cut);
-            proptest::prop_assert!(out <= depth + 1e-6, "{} m cut away at {} m", out, depth);
+            // Measured exactly, and bounded past two vertices (the long-chain fallback).
+            for scan in [CHAIN_SCAN, 2] {
+                let cut = cut_corners_scanning(&v, &r, depth, scan);
+                proptest::prop_assert!(cut.len() >= 3);
+                proptest::prop_assert!(ring_is_simple_ccw(&v, &cut));
+                proptest::prop_assert!(ring_contains_ring(&v, &r, &cut));
+                let out = farthest_outside(&v, &r, &cut);
+                proptest::prop_assert!(out <= depth + 1e-6, "{} m cut away at {} m", out, depth);
+            }
         }
     }
 
