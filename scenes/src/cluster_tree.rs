@@ -3,8 +3,8 @@
 //! This work is based on:
 //! - Chang, Butkiewicz, Ziemkiewicz, Wartell, Pollard, Ribarsky: *Hierarchical simplification
 //!   of city models to maintain urban legibility* (2008) — single-link clustering, hull
-//!   merging and simplification, area-weighted cluster height (eq. 5), negative-space
-//!   error box (§8) and landmark tolerance τ.
+//!   merging and simplification, cluster height (eq. 5; citywalk puts the roof where its
+//!   vertical error is least), negative-space error box (§8) and landmark tolerance τ.
 //! - Yang, Zhang, Ma, Wang: *Interactive visualization of multi-resolution urban building
 //!   models considering spatial cognition* (2011) — adjacent distance, one shared vertex
 //!   array (§3.3.1), depth reduction and balancing (§3.3.2), Δh / Δa errors (§4).
@@ -173,7 +173,9 @@ pub struct ClusterNode {
     pub footprint: Vec<Vec<u32>>,
     /// Footprint (hull) area in m².
     pub area_m2: f64,
-    /// Area-weighted mean building height above ground (Chang et al. 2008 eq. 5), metres.
+    /// The cluster mesh's roof height (metres): midway between its buildings' lowest roof
+    /// point and highest top, within their tops (citywalk's choice, the least vertical error;
+    /// Chang et al. 2008 eq. 5 uses the area-weighted mean). A leaf's is its building's top.
     pub height_m: f32,
     /// Lowest building top in the node (metres).
     pub h_min_m: f32,

@@ -90,7 +90,7 @@ pub struct TreeNode {
     /// Landmarks `landmarks[first_landmark .. first_landmark + landmark_count]`.
     pub first_landmark: u32,
     pub landmark_count: u32,
-    /// The cluster mesh's height (Chang et al. 2008 eq. 5), metres.
+    /// The cluster mesh's roof height (`ClusterNode::height_m`), metres.
     pub height_m: f32,
     /// Chang: `|(d·h, w·h, w·d)|` of the negative-space box (m²), the largest area it shows.
     pub chang_area_m2: f32,

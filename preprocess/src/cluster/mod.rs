@@ -352,8 +352,8 @@ pub fn simplify_hull(
     }
 }
 
-/// Heights (Chang eq. 5), errors (Yang §4, Chang §8, made monotone), bounds and landmarks,
-/// bottom-up.
+/// Heights ([`error::roof_height_m`]), errors (Yang §4, Chang §8, made monotone), bounds and
+/// landmarks, bottom-up.
 fn fill_node_data(
     city: &City,
     blocks: &[u32],
@@ -363,8 +363,8 @@ fn fill_node_data(
     nodes: &mut [ClusterNode],
     params: &ClusterParams,
 ) {
-    // Per node: Σ area·top, Σ area, min base.
-    let mut sums = vec![(0.0f64, 0.0f64, f32::INFINITY); nodes.len()];
+    // Per node: lowest roof point, Σ footprint area, lowest base.
+    let mut sums = vec![(f32::INFINITY, 0.0f64, f32::INFINITY); nodes.len()];
     for id in (0..nodes.len()).rev() {
         let (s, e) = nodes[id].buildings;
         let node_blocks = || {
@@ -387,16 +387,16 @@ fn fill_node_data(
             n.delta_a_m2 = (n.area_m2 - area_b).max(0.0);
             n.bounds_min = lo.to_array();
             n.bounds_max = hi.to_array();
-            sums[id] = (area_b * f64::from(b.top_m), area_b, b.base_m);
+            sums[id] = (error::lowest_top_m(b), area_b, b.base_m);
         } else {
             let ch = nodes[id].children.clone();
-            let mut acc = (0.0, 0.0, f32::INFINITY);
+            let mut acc = (f32::INFINITY, 0.0, f32::INFINITY);
             let (mut hmin, mut hmax) = (f32::INFINITY, f32::NEG_INFINITY);
             let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
             let (mut dh, mut da, mut bx) = (0.0f32, 0.0f64, [0.0f32; 3]);
             for &c in &ch {
                 let (cs, cn) = (sums[c as usize], &nodes[c as usize]);
-                acc = (acc.0 + cs.0, acc.1 + cs.1, acc.2.min(cs.2));
+                acc = (acc.0.min(cs.0), acc.1 + cs.1, acc.2.min(cs.2));
                 hmin = hmin.min(cn.h_min_m);
                 hmax = hmax.max(cn.h_max_m);
                 for k in 0..3 {
@@ -409,12 +409,7 @@ fn fill_node_data(
             }
             sums[id] = acc;
             let n = &mut nodes[id];
-            // Chang et al. 2008 eq. 5 / Yang eq. 5: area-weighted mean height.
-            n.height_m = if acc.1 > 0.0 {
-                (acc.0 / acc.1) as f32
-            } else {
-                0.5 * (hmin + hmax)
-            };
+            n.height_m = error::roof_height_m(acc.0, hmin, hmax);
             n.h_min_m = hmin;
             n.h_max_m = hmax;
             // Monotone errors: never below a child's (only ever overstates the error).

@@ -142,7 +142,7 @@ fn hand_made_city_all_parameter_sets() {
                     .sum::<f64>()
         );
         assert!(root.h_max_m == 120.0 && root.h_min_m == 9.0);
-        // The tower is a landmark of the root (much taller than the area-weighted height).
+        // The tower is a landmark of the root (much taller than the cluster's roof).
         assert!(
             root.landmarks.contains(&BuildingId(19)),
             "{:?}",

@@ -40,7 +40,7 @@ pub struct LodScene {
     /// Per draw id, on the GPU only, the record the occlusion cull of the combined frame tests
     /// ([`crate::frame::CullingRenderer::render_lod`]): a building's own record; a cluster's
     /// record with its bounds widened to contain every building under it (a cluster mesh stops
-    /// at the area-weighted mean height, below its tallest buildings, and culling it by its own
+    /// at its roof height, below its tallest buildings, and culling it by its own
     /// box could hide a building the full-detail scene shows). See [`cull_records`]. The cull
     /// reads a candidate's record by its draw id, so a frame uploads only the cut's draw ids;
     /// the CPU reads the draw records ([`LodScene::gpu_scene`]), whose index ranges are the same.
