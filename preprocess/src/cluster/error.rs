@@ -363,16 +363,27 @@ fn nearest_on_ring(verts: &[Pt], ring: &[u32], p: Pt) -> (f64, Pt) {
     (best.0.sqrt(), best.1)
 }
 
-/// A building's heights as the vertical error reads them.
+/// A building's heights as the vertical error and the roof height read them.
 #[derive(Debug, Clone, Copy)]
-struct Heights {
+pub struct Heights {
     base_m: f32,
     top_m: f32,
     /// The lowest point of its roof: the lowest part top, and for a mesh the lowest corner of
-    /// an upward-facing triangle (the eaves of a pitched roof).
-    lowest_top_m: f32,
+    /// an upward-facing triangle (the eaves of a pitched roof); never below its base.
+    pub lowest_top_m: f32,
     /// Half the second-smallest side of its bounding box (the colour error).
     colour_m: f32,
+}
+
+/// Every building's [`Heights`], in `building_order` (the order of the nodes' building ranges).
+pub fn building_heights(
+    city: &City,
+    building_order: &[citywalk_scenes::BuildingId],
+) -> Vec<Heights> {
+    building_order
+        .iter()
+        .map(|b| heights(&city.buildings[b.index()]))
+        .collect()
 }
 
 fn heights(b: &Building) -> Heights {
@@ -387,9 +398,7 @@ fn heights(b: &Building) -> Heights {
     }
 }
 
-/// The lowest point of a building's roof (m): its lowest part top, and for a mesh the lowest
-/// corner of an upward-facing triangle (the eaves of a pitched roof); never below its base.
-pub fn lowest_top_m(b: &Building) -> f32 {
+fn lowest_top_m(b: &Building) -> f32 {
     let mut lowest = b.parts.iter().map(|p| p.top_m).fold(b.top_m, f32::min);
     if let Some(mesh) = &b.mesh {
         for [p, q, r] in mesh.triangles() {
@@ -425,13 +434,10 @@ pub fn fill_errors(
     city: &City,
     verts: &[Pt],
     building_order: &[citywalk_scenes::BuildingId],
+    per_building: &[Heights],
     nodes: &mut [ClusterNode],
 ) -> Vec<f32> {
     let mut plan_slack_m = vec![0.0f32; nodes.len()];
-    let per_building: Vec<Heights> = building_order
-        .iter()
-        .map(|b| heights(&city.buildings[b.index()]))
-        .collect();
     let fp = Footprints::new(city, building_order);
     // Bottom-up, one depth at a time, the nodes of a depth on rayon's threads: a node's error
     // is the maximum of its own and its children's, so its children's (already final) are a
@@ -453,7 +459,7 @@ pub fn fill_errors(
                             let child = &nodes[child as usize];
                             (g.max(child.geometric_error_m), c.max(child.colour_error_m))
                         });
-                let own = own_errors(&fp, verts, &per_building, node, floor_geometric);
+                let own = own_errors(&fp, verts, per_building, node, floor_geometric);
                 let geometric = own.geometric_m.max(floor_geometric);
                 let slack = (geometric * geometric - own.rise_m * own.rise_m)
                     .max(0.0)

@@ -271,16 +271,18 @@ pub fn assemble_nodes(
             block: None,
         });
     }
+    let heights = error::building_heights(city, &building_order);
     fill_node_data(
         city,
         blocks,
         verts,
         leaves,
         &building_order,
+        &heights,
         &mut nodes,
         params,
     );
-    let plan_slack_m = error::fill_errors(city, verts, &building_order, &mut nodes);
+    let plan_slack_m = error::fill_errors(city, verts, &building_order, &heights, &mut nodes);
 
     Assembled {
         nodes,
@@ -354,12 +356,17 @@ pub fn simplify_hull(
 
 /// Heights ([`error::roof_height_m`]), errors (Yang §4, Chang §8, made monotone), bounds and
 /// landmarks, bottom-up.
+#[expect(
+    clippy::too_many_arguments,
+    reason = "one pass over the nodes, all inputs explicit"
+)]
 fn fill_node_data(
     city: &City,
     blocks: &[u32],
     verts: &[geom::Pt],
     leaves: &[leaves::Leaf],
     building_order: &[citywalk_scenes::BuildingId],
+    heights: &[error::Heights],
     nodes: &mut [ClusterNode],
     params: &ClusterParams,
 ) {
@@ -387,7 +394,7 @@ fn fill_node_data(
             n.delta_a_m2 = (n.area_m2 - area_b).max(0.0);
             n.bounds_min = lo.to_array();
             n.bounds_max = hi.to_array();
-            sums[id] = (error::lowest_top_m(b), area_b, b.base_m);
+            sums[id] = (heights[s as usize].lowest_top_m, area_b, b.base_m);
         } else {
             let ch = nodes[id].children.clone();
             let mut acc = (f32::INFINITY, 0.0, f32::INFINITY);
