@@ -11,6 +11,10 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
+#[expect(
+    dead_code,
+    reason = "the build script emits the constants; the helpers are the crate's"
+)]
 mod constants {
     include!("src/constants.rs");
 }

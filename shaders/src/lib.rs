@@ -13,7 +13,7 @@ mod debug;
 mod hzb;
 mod types;
 
-pub use constants::{GROUND_ID, ID_BACKGROUND, ID_OFFSET, SURFACE_ID_BASE};
+pub use constants::{GROUND_ID, ID_BACKGROUND, ID_OFFSET, SURFACE_ID_BASE, depth_tie_factor};
 pub use debug::PyramidViewParams;
 pub use hzb::{HzbCullParams, TreeCullParams, TreeLandmark, TreeNode};
 pub use types::{
@@ -69,8 +69,9 @@ pub const DEBUG_CLUSTERS_WGSL: &str =
 pub const DEBUG_OCCLUDERS_WGSL: &str =
     include_str!(concat!(env!("OUT_DIR"), "/debug_occluders.wgsl"));
 
-/// Outline of a picked draw (`wgsl/outline.wgsl`): a line list of [`SceneVertex`] (the id is
-/// not read) in [`constants::OUTLINE_RGB`], pulled towards the eye by
+/// Outline of a picked draw (`wgsl/outline.wgsl`): a line list of [`SceneVertex`] (the id gives
+/// its [`depth_tie_factor`], as the faces it borders) in [`constants::OUTLINE_RGB`], pulled
+/// towards the eye by
 /// [`constants::OUTLINE_DEPTH_BIAS_REL`]; group 0 binding 0 the [`ViewUniforms`].
 pub const OUTLINE_WGSL: &str = include_str!(concat!(env!("OUT_DIR"), "/outline.wgsl"));
 
@@ -92,3 +93,44 @@ pub const ALL_WGSL: &[(&str, &str)] = &[
     ("outline.wgsl", OUTLINE_WGSL),
     ("bake.wgsl", BAKE_WGSL),
 ];
+
+#[cfg(test)]
+mod tests {
+    use super::constants::{DEPTH_TIE_BITS, DEPTH_TIE_STEP_REL, FIBONACCI_HASH};
+    use super::*;
+
+    #[test]
+    fn depth_tie_factors_push_farther_by_at_most_255_steps() {
+        let largest = (255.0 * DEPTH_TIE_STEP_REL) as f64;
+        for id in (0..1_000_000).step_by(7) {
+            let f = depth_tie_factor(id) as f64;
+            assert!(f <= 1.0 && f >= 1.0 - largest - 1e-12, "id {id}: {f}");
+            // A whole number of steps below 1, exactly (the product is exact in f32).
+            let steps = (1.0 - f) / DEPTH_TIE_STEP_REL as f64;
+            assert_eq!(steps, steps.round(), "id {id}");
+        }
+        assert_eq!(depth_tie_factor(GROUND_ID), 1.0);
+        assert_eq!(depth_tie_factor(SURFACE_ID_BASE + 3), 1.0);
+    }
+
+    #[test]
+    fn neighbouring_ids_get_distinct_tie_levels() {
+        // A building drawn twice in OSM is often two consecutive ids: Fibonacci hashing sends
+        // ids up to 7 apart to distinct levels, and spreads all of them evenly.
+        let level = |id: u32| id.wrapping_mul(FIBONACCI_HASH) >> (32 - DEPTH_TIE_BITS);
+        for id in 0..100_000u32 {
+            for gap in 1..8 {
+                assert_ne!(level(id), level(id + gap), "ids {id} and {}", id + gap);
+                assert_ne!(depth_tie_factor(id), depth_tie_factor(id + gap));
+            }
+        }
+        let mut counts = [0u32; 256];
+        for id in 0..256_000u32 {
+            counts[level(id) as usize] += 1;
+        }
+        assert!(
+            counts.iter().all(|&c| (900..=1100).contains(&c)),
+            "{counts:?}"
+        );
+    }
+}

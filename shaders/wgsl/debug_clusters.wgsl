@@ -14,7 +14,7 @@ struct VertexOutput {
 @vertex
 fn vs_main(v: SceneVertex) -> VertexOutput {
     var out: VertexOutput;
-    out.clip = view.view_proj * vec4<f32>(v.position_m, 1.0);
+    out.clip = tie_broken_clip(view.view_proj * vec4<f32>(v.position_m, 1.0), v.building_id);
     out.world_m = v.position_m;
     out.draw_id = v.building_id;
     return out;

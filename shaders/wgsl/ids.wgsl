@@ -12,7 +12,7 @@ struct IdVertexOutput {
 @vertex
 fn vs_main(v: SceneVertex) -> IdVertexOutput {
     var out: IdVertexOutput;
-    out.clip = view.view_proj * vec4<f32>(v.position_m, 1.0);
+    out.clip = tie_broken_clip(view.view_proj * vec4<f32>(v.position_m, 1.0), v.building_id);
     out.building_id = v.building_id;
     return out;
 }

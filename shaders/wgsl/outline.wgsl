@@ -6,7 +6,7 @@
 
 @vertex
 fn vs_main(v: SceneVertex) -> @builtin(position) vec4<f32> {
-    var clip = view.view_proj * vec4<f32>(v.position_m, 1.0);
+    var clip = tie_broken_clip(view.view_proj * vec4<f32>(v.position_m, 1.0), v.building_id);
     // Towards the eye, so a line wins the depth test against the faces it borders; never past
     // the near plane (depth 1).
     clip.z = min(clip.z * (1.0 + OUTLINE_DEPTH_BIAS_REL), clip.w);

@@ -25,7 +25,7 @@ struct VertexOutput {
 @vertex
 fn vs_main(v: SceneVertex, @builtin(vertex_index) vertex_index: u32) -> VertexOutput {
     var out: VertexOutput;
-    out.clip = view.view_proj * vec4<f32>(v.position_m, 1.0);
+    out.clip = tie_broken_clip(view.view_proj * vec4<f32>(v.position_m, 1.0), v.building_id);
     out.world_m = v.position_m;
     out.building_id = v.building_id;
     out.vertex_index = vertex_index;

@@ -42,3 +42,19 @@ struct DrawIndexedIndirectArgs {
     base_vertex: i32,
     first_instance: u32,
 }
+
+// The clip position `clip` of a vertex of building `id`, its depth pushed farther by the
+// building's own factor (Rust twin: citywalk_shaders::depth_tie_factor). Coplanar faces of two
+// buildings (overlapping footprints in OSM) tie in the depth test, and a tie goes to whichever
+// is drawn first: an order that culling changes from frame to frame (the early and late passes,
+// the GPU's compaction), so such faces flickered and no two modes agreed. With a factor per
+// building the same one wins in every order. Farther only, and an occluder carries its
+// building's id and moves with it, staying behind its building's faces: a depth pyramid of
+// these depths hides only what they hide. The ground and its surfaces keep their depth.
+fn tie_broken_clip(clip: vec4<f32>, id: u32) -> vec4<f32> {
+    if id == GROUND_ID || id >= SURFACE_ID_BASE {
+        return clip;
+    }
+    let level = (id * FIBONACCI_HASH) >> (32u - DEPTH_TIE_BITS);
+    return vec4<f32>(clip.xy, clip.z * (1.0 - f32(level) * DEPTH_TIE_STEP_REL), clip.w);
+}
