@@ -38,6 +38,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use citywalk_scenes::blocks::{UrbanBlock, UrbanBlocks};
 use citywalk_scenes::{BuildingId, City, Street, StreetClass};
 use geo::{Area, Coord, InteriorPoint, Intersects, LineString, Point, Polygon};
+use rayon::prelude::*;
 use rstar::primitives::{GeomWithData, Rectangle};
 use rstar::{AABB, RTree};
 use serde::{Deserialize, Serialize};
@@ -118,18 +119,27 @@ pub fn build_blocks_with(city: &City, params: &BlockParams) -> (UrbanBlocks, Blo
     } else {
         BlockParams::default().leftover_cell_m
     };
-    for b in &city.buildings {
-        let p = representative_point(b);
-        let face = face_tree
-            .locate_all_at_point([p.x(), p.y()])
-            .map(|g| g.data)
-            .filter(|&i| faces[i].polygon.intersects(&p))
-            .min_by(|&a, &b| {
-                faces[a]
-                    .area_m2
-                    .total_cmp(&faces[b].area_m2)
-                    .then(a.cmp(&b))
-            });
+    // A building's face needs no other building: located on every thread, then filed in
+    // building order (the same blocks on any number of threads).
+    let located: Vec<(Option<usize>, Point<f64>)> = city
+        .buildings
+        .par_iter()
+        .map(|b| {
+            let p = representative_point(b);
+            let face = face_tree
+                .locate_all_at_point([p.x(), p.y()])
+                .map(|g| g.data)
+                .filter(|&i| faces[i].polygon.intersects(&p))
+                .min_by(|&a, &b| {
+                    faces[a]
+                        .area_m2
+                        .total_cmp(&faces[b].area_m2)
+                        .then(a.cmp(&b))
+                });
+            (face, p)
+        })
+        .collect();
+    for (b, (face, p)) in city.buildings.iter().zip(located) {
         match face {
             Some(i) => face_buildings[i].push(b.id),
             None => {

@@ -29,6 +29,7 @@ use std::path::Path;
 
 use geo::{Area, BoundingRect, Coord, InteriorPoint, Intersects, LineString, MultiPolygon};
 use glam::DVec3;
+use rayon::prelude::*;
 use rstar::primitives::{GeomWithData, Rectangle};
 use rstar::{AABB, RTree};
 
@@ -185,13 +186,21 @@ pub(crate) fn assemble(
     let mut parts: Vec<Area2> = Vec::new();
     let mut ground_areas: Vec<GroundArea> = Vec::new();
     let mut link: HashMap<String, usize> = HashMap::new();
-    for (area, outlier) in areas.into_iter().zip(outliers) {
+    // Projecting and cleaning an area's polygons needs no other area and is most of this
+    // assembly's work: done on every thread, in input order (the same city on any number).
+    let mut areas = areas;
+    let cleaned: Vec<Result<CleanFootprint, RejectReason>> = areas
+        .par_iter_mut()
+        .zip(outliers)
+        .map(|(area, outlier)| match outlier {
+            Some(reason) => Err(reason),
+            None => std::mem::replace(&mut area.polygons, Ok(Vec::new()))
+                .and_then(|p| clean_polygons(p, &project)),
+        })
+        .collect();
+    for (area, cleaned) in areas.into_iter().zip(cleaned) {
         if let AreaKind::Ground(class) = area.kind {
             report.ground_areas_found += 1;
-            let cleaned = match outlier {
-                Some(reason) => Err(reason),
-                None => area.polygons.and_then(|p| clean_polygons(p, &project)),
-            };
             match cleaned {
                 Ok(clean) => {
                     for message in clean.repairs {
@@ -229,10 +238,7 @@ pub(crate) fn assemble(
             });
         }
         let ids = area.link_ids.clone();
-        let validated = match outlier {
-            Some(reason) => Err((area.source_id, reason)),
-            None => validate_area(area, &project, options),
-        };
+        let validated = validate_area(area, cleaned, options);
         match validated {
             Ok((valid, repairs)) => {
                 for r in repairs {
@@ -503,24 +509,22 @@ fn make_frame(crs: &SourceCrs, areas: &[RawArea]) -> Option<(Frame, Vec<Option<R
     Some((frame, outliers))
 }
 
-/// Projects, cleans and gives heights to one area. On failure returns its id and the reason.
+/// Gives heights to one area whose polygons were projected and cleaned (`cleaned`). On failure
+/// returns its id and the reason.
 fn validate_area(
     area: RawArea,
-    project: &impl Fn(Coord<f64>) -> Result<Coord<f64>, RejectReason>,
+    cleaned: Result<CleanFootprint, RejectReason>,
     options: &LoadOptions,
 ) -> Result<(Area2, Vec<String>), (String, RejectReason)> {
     let RawArea {
         source_id,
-        polygons,
         tags,
         heights,
         part_of,
         ..
     } = area;
     let fail = |reason| (source_id.clone(), reason);
-    let clean = polygons
-        .and_then(|p| clean_polygons(p, project))
-        .map_err(fail)?;
+    let clean = cleaned.map_err(fail)?;
     let resolved = heights.resolve(options);
     check_heights(resolved.base_m, resolved.top_m).map_err(fail)?;
     Ok((
