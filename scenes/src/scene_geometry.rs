@@ -14,6 +14,7 @@ use std::borrow::Cow;
 use citywalk_shaders::constants::NO_PARENT;
 use citywalk_shaders::{BuildingRecord, CullPart, DrawIndexedIndirectArgs, GROUND_ID, SceneVertex};
 use glam::Vec3;
+use rayon::prelude::*;
 
 use crate::cluster_tree::ClusterTree;
 use crate::cull_parts;
@@ -254,15 +255,22 @@ pub fn check_layout(
     Ok(())
 }
 
+/// Buildings extruded at a time by [`lod_geometry`].
+const MESH_CHUNK: usize = 4096;
+
 /// The combined geometry of buildings and cluster meshes, so a LOD cut is one draw list. Draw
 /// ids `0..building_count` are the buildings (the same ids and geometry as
 /// [`SceneGeometry::from_city`]), then id `building_count + n` is the cluster mesh of tree node
 /// `n` (empty for leaves, which draw nothing under that id).
 pub fn lod_geometry(city: &City, tree: &ClusterTree) -> SceneGeometry {
-    let buildings = city
-        .buildings
-        .iter()
-        .map(|b| (Cow::Owned(building_mesh(b)), b.bounds()));
+    // Extruded on every thread a chunk at a time, appended in building order: the same
+    // geometry on any number of threads, and one chunk of meshes held at once.
+    let buildings = city.buildings.chunks(MESH_CHUNK).flat_map(|chunk| {
+        chunk
+            .par_iter()
+            .map(|b| (Cow::Owned(building_mesh(b)), b.bounds()))
+            .collect::<Vec<_>>()
+    });
     let clusters = tree.nodes.iter().map(|node| {
         let bounds = (
             Vec3::from_array(node.bounds_min),
