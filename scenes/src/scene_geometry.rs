@@ -41,13 +41,7 @@ pub struct SceneGeometry {
 impl SceneGeometry {
     /// Meshes every building of `city` ([`building_mesh`]: its own mesh, else extruded parts).
     pub fn from_city(city: &City) -> SceneGeometry {
-        let n = city.buildings.len();
-        Self::from_mesh_iter(
-            city.buildings
-                .iter()
-                .map(|b| (Cow::Owned(building_mesh(b)), b.bounds())),
-            n,
-        )
+        Self::from_mesh_iter(building_meshes(city), city.buildings.len())
     }
 
     /// One building per mesh, with id = position. `fallback_bounds[i]` is used for a building
@@ -255,22 +249,26 @@ pub fn check_layout(
     Ok(())
 }
 
-/// Buildings extruded at a time by [`lod_geometry`].
+/// Buildings meshed at a time by [`building_meshes`].
 const MESH_CHUNK: usize = 4096;
+
+/// Every building's mesh ([`building_mesh`]: its own mesh, else extruded parts) and box, in
+/// building order: made on every thread a chunk at a time, so the geometry is the same on any
+/// number of threads and one chunk of meshes is held at once.
+fn building_meshes<'m>(city: &City) -> impl Iterator<Item = (Cow<'m, TriangleMesh>, (Vec3, Vec3))> {
+    city.buildings.chunks(MESH_CHUNK).flat_map(|chunk| {
+        chunk
+            .par_iter()
+            .map(|b| (Cow::Owned(building_mesh(b)), b.bounds()))
+            .collect::<Vec<_>>()
+    })
+}
 
 /// The combined geometry of buildings and cluster meshes, so a LOD cut is one draw list. Draw
 /// ids `0..building_count` are the buildings (the same ids and geometry as
 /// [`SceneGeometry::from_city`]), then id `building_count + n` is the cluster mesh of tree node
 /// `n` (empty for leaves, which draw nothing under that id).
 pub fn lod_geometry(city: &City, tree: &ClusterTree) -> SceneGeometry {
-    // Extruded on every thread a chunk at a time, appended in building order: the same
-    // geometry on any number of threads, and one chunk of meshes held at once.
-    let buildings = city.buildings.chunks(MESH_CHUNK).flat_map(|chunk| {
-        chunk
-            .par_iter()
-            .map(|b| (Cow::Owned(building_mesh(b)), b.bounds()))
-            .collect::<Vec<_>>()
-    });
     let clusters = tree.nodes.iter().map(|node| {
         let bounds = (
             Vec3::from_array(node.bounds_min),
@@ -279,7 +277,7 @@ pub fn lod_geometry(city: &City, tree: &ClusterTree) -> SceneGeometry {
         (Cow::Borrowed(&node.mesh), bounds)
     });
     // Cluster meshes are culled by the box of everything under them (`cull_records`): no parts.
-    SceneGeometry::from_mesh_iter(buildings.chain(clusters), city.buildings.len())
+    SceneGeometry::from_mesh_iter(building_meshes(city).chain(clusters), city.buildings.len())
 }
 
 /// The occlusion cull's record of every draw id, from `geometry_records` (the records of

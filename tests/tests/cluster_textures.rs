@@ -401,9 +401,8 @@ fn textured_clusters_look_more_like_the_full_city_than_flat_ones() {
 /// its one cluster mesh, a 30 × 10 m box 11 m tall (its roof height, midway between 8 and
 /// 14 m), from the south-west and above, so that the south and west walls and the roof show
 /// their baked images (the three facades on the south wall, the roofs' greys in the roof view
-/// from the south). Tolerance:
-/// per-channel difference ≤ 8 on ≥ 99 % of pixels; the golden was set on lavapipe (llvmpipe,
-/// Mesa 22.3.6, Vulkan). Regenerate with `CITYWALK_UPDATE_GOLDEN=1`.
+/// from the south). Tolerance: per-channel difference ≤ 8 on ≥ 99 % of pixels; the golden was
+/// set on lavapipe (llvmpipe, Mesa 22.3.6, Vulkan). Regenerate with `CITYWALK_UPDATE_GOLDEN=1`.
 #[test]
 fn one_textured_cluster_matches_golden() {
     use citywalk_runtime::camera::Camera;

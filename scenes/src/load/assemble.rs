@@ -139,7 +139,7 @@ pub(crate) fn assemble(
 ) -> Result<City, LoadError> {
     let RawCity {
         crs,
-        areas,
+        mut areas,
         streets,
         warnings,
     } = raw;
@@ -188,7 +188,6 @@ pub(crate) fn assemble(
     let mut link: HashMap<String, usize> = HashMap::new();
     // Projecting and cleaning an area's polygons needs no other area and is most of this
     // assembly's work: done on every thread, in input order (the same city on any number).
-    let mut areas = areas;
     let cleaned: Vec<Result<CleanFootprint, RejectReason>> = areas
         .par_iter_mut()
         .zip(outliers)
