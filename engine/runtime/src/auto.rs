@@ -19,6 +19,14 @@
 //! view twice as dear is taken to be twice as dear for every plan, and only the probes find where
 //! plans differ. Comparing fresh costs with older ones made the planner change plan after every
 //! trial on paths whose cost climbs (H200, 100k flyover: 0.76× brute force).
+//!
+//! A frame whose view jumped (a cut to another street) costs what the rung pays on a jump, not
+//! what the view costs, so each rung has two estimates, for steady frames and for jumps, and
+//! rungs are compared by their mix at the rate the view jumps lately. One estimate for both
+//! lost the bundled Chelsea street path (a cut every frame): the rungs were tried at the path's
+//! first pose, standing still, where the HZB rungs with and without occluders on a jump tie;
+//! the first kept the tie, paid for its occluders on every cut after it, and `auto` ran at
+//! 0.89× brute force where the HZB frame alone gave 1.09×.
 
 use crate::camera::Camera;
 use crate::frame::REPORT_LAG_FRAMES;
@@ -60,15 +68,24 @@ const JUMP_TURN_OF_FOV: f32 = 0.25;
 /// Weight of a new measurement in a plan's moving average.
 const SMOOTHING: f64 = 0.3;
 
-/// A frame's cost says how the view changed every plan's cost only when its view did not jump
-/// within this many frames: the jump's own frame costs what the rung pays on a jump (occluders,
-/// or a stale early set), not what the view costs, the frames after it still run from a stale
-/// early set, and a report may arrive [`REPORT_LAG_FRAMES`] frames after its frame.
+/// A steady frame's cost says how the view changed every plan's cost only when its view did not
+/// jump within this many frames: the frames after a jump may still run from a stale early set,
+/// and the count runs to the last planned frame, up to [`REPORT_LAG_FRAMES`] after the reported
+/// one. Jump frames are compared with the rung's other jump frames instead.
 const STEADY_AFTER_JUMP: u32 = WARM_UP_FRAMES + REPORT_LAG_FRAMES as u32;
 
 /// A plan must be cheaper than the current one by this factor to replace it (hysteresis: no
 /// flapping between two plans that cost the same).
 const SWITCH_MARGIN: f64 = 0.9;
+
+/// Weight of each planned frame in the moving average of how often the view jumps
+/// ([`AutoPlanner::jump_rate`]): a path that cuts every frame is known as one within two or
+/// three frames, and one cut of a walk is forgotten within about twenty.
+const JUMP_RATE_SMOOTHING: f64 = 0.1;
+
+/// Planned frames whose jumps are remembered, to tell a report polled late whether its frame
+/// jumped ([`FrameReport::frames_late`]).
+const JUMP_HISTORY_FRAMES: u32 = u64::BITS;
 
 /// A rung of the planner's ladder: a plan, and what a frame whose view jumped runs instead.
 ///
@@ -87,12 +104,32 @@ pub struct Candidate {
     pub occluders_on_jump: bool,
 }
 
+/// What kind of frame a cost was measured on: one whose view followed the last frame's, or one
+/// whose view jumped. A rung's jumps may cost several times its steady frames (a stale early
+/// set, or the occluders), and a path that stands still measures none.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Context {
+    Steady = 0,
+    Jump = 1,
+}
+
 /// The planner: the ladder of candidate plans and their measured costs.
 #[derive(Debug, Clone)]
 pub struct AutoPlanner {
     candidates: Vec<Candidate>,
-    /// Moving average of each candidate's frame cost (ms), `None` until measured.
-    cost_ms: Vec<Option<f64>>,
+    /// Per [`Context`], the moving average of each candidate's frame cost there (ms), `None`
+    /// until measured.
+    cost_ms: [Vec<Option<f64>>; 2],
+    /// Per [`Context`], the moving average of the running candidate's frames there in this run
+    /// (ms): what the others' estimates drift with ([`AutoPlanner::measure`]).
+    run_ms: [Option<f64>; 2],
+    /// Per [`Context`], whether a frame of the running candidate was measured there since it
+    /// was (re)started.
+    measured: [bool; 2],
+    /// Moving average of how often the planned frames' views jumped (0 to 1).
+    jump_rate: f64,
+    /// Whether each of the last planned frames jumped (bit 0: the last).
+    jump_history: u64,
     /// The candidate run now, and how many frames it has run since it was (re)started.
     current: usize,
     run_frames: u32,
@@ -105,9 +142,6 @@ pub struct AutoPlanner {
     last_view: Option<Camera>,
     /// Calls of [`AutoPlanner::plan_for`] since its view last jumped.
     since_jump: u32,
-    /// Moving average of the running candidate's steady frames in this run (ms): what the
-    /// others' estimates drift with ([`AutoPlanner::measure`]).
-    steady_ms: Option<f64>,
     /// Every candidate was tried once ([`AutoPlanner::exploring`]).
     explored: bool,
 }
@@ -134,9 +168,14 @@ impl AutoPlanner {
         let mut candidates: Vec<Candidate> = Vec::new();
         for plan in [FramePlan::NONE, base, hzb, occluders, gated] {
             let plan = plan.resolve(features);
-            // The rung with the occluders on a jump first: it keeps the choice on a tie.
+            // The rung without occluders on a jump first: it keeps the choice on a tie (the
+            // rungs are tried standing still, where they cost the same), and its first jumps
+            // measure what a stale early set costs here. Where the occluders pay (lavapipe,
+            // 1M street) the planner moves on after a jump or two, as it would to try the
+            // rung whose jumps were never measured; where they do not (the bundled cities on
+            // lavapipe, an H200), it never pays for them.
             let with_jumps = jump_variant(plan, features).map(|_| true);
-            for occluders_on_jump in with_jumps.into_iter().chain([false]) {
+            for occluders_on_jump in [false].into_iter().chain(with_jumps) {
                 let rung = Candidate {
                     plan,
                     occluders_on_jump,
@@ -147,7 +186,11 @@ impl AutoPlanner {
             }
         }
         AutoPlanner {
-            cost_ms: vec![None; candidates.len()],
+            cost_ms: [vec![None; candidates.len()], vec![None; candidates.len()]],
+            run_ms: [None; 2],
+            measured: [false; 2],
+            jump_rate: 0.0,
+            jump_history: 0,
             candidates,
             current: 0,
             run_frames: 0,
@@ -157,7 +200,6 @@ impl AutoPlanner {
             features,
             last_view: None,
             since_jump: u32::MAX,
-            steady_ms: None,
             explored: false,
         }
     }
@@ -184,12 +226,15 @@ impl AutoPlanner {
     /// as a frame of the chosen rung: choosing it means paying for its jumps, so a view that
     /// jumps every frame (the bundled Chelsea's street path samples a route 24 times) makes it
     /// expensive and the planner moves on. Not counting them left it blind there: `auto` fell
-    /// from 1.07× to 0.80× brute force.
+    /// from 1.07× to 0.80× brute force. They are counted apart from its steady frames (see the
+    /// module's notes).
     pub fn plan_for(&mut self, camera: &Camera) -> FramePlan {
         let jumped = self
             .last_view
             .is_some_and(|last| view_jumped(&last, camera));
         self.last_view = Some(*camera);
+        self.jump_history = (self.jump_history << 1) | u64::from(jumped);
+        self.jump_rate += JUMP_RATE_SMOOTHING * (f64::from(u8::from(jumped)) - self.jump_rate);
         self.since_jump = if jumped {
             0
         } else {
@@ -213,12 +258,45 @@ impl AutoPlanner {
     /// the last one's trial has not ended (the first frames try each in turn, then run the
     /// cheapest).
     pub fn exploring(&self) -> bool {
-        self.cost_ms.iter().any(Option::is_none) || self.current != self.best
+        self.steady_costs().iter().any(Option::is_none) || self.current != self.best
     }
 
-    /// The measured cost of each candidate so far (ms).
+    /// The measured cost of each candidate so far on frames whose view did not jump (ms).
     pub fn costs_ms(&self) -> &[Option<f64>] {
-        &self.cost_ms
+        self.steady_costs()
+    }
+
+    fn steady_costs(&self) -> &[Option<f64>] {
+        &self.cost_ms[Context::Steady as usize]
+    }
+
+    /// The measured cost of each candidate so far on frames whose view jumped (ms).
+    pub fn jump_costs_ms(&self) -> &[Option<f64>] {
+        &self.cost_ms[Context::Jump as usize]
+    }
+
+    /// How often the view jumps lately (0 to 1, a moving average over the planned frames).
+    pub fn jump_rate(&self) -> f64 {
+        self.jump_rate
+    }
+
+    /// What candidate `i` is expected to cost a frame at the view's jump rate (ms; infinite
+    /// until measured). A candidate whose jumps were never measured is taken at its steady cost:
+    /// optimism that gets it tried when the jumps make the running one dear, and its trial
+    /// measures them.
+    fn expected_ms(&self, i: usize) -> f64 {
+        let steady = self.steady_costs()[i].unwrap_or(f64::INFINITY);
+        match self.jump_costs_ms()[i] {
+            Some(jump) => steady + self.jump_rate * (jump - steady),
+            None => steady,
+        }
+    }
+
+    /// Whether the frame a report came from jumped, by the plans made since
+    /// ([`FrameReport::frames_late`]; a report older than the history counts as steady).
+    fn report_jumped(&self, report: &FrameReport) -> bool {
+        report.frames_late < JUMP_HISTORY_FRAMES
+            && (self.jump_history >> report.frames_late) & 1 == 1
     }
 
     /// Takes the report of a frame run with [`AutoPlanner::plan_for`] and picks the next plan.
@@ -233,11 +311,16 @@ impl AutoPlanner {
         if self.run_frames > WARM_UP_FRAMES
             && let Some(ms) = frame_cost_ms(report)
         {
-            self.measure(ms);
+            let context = if self.report_jumped(report) {
+                Context::Jump
+            } else {
+                Context::Steady
+            };
+            self.measure(ms, context);
         }
         // Still trying plans nobody has measured yet.
         if self.run_frames >= TRIAL_FRAMES
-            && let Some(unmeasured) = self.cost_ms.iter().position(Option::is_none)
+            && let Some(unmeasured) = self.steady_costs().iter().position(Option::is_none)
         {
             self.start(unmeasured);
             return;
@@ -267,10 +350,10 @@ impl AutoPlanner {
         } else if pick != self.best {
             self.start(pick);
         } else if self.frames.is_multiple_of(PROBE_EVERY) {
-            let best_ms = self.cost_ms[self.best].unwrap_or(f64::INFINITY);
+            let best_ms = self.expected_ms(self.best);
             let others: Vec<usize> = (0..self.candidates.len())
                 .filter(|&i| i != self.best)
-                .filter(|&i| self.cost_ms[i].is_some_and(|ms| ms <= PROBE_WITHIN * best_ms))
+                .filter(|&i| self.expected_ms(i) <= PROBE_WITHIN * best_ms)
                 .collect();
             if !others.is_empty() {
                 let probe = others[self.next_probe % others.len()];
@@ -283,56 +366,67 @@ impl AutoPlanner {
     fn start(&mut self, candidate: usize) {
         self.current = candidate;
         self.run_frames = 0;
-        self.steady_ms = None;
+        self.run_ms = [None; 2];
+        self.measured = [false; 2];
     }
 
-    /// Takes a measured frame of the running candidate, costing `ms`: updates its estimate and
-    /// scales the others' as the view changes what every frame costs.
+    /// Takes a measured frame of the running candidate in `context`, costing `ms`: updates its
+    /// estimate there and scales every other estimate as the view changes what every frame
+    /// costs.
     ///
-    /// Through a run, the others keep their ratio to the moving average of its steady frames;
-    /// tied to one smoothed cost, they do not gather noise. The run's first measured frame
-    /// replaces the candidate's older estimate, which was measured at another time: what it
-    /// differs by is what a probe is there to find. But for the best candidate back from a probe
-    /// it is the view's change over the frames nobody measured (the cold ones of both runs), and
-    /// is carried over to the others too: without it, on a path whose cost climbs 6 % a frame,
-    /// the plan left last looked 20 % cheaper than the one running at every switch. A view that
-    /// jumped carries nothing (see [`STEADY_AFTER_JUMP`]).
-    fn measure(&mut self, ms: f64) {
-        let first = self.run_frames == WARM_UP_FRAMES + 1;
-        let estimate = self.cost_ms[self.current];
-        let drift = if self.since_jump <= STEADY_AFTER_JUMP {
-            self.steady_ms = None;
+    /// Through a run, the others keep their ratio to the moving average of its frames in that
+    /// context; tied to one smoothed cost, they do not gather noise. A ratio of two averages of
+    /// the same rung in the same context is the view's change alone: what the rung pays on a
+    /// jump cancels out, so a path that jumps on every frame moves the estimates as well as one
+    /// that never does (on the bundled Chelsea street path, stale estimates looked cheaper than
+    /// the running rung's fresh ones as the route reached denser blocks, and the planner left it
+    /// after every trial). The run's first measured frame replaces the candidate's older
+    /// estimate, which was measured at another time: what it differs by is what a probe is there
+    /// to find. But for the best candidate back from a probe it is the view's change over the
+    /// frames nobody measured (the cold ones of both runs), and is carried over to the others
+    /// too: without it, on a path whose cost climbs 6 % a frame, the plan left last looked 20 %
+    /// cheaper than the one running at every switch. A steady frame shortly after a jump carries
+    /// nothing (see [`STEADY_AFTER_JUMP`]).
+    fn measure(&mut self, ms: f64, context: Context) {
+        let c = context as usize;
+        let first = !self.measured[c];
+        self.measured[c] = true;
+        let estimate = self.cost_ms[c][self.current];
+        let drift = if context == Context::Steady && self.since_jump <= STEADY_AFTER_JUMP {
+            self.run_ms[c] = None;
             None
-        } else if let Some(average) = self.steady_ms {
+        } else if let Some(average) = self.run_ms[c] {
             let moved = average + SMOOTHING * (ms - average);
-            self.steady_ms = Some(moved);
+            self.run_ms[c] = Some(moved);
             Some(moved / average)
         } else {
-            self.steady_ms = Some(ms);
+            self.run_ms[c] = Some(ms);
             estimate
                 .filter(|_| first && self.current == self.best)
                 .map(|before| ms / before)
         };
-        self.cost_ms[self.current] = Some(match estimate {
+        self.cost_ms[c][self.current] = Some(match estimate {
             Some(average) if !first => average + SMOOTHING * (ms - average),
             _ => ms,
         });
         let Some(drift) = drift.filter(|d| d.is_finite() && *d > 0.0) else {
             return;
         };
-        for (i, cost) in self.cost_ms.iter_mut().enumerate() {
-            if i != self.current
-                && let Some(cost) = cost
-            {
-                *cost *= drift;
+        for (k, costs) in self.cost_ms.iter_mut().enumerate() {
+            for (i, cost) in costs.iter_mut().enumerate() {
+                if (k, i) != (c, self.current)
+                    && let Some(cost) = cost
+                {
+                    *cost *= drift;
+                }
             }
         }
     }
 
-    /// The candidate with the lowest cost, the current best kept unless another beats it by the
-    /// switch margin.
+    /// The candidate with the lowest expected cost, the current best kept unless another beats
+    /// it by the switch margin.
     fn cheapest(&self) -> usize {
-        let cost = |i: usize| self.cost_ms[i].unwrap_or(f64::INFINITY);
+        let cost = |i: usize| self.expected_ms(i);
         let (mut pick, mut pick_cost) = (self.best, cost(self.best));
         for i in 0..self.candidates.len() {
             if cost(i) < pick_cost * SWITCH_MARGIN {
@@ -403,6 +497,15 @@ mod tests {
             .collect()
     }
 
+    /// A factor of 0.9 to 1.1 from the linear congruential generator `state`: the same noise
+    /// in every run of a test.
+    fn jitter(state: &mut u64) -> f64 {
+        *state = state
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        0.9 + 0.2 * (*state >> 11) as f64 / (1_u64 << 53) as f64
+    }
+
     #[test]
     fn the_ladder_follows_what_the_scene_has() {
         assert_eq!(
@@ -420,7 +523,7 @@ mod tests {
             .filter(bare_hzb)
             .map(|c| c.occluders_on_jump)
             .collect();
-        assert_eq!(rungs, [true, false]);
+        assert_eq!(rungs, [false, true]);
         // No occluders: brute force, CPU culling alone and the HZB frame.
         let plain = AutoPlanner::new(SceneFeatures::default(), true);
         assert_eq!(plain.candidates().len(), 3);
@@ -483,12 +586,7 @@ mod tests {
         let ran: Vec<FramePlan> = (0..240)
             .map(|frame| {
                 let plan = planner.plan();
-                // The same noise in every run of the test.
-                noise = noise
-                    .wrapping_mul(6_364_136_223_846_793_005)
-                    .wrapping_add(1_442_695_040_888_963_407);
-                let jitter = 0.9 + 0.2 * (noise >> 11) as f64 / (1_u64 << 53) as f64;
-                let view = per_frame.powi(frame.min(60)) * jitter;
+                let view = per_frame.powi(frame.min(60)) * jitter(&mut noise);
                 planner.record(&report(plan, 3.0 * relative(plan) * view));
                 plan
             })
@@ -593,6 +691,15 @@ mod tests {
         });
         let bare = planner.plan();
         assert!(bare.hzb && !bare.occluders);
+        // Its rung that draws the occluders on a jump (the tie went to the other one).
+        let chosen = planner
+            .candidates()
+            .iter()
+            .position(|c| c.plan == bare && c.occluders_on_jump)
+            .unwrap();
+        planner.start(chosen);
+        planner.best = chosen;
+        simulate(&mut planner, 4, |_| 10.0);
         let settled = planner.costs_ms().to_vec();
         let street = Camera::new(glam::Vec3::new(0.0, 0.0, 1.7), 0.0, 0.0);
         assert_eq!(planner.plan_for(&street), bare);
@@ -611,12 +718,9 @@ mod tests {
         let jump = planner.plan_for(&cut);
         assert!(jump.occluders && jump.hzb && jump.lod);
         planner.record(&report(jump, 40.0));
-        let chosen = planner
-            .candidates()
-            .iter()
-            .position(|c| c.plan == bare && c.occluders_on_jump)
-            .unwrap();
-        assert!(planner.costs_ms()[chosen] > settled[chosen]);
+        // Its jump is measured apart from its steady frames.
+        assert_eq!(planner.costs_ms()[chosen], settled[chosen]);
+        assert_eq!(planner.jump_costs_ms()[chosen], Some(40.0));
         // A view that jumps every frame makes the occluders dearer than the stale early set
         // they replace (a real GPU paying for their fill): it moves to the rung without them.
         let ran = jump_every_frame(&mut planner, cut, 40, |plan| {
@@ -657,6 +761,129 @@ mod tests {
         // Past the trials of the rung without occluders, the jumps draw them.
         let with_occluders = ran[100..].iter().filter(|p| p.occluders).count();
         assert!(with_occluders > 90, "{with_occluders} of 100");
+    }
+
+    #[test]
+    fn rungs_tied_standing_still_are_told_apart_by_their_jumps() {
+        // The rungs are tried at a street path's first pose, standing still, where the HZB rungs
+        // with and without occluders on a jump cost the same; then the view cuts to another
+        // stretch of street every frame. The bundled Chelsea street path (lavapipe,
+        // 1280×720): the occluders cost more than the stale early set they replace, and more
+        // than brute force. The generated 1M city's (lavapipe): a bare jump draws most of the
+        // city, the occluders hide it.
+        for occluders_pay in [false, true] {
+            let mut planner = AutoPlanner::new(SceneFeatures::ALL, true);
+            let start = Camera::new(glam::Vec3::new(0.0, 0.0, 1.7), 0.0, 0.0);
+            let cost = |plan: FramePlan, jumped: bool| match (plan.hzb, plan.occluders) {
+                (false, _) if plan.frustum => 60.0,
+                (false, _) => 62.0,
+                (true, false) if jumped && occluders_pay => 400.0,
+                (true, false) if jumped => 56.0,
+                (true, false) => 45.0,
+                (true, true) if jumped && occluders_pay => 50.0,
+                (true, true) if jumped => 100.0,
+                (true, true) => 55.0,
+            };
+            while planner.exploring() {
+                let plan = planner.plan_for(&start);
+                planner.record(&report(plan, cost(plan, false)));
+            }
+            let mut at = start;
+            let ran: Vec<FramePlan> = (0..30)
+                .map(|_| {
+                    at.position += glam::Vec3::X * 600.0;
+                    let plan = planner.plan_for(&at);
+                    planner.record(&report(plan, cost(plan, true)));
+                    plan
+                })
+                .collect();
+            assert!(planner.plan().hzb, "{occluders_pay}");
+            assert_eq!(
+                planner.candidate().occluders_on_jump,
+                occluders_pay,
+                "{occluders_pay}"
+            );
+            let with_occluders = ran.iter().filter(|p| p.occluders).count();
+            if occluders_pay {
+                assert!(with_occluders >= 25, "{with_occluders} of 30");
+            } else {
+                assert!(with_occluders <= 5, "{with_occluders} of 30");
+            }
+            // The steady estimates are still those of the first pose.
+            assert!(planner.costs_ms().iter().flatten().all(|&ms| ms <= 62.0));
+        }
+    }
+
+    #[test]
+    fn keeps_the_cheapest_rung_on_a_path_that_jumps_every_frame_as_its_cost_climbs() {
+        // A street path sampled far apart (a cut every frame) through ever denser blocks: every
+        // plan's frame gets 4 % dearer a frame, with ±10 % of noise. On a jump the HZB frame
+        // without occluders is the cheapest; the occluders cost more than the stale set.
+        for per_frame in [1.04_f64, 1.0 / 1.04] {
+            let relative = |plan: FramePlan| match (plan.hzb, plan.occluders, plan.occluder_gate) {
+                (false, ..) if plan.frustum => 0.9,
+                (false, ..) => 1.0,
+                (true, false, _) => 0.6,
+                (true, true, false) => 0.8,
+                (true, true, true) => 0.85,
+            };
+            let mut planner = AutoPlanner::new(SceneFeatures::ALL, true);
+            let start = Camera::new(glam::Vec3::new(0.0, 0.0, 1.7), 0.0, 0.0);
+            while planner.exploring() {
+                let plan = planner.plan_for(&start);
+                planner.record(&report(plan, 30.0 * relative(plan)));
+            }
+            let mut noise = 11_u64;
+            let mut at = start;
+            let ran: Vec<FramePlan> = (0..200)
+                .map(|frame| {
+                    at.position += glam::Vec3::X * 600.0;
+                    let plan = planner.plan_for(&at);
+                    let view = per_frame.powi(frame.min(60)) * jitter(&mut noise);
+                    planner.record(&report(plan, 30.0 * relative(plan) * view));
+                    plan
+                })
+                .collect();
+            let bare = ran[20..].iter().filter(|p| p.hzb && !p.occluders).count();
+            assert!(bare >= 160, "{per_frame}: {bare} of 180");
+            let switches = ran[20..].windows(2).filter(|w| w[0] != w[1]).count();
+            assert!(switches <= 8, "{per_frame}: {switches} switches");
+        }
+    }
+
+    #[test]
+    fn a_report_polled_late_is_judged_by_its_own_frame() {
+        let mut planner = AutoPlanner::new(SceneFeatures::ALL, true);
+        simulate(&mut planner, 100, |p| {
+            if p.hzb && !p.occluders { 10.0 } else { 30.0 }
+        });
+        let rung = planner.current;
+        let street = Camera::new(glam::Vec3::new(0.0, 0.0, 1.7), 0.0, 0.0);
+        let cut = Camera {
+            position: street.position + glam::Vec3::Y * 600.0,
+            ..street
+        };
+        planner.plan_for(&street);
+        let jump = planner.plan_for(&cut);
+        planner.plan_for(&cut);
+        planner.plan_for(&cut);
+        // The jump's report comes back two frames late: a jump cost, not a steady one (and no
+        // dearer than the rung's steady frames by enough to try another).
+        planner.record(&FrameReport {
+            frames_late: 2,
+            ..report(jump, 10.5)
+        });
+        assert_eq!(planner.jump_costs_ms()[rung], Some(10.5));
+        assert_eq!(planner.current, rung);
+        // A steady frame's report, one frame late.
+        let steady = planner.costs_ms().to_vec();
+        let jumps = planner.jump_costs_ms().to_vec();
+        planner.record(&FrameReport {
+            frames_late: 1,
+            ..report(planner.plan(), 11.0)
+        });
+        assert_eq!(planner.jump_costs_ms(), jumps);
+        assert_ne!(planner.costs_ms(), steady);
     }
 
     /// Runs `frames` frames of a view that jumps 600 m every frame from `from`, where each plan

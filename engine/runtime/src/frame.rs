@@ -247,6 +247,9 @@ pub struct FrameStats {
     /// GPU time of each pass ([`FRAME_PHASES`]) from timestamp queries; every phase `None` when
     /// the adapter has none, a phase `None` when its pass did not run this frame.
     pub gpu: GpuTimes,
+    /// HZB frames this renderer submitted after this one before its report was read: 0 when
+    /// the caller waited for it, more for a report polled late.
+    pub frames_late: u32,
 }
 
 /// The result of one frame.
@@ -633,6 +636,7 @@ impl CullingRenderer {
     ) -> Result<Option<FrameOutput>, FrameError> {
         // Reading the report is the frame's CPU work too (a frame or more late).
         let clock = crate::cpu_clock::CpuClock::start();
+        let slot_number = slot.pending.number;
         let mut output = if slot.pending.tree.is_some() {
             match lod {
                 Some(lod) if lod.building_count as usize == slot.pending.buildings => {
@@ -643,8 +647,10 @@ impl CullingRenderer {
         } else {
             self.read_candidate_report(gpu, slot, (scene, lod), visibility)?
         };
+        let frames_late = self.frames.saturating_sub(slot_number);
         if let Some(output) = &mut output {
             output.stats.cpu_ms += clock.elapsed_ms();
+            output.stats.frames_late = u32::try_from(frames_late).unwrap_or(u32::MAX);
         }
         Ok(output)
     }

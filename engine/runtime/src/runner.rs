@@ -130,6 +130,10 @@ pub struct FrameReport {
     pub occluders: Vec<usize>,
     /// The streets and ground areas drawn (not in `triangles` or `draw_calls`).
     pub surfaces: SurfaceStats,
+    /// Frames run after this one before its report came back: 0 unless an HZB frame's report
+    /// was polled late ([`Completion::Poll`]), then the HZB frames run since (other plans' frames
+    /// in between, which report at once, are not counted).
+    pub frames_late: u32,
 }
 
 /// Runs frames of any plan: the renderers a plan may need, made once.
@@ -546,6 +550,7 @@ fn hzb_report(plan: FramePlan, output: FrameOutput, scene: SceneRefs<'_>) -> Fra
         occluders: output.occluders.clone(),
         drawn: Some(output.drawn),
         surfaces: SurfaceStats::default(),
+        frames_late: s.frames_late,
     }
 }
 
