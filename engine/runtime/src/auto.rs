@@ -29,7 +29,6 @@
 //! 0.89× brute force where the HZB frame alone gave 1.09×.
 
 use crate::camera::Camera;
-use crate::frame::REPORT_LAG_FRAMES;
 use crate::plan::{FramePlan, SceneFeatures};
 use crate::runner::FrameReport;
 
@@ -69,22 +68,21 @@ const JUMP_TURN_OF_FOV: f32 = 0.25;
 const SMOOTHING: f64 = 0.3;
 
 /// A steady frame's cost says how the view changed every plan's cost only when its view did not
-/// jump within this many frames: the frames after a jump may still run from a stale early set,
-/// and the count runs to the last planned frame, up to [`REPORT_LAG_FRAMES`] after the reported
-/// one. Jump frames are compared with the rung's other jump frames instead.
-const STEADY_AFTER_JUMP: u32 = WARM_UP_FRAMES + REPORT_LAG_FRAMES as u32;
+/// jump within this many frames before it: the frames after a jump may still run from a stale
+/// early set. Jump frames are compared with the rung's other jump frames instead.
+const STEADY_AFTER_JUMP: u32 = WARM_UP_FRAMES;
 
 /// A plan must be cheaper than the current one by this factor to replace it (hysteresis: no
 /// flapping between two plans that cost the same).
 const SWITCH_MARGIN: f64 = 0.9;
 
 /// Weight of each planned frame in the moving average of how often the view jumps
-/// ([`AutoPlanner::jump_rate`]): a path that cuts every frame is known as one within two or
+/// (`AutoPlanner::jump_rate`): a path that cuts every frame is known as one within two or
 /// three frames, and one cut of a walk is forgotten within about twenty.
 const JUMP_RATE_SMOOTHING: f64 = 0.1;
 
-/// Planned frames whose jumps are remembered, to tell a report polled late whether its frame
-/// jumped ([`FrameReport::frames_late`]).
+/// Planned frames whose jumps are remembered, to tell how long before a report's frame (polled
+/// late: [`FrameReport::frames_late`]) the view last jumped.
 const JUMP_HISTORY_FRAMES: u32 = u64::BITS;
 
 /// A rung of the planner's ladder: a plan, and what a frame whose view jumped runs instead.
@@ -140,8 +138,6 @@ pub struct AutoPlanner {
     features: SceneFeatures,
     /// The camera of the last [`AutoPlanner::plan_for`].
     last_view: Option<Camera>,
-    /// Calls of [`AutoPlanner::plan_for`] since its view last jumped.
-    since_jump: u32,
     /// Every candidate was tried once ([`AutoPlanner::exploring`]).
     explored: bool,
 }
@@ -199,7 +195,6 @@ impl AutoPlanner {
             next_probe: 0,
             features,
             last_view: None,
-            since_jump: u32::MAX,
             explored: false,
         }
     }
@@ -235,11 +230,6 @@ impl AutoPlanner {
         self.last_view = Some(*camera);
         self.jump_history = (self.jump_history << 1) | u64::from(jumped);
         self.jump_rate += JUMP_RATE_SMOOTHING * (f64::from(u8::from(jumped)) - self.jump_rate);
-        self.since_jump = if jumped {
-            0
-        } else {
-            self.since_jump.saturating_add(1)
-        };
         match self.jump_variant() {
             Some(variant) if jumped => variant,
             _ => self.plan(),
@@ -258,15 +248,11 @@ impl AutoPlanner {
     /// the last one's trial has not ended (the first frames try each in turn, then run the
     /// cheapest).
     pub fn exploring(&self) -> bool {
-        self.steady_costs().iter().any(Option::is_none) || self.current != self.best
+        self.costs_ms().iter().any(Option::is_none) || self.current != self.best
     }
 
     /// The measured cost of each candidate so far on frames whose view did not jump (ms).
     pub fn costs_ms(&self) -> &[Option<f64>] {
-        self.steady_costs()
-    }
-
-    fn steady_costs(&self) -> &[Option<f64>] {
         &self.cost_ms[Context::Steady as usize]
     }
 
@@ -275,28 +261,26 @@ impl AutoPlanner {
         &self.cost_ms[Context::Jump as usize]
     }
 
-    /// How often the view jumps lately (0 to 1, a moving average over the planned frames).
-    pub fn jump_rate(&self) -> f64 {
-        self.jump_rate
-    }
-
     /// What candidate `i` is expected to cost a frame at the view's jump rate (ms; infinite
     /// until measured). A candidate whose jumps were never measured is taken at its steady cost:
     /// optimism that gets it tried when the jumps make the running one dear, and its trial
     /// measures them.
     fn expected_ms(&self, i: usize) -> f64 {
-        let steady = self.steady_costs()[i].unwrap_or(f64::INFINITY);
+        let steady = self.costs_ms()[i].unwrap_or(f64::INFINITY);
         match self.jump_costs_ms()[i] {
             Some(jump) => steady + self.jump_rate * (jump - steady),
             None => steady,
         }
     }
 
-    /// Whether the frame a report came from jumped, by the plans made since
-    /// ([`FrameReport::frames_late`]; a report older than the history counts as steady).
-    fn report_jumped(&self, report: &FrameReport) -> bool {
-        report.frames_late < JUMP_HISTORY_FRAMES
-            && (self.jump_history >> report.frames_late) & 1 == 1
+    /// Planned frames from the view's last jump to the frame a report came from (0: that frame
+    /// jumped), by the plans made since ([`FrameReport::frames_late`]); a jump older than the
+    /// history, or a report older than it, counts as long ago.
+    fn frames_since_jump(&self, report: &FrameReport) -> u32 {
+        if report.frames_late >= JUMP_HISTORY_FRAMES {
+            return JUMP_HISTORY_FRAMES;
+        }
+        (self.jump_history >> report.frames_late).trailing_zeros()
     }
 
     /// Takes the report of a frame run with [`AutoPlanner::plan_for`] and picks the next plan.
@@ -311,16 +295,11 @@ impl AutoPlanner {
         if self.run_frames > WARM_UP_FRAMES
             && let Some(ms) = frame_cost_ms(report)
         {
-            let context = if self.report_jumped(report) {
-                Context::Jump
-            } else {
-                Context::Steady
-            };
-            self.measure(ms, context);
+            self.measure(ms, self.frames_since_jump(report));
         }
         // Still trying plans nobody has measured yet.
         if self.run_frames >= TRIAL_FRAMES
-            && let Some(unmeasured) = self.steady_costs().iter().position(Option::is_none)
+            && let Some(unmeasured) = self.costs_ms().iter().position(Option::is_none)
         {
             self.start(unmeasured);
             return;
@@ -370,9 +349,9 @@ impl AutoPlanner {
         self.measured = [false; 2];
     }
 
-    /// Takes a measured frame of the running candidate in `context`, costing `ms`: updates its
-    /// estimate there and scales every other estimate as the view changes what every frame
-    /// costs.
+    /// Takes a measured frame of the running candidate, costing `ms`, whose view last jumped
+    /// `since_jump` frames before it (0: it jumped): updates its estimate in the frame's
+    /// [`Context`] and scales every other estimate as the view changes what every frame costs.
     ///
     /// Through a run, the others keep their ratio to the moving average of its frames in that
     /// context; tied to one smoothed cost, they do not gather noise. A ratio of two averages of
@@ -387,12 +366,17 @@ impl AutoPlanner {
     /// too: without it, on a path whose cost climbs 6 % a frame, the plan left last looked 20 %
     /// cheaper than the one running at every switch. A steady frame shortly after a jump carries
     /// nothing (see [`STEADY_AFTER_JUMP`]).
-    fn measure(&mut self, ms: f64, context: Context) {
+    fn measure(&mut self, ms: f64, since_jump: u32) {
+        let context = if since_jump == 0 {
+            Context::Jump
+        } else {
+            Context::Steady
+        };
         let c = context as usize;
         let first = !self.measured[c];
         self.measured[c] = true;
         let estimate = self.cost_ms[c][self.current];
-        let drift = if context == Context::Steady && self.since_jump <= STEADY_AFTER_JUMP {
+        let drift = if context == Context::Steady && since_jump <= STEADY_AFTER_JUMP {
             self.run_ms[c] = None;
             None
         } else if let Some(average) = self.run_ms[c] {
