@@ -7,3 +7,4 @@ pub mod cluster;
 pub mod occluders;
 pub mod pipeline;
 pub mod quadtree;
+pub mod tiles;

@@ -20,9 +20,10 @@ use citywalk_scenes::{BuildingId, City, LoadOptions};
 use serde::{Deserialize, Serialize};
 
 use crate::blocks::{BlockParams, BlockReport, build_blocks_with};
-use crate::cluster::{ClusterError, build_cluster_tree};
+use crate::cluster::{ClusterError, build_cluster_tree, build_cluster_tree_tiled};
 use crate::occluders::{OccluderParams, build_occluders};
 use crate::quadtree::build_quadtree;
+use crate::tiles::plan_tiles;
 
 /// The stages, in order.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -92,6 +93,19 @@ pub struct PreprocessParams {
     pub build_cluster_tree: bool,
     /// Without street faces: the mean block size aimed at by the cluster-tree cut.
     pub buildings_per_block: usize,
+    /// The most buildings of a tile of the cluster tree's tiled build ([`plan_tiles`]); a
+    /// city of no more, or without street faces, is one tile.
+    #[serde(default = "default_tile_buildings")]
+    pub tile_buildings: usize,
+}
+
+/// [`PreprocessParams::tile_buildings`] by default: big enough that the tree above the tiles
+/// stays small (a 100k city has about 16 tiles, a 1M city about 150), small enough that
+/// tiles are built on every thread.
+pub const DEFAULT_TILE_BUILDINGS: usize = 16_384;
+
+fn default_tile_buildings() -> usize {
+    DEFAULT_TILE_BUILDINGS
 }
 
 impl Default for PreprocessParams {
@@ -104,6 +118,7 @@ impl Default for PreprocessParams {
             build_occluders: true,
             build_cluster_tree: true,
             buildings_per_block: 20,
+            tile_buildings: DEFAULT_TILE_BUILDINGS,
         }
     }
 }
@@ -173,6 +188,8 @@ pub fn preprocess(
 
     let mut cluster_tree = None;
     let mut cluster_error = None;
+    // The quadtree the tiles were planned on; the blocks do not change after it.
+    let mut tiling_quadtree = None;
     if params.build_cluster_tree && !city.buildings.is_empty() {
         let no_street_faces = block_report.street_blocks == 0;
         run(Stage::ClusterTree, &mut || {
@@ -183,14 +200,21 @@ pub fn preprocess(
                     tree
                 })
             } else {
-                build_cluster_tree(&city, &blocks.block_of_building, &params.cluster)
+                let quadtree = build_quadtree(&blocks);
+                let tiles = plan_tiles(&quadtree, &blocks, params.tile_buildings);
+                tiling_quadtree = Some((quadtree, tiles.len()));
+                build_cluster_tree_tiled(&city, &blocks.block_of_building, &tiles, &params.cluster)
             };
             match result {
                 Ok(tree) => {
                     let s = format!(
-                        "{} nodes, depth {}{}",
+                        "{} nodes, depth {}{}{}",
                         tree.nodes.len(),
                         tree.max_depth(),
+                        match &tiling_quadtree {
+                            Some((_, tiles)) if *tiles > 1 => format!(", {tiles} tiles"),
+                            _ => String::new(),
+                        },
                         if no_street_faces {
                             format!("; {} blocks from its first cut", blocks.blocks.len())
                         } else {
@@ -222,7 +246,10 @@ pub fn preprocess(
 
     let mut quadtree = Default::default();
     run(Stage::Quadtree, &mut || {
-        quadtree = build_quadtree(&blocks);
+        quadtree = match tiling_quadtree.take() {
+            Some((planned, _)) => planned,
+            None => build_quadtree(&blocks),
+        };
         format!(
             "{} nodes, {} leaves, depth {}",
             quadtree.nodes.len(),

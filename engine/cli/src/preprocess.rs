@@ -7,7 +7,9 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use citywalk_bench::output::resident_mib;
-use citywalk_preprocess::pipeline::{PreprocessParams, ProgressSink, Stage, preprocess};
+use citywalk_preprocess::pipeline::{
+    DEFAULT_TILE_BUILDINGS, PreprocessParams, ProgressSink, Stage, preprocess,
+};
 use citywalk_runtime::gpu::GpuContext;
 use citywalk_runtime::texture_bake::{BakeStats, bake_cluster_textures};
 use citywalk_scenes::cluster_texture::bins::CHANG_BIN_SIDE_PX;
@@ -57,6 +59,11 @@ pub struct Args {
     /// is the same for every count.
     #[arg(long, default_value_t = 0)]
     threads: usize,
+    /// The most buildings of a tile: the cluster tree is built tile by tile (whole blocks
+    /// along the B-Quadtree, each on a thread of its own), the tiles' roots clustered above
+    /// them. A city of no more buildings, or without streets that bound blocks, is one tile.
+    #[arg(long, default_value_t = DEFAULT_TILE_BUILDINGS as u64, value_parser = clap::value_parser!(u64).range(1..))]
+    tile_buildings: u64,
 }
 
 /// One spinner per stage; the process's memory at the end of each.
@@ -179,6 +186,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         load: load_options,
         build_occluders: !args.no_occluders,
         build_cluster_tree: !args.no_cluster_tree,
+        tile_buildings: usize::try_from(args.tile_buildings).unwrap_or(usize::MAX),
         ..PreprocessParams::default()
     };
     let bars = Bars {

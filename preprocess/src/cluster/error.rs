@@ -450,22 +450,7 @@ pub fn fill_errors(
     for ids in by_depth.iter().rev() {
         let errors: Vec<(f32, f32, f32)> = ids
             .par_iter()
-            .map(|&id| {
-                let node = &nodes[id];
-                let (floor_geometric, floor_colour) =
-                    node.children
-                        .iter()
-                        .fold((0.0f32, 0.0f32), |(g, c), &child| {
-                            let child = &nodes[child as usize];
-                            (g.max(child.geometric_error_m), c.max(child.colour_error_m))
-                        });
-                let own = own_errors(&fp, verts, per_building, node, floor_geometric);
-                let geometric = own.geometric_m.max(floor_geometric);
-                let slack = (geometric * geometric - own.rise_m * own.rise_m)
-                    .max(0.0)
-                    .sqrt();
-                (geometric, own.colour_m.max(floor_colour), slack)
-            })
+            .map(|&id| node_errors(&fp, verts, per_building, nodes, id))
             .collect();
         for (&id, (geometric, colour, slack)) in ids.iter().zip(errors) {
             nodes[id].geometric_error_m = geometric;
@@ -474,6 +459,32 @@ pub fn fill_errors(
         }
     }
     plan_slack_m
+}
+
+/// Node `id`'s geometric error, colour error and plan slack ([`fill_errors`]), its children's
+/// errors already final: a node's error is the maximum of its own and its children's, so its
+/// children's are a floor below which its own search need not look.
+pub fn node_errors(
+    fp: &Footprints<'_>,
+    verts: &[Pt],
+    per_building: &[Heights],
+    nodes: &[ClusterNode],
+    id: usize,
+) -> (f32, f32, f32) {
+    let node = &nodes[id];
+    let (floor_geometric, floor_colour) =
+        node.children
+            .iter()
+            .fold((0.0f32, 0.0f32), |(g, c), &child| {
+                let child = &nodes[child as usize];
+                (g.max(child.geometric_error_m), c.max(child.colour_error_m))
+            });
+    let own = own_errors(fp, verts, per_building, node, floor_geometric);
+    let geometric = own.geometric_m.max(floor_geometric);
+    let slack = (geometric * geometric - own.rise_m * own.rise_m)
+        .max(0.0)
+        .sqrt();
+    (geometric, own.colour_m.max(floor_colour), slack)
 }
 
 /// A node's own errors (m), before the maximum with its children's.
@@ -502,6 +513,34 @@ fn own_errors(
             colour_m: 0.0,
         };
     }
+    let HeightTerms {
+        vertical_m: vertical,
+        rise_m: rise,
+        colour_m: colour,
+    } = height_terms(per_building, node);
+    let plan = node.footprint.first().map_or(0.0, |ring| {
+        let tolerance = Tolerance::new(f64::from(vertical), f64::from(floor_m));
+        plan_error_m(fp, verts, ring, node.buildings, tolerance)
+    });
+    OwnErrors {
+        geometric_m: f64::from(vertical).hypot(plan) as f32,
+        rise_m: rise,
+        colour_m: colour,
+    }
+}
+
+/// The terms of a node's errors that its buildings' heights alone decide.
+struct HeightTerms {
+    /// The mesh's largest vertical departure from a building (roof above or below a top,
+    /// walls below a base).
+    vertical_m: f32,
+    /// The most a building rises through the mesh's roof.
+    rise_m: f32,
+    /// The largest colour error of its buildings.
+    colour_m: f32,
+}
+
+fn height_terms(per_building: &[Heights], node: &ClusterNode) -> HeightTerms {
     let (s, e) = node.buildings;
     let mine = &per_building[s as usize..e as usize];
     let base = mine.iter().map(|h| h.base_m).fold(f32::INFINITY, f32::min);
@@ -515,19 +554,13 @@ fn own_errors(
                 .max(h.base_m - base)
         })
         .fold(0.0f32, f32::max);
-    let plan = node.footprint.first().map_or(0.0, |ring| {
-        let tolerance = Tolerance::new(f64::from(vertical), f64::from(floor_m));
-        plan_error_m(fp, verts, ring, (s, e), tolerance)
-    });
-    let colour = mine.iter().map(|h| h.colour_m).fold(0.0f32, f32::max);
-    let rise = mine
-        .iter()
-        .map(|h| h.top_m - node.height_m)
-        .fold(0.0f32, f32::max);
-    OwnErrors {
-        geometric_m: f64::from(vertical).hypot(plan) as f32,
-        rise_m: rise,
-        colour_m: colour,
+    HeightTerms {
+        vertical_m: vertical,
+        rise_m: mine
+            .iter()
+            .map(|h| h.top_m - node.height_m)
+            .fold(0.0f32, f32::max),
+        colour_m: mine.iter().map(|h| h.colour_m).fold(0.0f32, f32::max),
     }
 }
 

@@ -21,6 +21,7 @@ pub mod linkage;
 pub mod merge;
 pub mod rebalance;
 pub mod simplify;
+pub mod tiled;
 
 use citywalk_scenes::City;
 use citywalk_scenes::city::TriangleMesh;
@@ -32,6 +33,7 @@ use rayon::prelude::*;
 use geom::{convex_hull, ring_bounds};
 pub use hulls::{Hulls, merge_hulls};
 use leaves::{LeafKind, VertexStore};
+pub use tiled::build_cluster_tree_tiled;
 
 /// Why a cluster tree could not be built.
 #[derive(Debug, thiserror::Error)]
@@ -371,7 +373,7 @@ fn fill_node_data(
     params: &ClusterParams,
 ) {
     // Per node: lowest roof point, Σ footprint area, lowest base.
-    let mut sums = vec![(f32::INFINITY, 0.0f64, f32::INFINITY); nodes.len()];
+    let mut sums: Vec<NodeSums> = vec![(f32::INFINITY, 0.0f64, f32::INFINITY); nodes.len()];
     for id in (0..nodes.len()).rev() {
         let (s, e) = nodes[id].buildings;
         let node_blocks = || {
@@ -396,63 +398,87 @@ fn fill_node_data(
             n.bounds_max = hi.to_array();
             sums[id] = (heights[s as usize].lowest_top_m, area_b, b.base_m);
         } else {
-            let ch = nodes[id].children.clone();
-            let mut acc = (f32::INFINITY, 0.0, f32::INFINITY);
-            let (mut hmin, mut hmax) = (f32::INFINITY, f32::NEG_INFINITY);
-            let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
-            let (mut dh, mut da, mut bx) = (0.0f32, 0.0f64, [0.0f32; 3]);
-            for &c in &ch {
-                let (cs, cn) = (sums[c as usize], &nodes[c as usize]);
-                acc = (acc.0.min(cs.0), acc.1 + cs.1, acc.2.min(cs.2));
-                hmin = hmin.min(cn.h_min_m);
-                hmax = hmax.max(cn.h_max_m);
-                for k in 0..3 {
-                    lo[k] = lo[k].min(cn.bounds_min[k]);
-                    hi[k] = hi[k].max(cn.bounds_max[k]);
-                    bx[k] = bx[k].max(cn.neg_space_box_m[k]);
-                }
-                dh = dh.max(cn.delta_h_m);
-                da = da.max(cn.delta_a_m2);
-            }
-            sums[id] = acc;
-            let n = &mut nodes[id];
-            n.height_m = error::roof_height_m(acc.0, hmin, hmax);
-            n.h_min_m = hmin;
-            n.h_max_m = hmax;
-            // Monotone errors: never below a child's (only ever overstates the error).
-            n.delta_h_m = (hmax - hmin).max(dh);
-            n.delta_a_m2 = (n.area_m2 - acc.1).max(0.0).max(da);
-            n.bounds_min = lo;
-            n.bounds_max = hi;
-            // Chang et al. 2008 §8: the negative space as a box with the hull AABB's aspect.
-            let (rlo, rhi) = ring_bounds(verts, &n.footprint[0]);
-            let (w0, d0) = ((rhi[0] - rlo[0]).max(1e-6), (rhi[1] - rlo[1]).max(1e-6));
-            let raw_da = (n.area_m2 - acc.1).max(0.0);
-            let raw = [
-                (raw_da * w0 / d0).sqrt() as f32,
-                (raw_da * d0 / w0).sqrt() as f32,
-                (n.height_m - acc.2).max(0.0),
-            ];
-            for k in 0..3 {
-                n.neg_space_box_m[k] = raw[k].max(bx[k]);
-            }
-            // Chang et al. 2008 §8: landmark candidates, much taller than the cluster.
-            let threshold = n.height_m.max(0.0) * params.landmark_height_ratio as f32;
-            let (s, e) = n.buildings;
-            n.landmarks = building_order[s as usize..e as usize]
-                .iter()
-                .copied()
-                .filter(|b| {
-                    let t = city.buildings[b.index()].top_m;
-                    t > n.height_m && t >= threshold
-                })
-                .collect();
+            sums[id] = fill_inner_node(city, verts, building_order, &sums, nodes, id, params);
         }
     }
 }
 
+/// Per node, what its roof height and negative space need of its buildings: the lowest roof
+/// point, the sum of their footprint areas and the lowest base.
+pub(crate) type NodeSums = (f32, f64, f32);
+
+/// An inner node's heights, monotone errors (Δh, Δa, the negative-space box), bounds and
+/// landmarks from its children's (already filled, their [`NodeSums`] in `sums`); returns its
+/// own sums.
+pub(crate) fn fill_inner_node(
+    city: &City,
+    verts: &[geom::Pt],
+    building_order: &[citywalk_scenes::BuildingId],
+    sums: &[NodeSums],
+    nodes: &mut [ClusterNode],
+    id: usize,
+    params: &ClusterParams,
+) -> NodeSums {
+    let ch = nodes[id].children.clone();
+    let mut acc = (f32::INFINITY, 0.0, f32::INFINITY);
+    let (mut hmin, mut hmax) = (f32::INFINITY, f32::NEG_INFINITY);
+    let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+    let (mut dh, mut da, mut bx) = (0.0f32, 0.0f64, [0.0f32; 3]);
+    for &c in &ch {
+        let (cs, cn) = (sums[c as usize], &nodes[c as usize]);
+        acc = (acc.0.min(cs.0), acc.1 + cs.1, acc.2.min(cs.2));
+        hmin = hmin.min(cn.h_min_m);
+        hmax = hmax.max(cn.h_max_m);
+        for k in 0..3 {
+            lo[k] = lo[k].min(cn.bounds_min[k]);
+            hi[k] = hi[k].max(cn.bounds_max[k]);
+            bx[k] = bx[k].max(cn.neg_space_box_m[k]);
+        }
+        dh = dh.max(cn.delta_h_m);
+        da = da.max(cn.delta_a_m2);
+    }
+    let n = &mut nodes[id];
+    n.height_m = error::roof_height_m(acc.0, hmin, hmax);
+    n.h_min_m = hmin;
+    n.h_max_m = hmax;
+    // Monotone errors: never below a child's (only ever overstates the error).
+    n.delta_h_m = (hmax - hmin).max(dh);
+    n.delta_a_m2 = (n.area_m2 - acc.1).max(0.0).max(da);
+    n.bounds_min = lo;
+    n.bounds_max = hi;
+    // Chang et al. 2008 §8: the negative space as a box with the hull AABB's aspect.
+    let (rlo, rhi) = ring_bounds(verts, &n.footprint[0]);
+    let (w0, d0) = ((rhi[0] - rlo[0]).max(1e-6), (rhi[1] - rlo[1]).max(1e-6));
+    let raw_da = (n.area_m2 - acc.1).max(0.0);
+    let raw = [
+        (raw_da * w0 / d0).sqrt() as f32,
+        (raw_da * d0 / w0).sqrt() as f32,
+        (n.height_m - acc.2).max(0.0),
+    ];
+    for k in 0..3 {
+        n.neg_space_box_m[k] = raw[k].max(bx[k]);
+    }
+    // Chang et al. 2008 §8: landmark candidates, much taller than the cluster.
+    let threshold = n.height_m.max(0.0) * params.landmark_height_ratio as f32;
+    let (s, e) = n.buildings;
+    n.landmarks = building_order[s as usize..e as usize]
+        .iter()
+        .copied()
+        .filter(|b| {
+            let t = city.buildings[b.index()].top_m;
+            t > n.height_m && t >= threshold
+        })
+        .collect();
+    acc
+}
+
 /// The hull extruded from `base_m` to `top_m` (walls and a constrained-Delaunay roof).
-fn cluster_mesh(verts: &[geom::Pt], ring: &[u32], base_m: f32, top_m: f32) -> TriangleMesh {
+pub(crate) fn cluster_mesh(
+    verts: &[geom::Pt],
+    ring: &[u32],
+    base_m: f32,
+    top_m: f32,
+) -> TriangleMesh {
     let coords: Vec<geo::Coord<f64>> = ring
         .iter()
         .map(|&i| {

@@ -1065,3 +1065,75 @@ fn blocks_hulls_made_apart_are_those_made_in_merge_order() {
         }
     }
 }
+
+/// The tiled build (`tiled::build_cluster_tree_tiled`): on a generated city cut into tiles of
+/// at most 400 buildings along its B-Quadtree, under Yang's and Chang's parameter sets, the
+/// tree passes `check_invariants`, every node contains its children exactly, every tile's
+/// buildings are exactly one node's, and no node holds part of a tile and anything else. The
+/// same tree on 1 and 4 threads; one tile is the untiled tree.
+#[test]
+fn tiled_trees_keep_their_tiles_whole() {
+    let chang = ClusterParams {
+        distance: ClusterDistance::ChangSizeWeighted,
+        merge: HullMerge::ChangCases,
+        simplify: HullSimplify::ChangSmallestArea,
+        ..ClusterParams::default()
+    };
+    let c = citywalk_scenes::generate::generate_city(
+        &citywalk_scenes::generate::GenerateParams::new(3_000, 42),
+    )
+    .expect("generated city");
+    let (blocks, _) = crate::blocks::build_blocks_with(&c, &crate::blocks::BlockParams::default());
+    let quadtree = crate::quadtree::build_quadtree(&blocks);
+    let tiles = crate::tiles::plan_tiles(&quadtree, &blocks, 400);
+    assert!(tiles.len() >= 8, "{} tiles", tiles.len());
+    let mut tile_of = vec![0usize; c.buildings.len()];
+    for (t, members) in tiles.iter().enumerate() {
+        for &b in members {
+            tile_of[b as usize] = t;
+        }
+    }
+    let on = |threads: usize, p: &ClusterParams| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("pool")
+            .install(|| {
+                build_cluster_tree_tiled(&c, &blocks.block_of_building, &tiles, p).expect("tree")
+            })
+    };
+    for p in [ClusterParams::default(), chang] {
+        let tree = on(1, &p);
+        assert_eq!(tree.check_invariants(&c), Ok(()), "{p:?}");
+        let mut roots = 0;
+        for (i, node) in tree.nodes.iter().enumerate() {
+            for &ch in &node.children {
+                let inner = &tree.nodes[ch as usize].footprint[0];
+                assert!(
+                    contains_exactly(&tree.vertices, &node.footprint[0], inner),
+                    "node {i} does not hold child {ch}"
+                );
+            }
+            let (s, e) = node.buildings;
+            let mut held: Vec<usize> = tree.building_order[s as usize..e as usize]
+                .iter()
+                .map(|b| tile_of[b.index()])
+                .collect();
+            held.sort_unstable();
+            held.dedup();
+            let whole = held.iter().map(|&t| tiles[t].len()).sum::<usize>();
+            if held.len() > 1 {
+                assert_eq!(whole, (e - s) as usize, "node {i} holds part of a tile");
+            } else if whole == (e - s) as usize {
+                roots += 1;
+            }
+        }
+        assert_eq!(roots, tiles.len(), "one node per tile");
+        assert_eq!(on(4, &p), tree, "the same tree on 4 threads");
+        let all: Vec<u32> = (0..c.buildings.len() as u32).collect();
+        assert_eq!(
+            build_cluster_tree_tiled(&c, &blocks.block_of_building, &[all], &p).expect("tree"),
+            build_cluster_tree(&c, &blocks.block_of_building, &p).expect("tree"),
+        );
+    }
+}
