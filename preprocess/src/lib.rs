@@ -7,4 +7,5 @@ pub mod cluster;
 pub mod occluders;
 pub mod pipeline;
 pub mod quadtree;
+pub mod tile_jobs;
 pub mod tiles;

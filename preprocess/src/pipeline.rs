@@ -13,13 +13,16 @@ use std::time::Instant;
 use citywalk_scenes::blocks::{UrbanBlock, UrbanBlocks};
 use citywalk_scenes::cluster_tree::{ClusterParams, ClusterTree};
 use citywalk_scenes::ground_surfaces::GroundSurfaces;
+use citywalk_scenes::occluder::OccluderSet;
 use citywalk_scenes::package::{
     GpuScene, InputFile, PackageError, Provenance, ScenePackage, StageTiming, sha256_file,
 };
+use citywalk_scenes::quadtree::BQuadtree;
 use citywalk_scenes::{BuildingId, City, LoadOptions};
 use serde::{Deserialize, Serialize};
 
 use crate::blocks::{BlockParams, BlockReport, build_blocks_with};
+use crate::cluster::tiled::tree_above_tiles;
 use crate::cluster::{ClusterError, build_cluster_tree, build_cluster_tree_tiled};
 use crate::occluders::{OccluderParams, build_occluders};
 use crate::quadtree::build_quadtree;
@@ -134,12 +137,53 @@ pub enum PreprocessError {
     Package(#[from] PackageError),
 }
 
+/// What tile jobs ([`crate::tile_jobs`]) made, which the pipeline takes instead of making
+/// it: the city's occluders and each tile's tree ([`crate::cluster::tiled::tile_tree`]), in
+/// the order of [`city_tiles`].
+#[derive(Debug)]
+pub struct FromTiles {
+    pub occluders: Option<OccluderSet>,
+    pub trees: Vec<ClusterTree>,
+}
+
 /// Runs the pipeline on `city` and returns the scene package (not yet written).
 pub fn preprocess(
     city: City,
     params: &PreprocessParams,
     progress: &dyn ProgressSink,
 ) -> Result<ScenePackage, PreprocessError> {
+    preprocess_with(city, params, progress, None)
+}
+
+/// A city's B-Quadtree and its tiles (each tile's buildings, [`plan_tiles`]).
+pub type Tiling = (BQuadtree, Vec<Vec<u32>>);
+
+/// The blocks of `city` and, when streets bound some of them, its quadtree and tiles
+/// ([`plan_tiles`]); the one place the pipeline and the tile jobs cut a city into tiles.
+pub fn city_tiles(
+    city: &City,
+    params: &PreprocessParams,
+) -> (UrbanBlocks, BlockReport, Option<Tiling>) {
+    let (blocks, report) = build_blocks_with(city, &params.blocks);
+    let tiles = (report.street_blocks > 0 && !city.buildings.is_empty()).then(|| {
+        let quadtree = build_quadtree(&blocks);
+        let tiles = plan_tiles(&quadtree, &blocks, params.tile_buildings);
+        (quadtree, tiles)
+    });
+    (blocks, report, tiles)
+}
+
+/// [`preprocess`], the occluders and the tiles' trees taken from `from_tiles` when given.
+pub fn preprocess_with(
+    city: City,
+    params: &PreprocessParams,
+    progress: &dyn ProgressSink,
+    from_tiles: Option<FromTiles>,
+) -> Result<ScenePackage, PreprocessError> {
+    let (mut tile_occluders, mut tile_trees) = match from_tiles {
+        Some(f) => (f.occluders, Some(f.trees)),
+        None => (None, None),
+    };
     city.check_invariants()
         .map_err(PreprocessError::InvalidCity)?;
     let mut timings = Vec::new();
@@ -163,15 +207,19 @@ pub fn preprocess(
 
     let mut blocks = UrbanBlocks::default();
     let mut block_report = BlockReport::default();
+    // The quadtree the tiles were planned on and the tiles; the blocks do not change after it.
+    let mut tiling = None;
     run(Stage::Blocks, &mut || {
-        (blocks, block_report) = build_blocks_with(&city, &params.blocks);
+        (blocks, block_report, tiling) = city_tiles(&city, params);
         blocks_summary(&blocks, &block_report)
     });
 
     let mut occluders = None;
     if params.build_occluders {
         run(Stage::Occluders, &mut || {
-            let set = build_occluders(&city, &params.occluders);
+            let set = tile_occluders
+                .take()
+                .unwrap_or_else(|| build_occluders(&city, &params.occluders));
             let s = format!(
                 "{} occluders, {} triangles",
                 set.occluders.len(),
@@ -188,8 +236,6 @@ pub fn preprocess(
 
     let mut cluster_tree = None;
     let mut cluster_error = None;
-    // The quadtree the tiles were planned on; the blocks do not change after it.
-    let mut tiling_quadtree = None;
     if params.build_cluster_tree && !city.buildings.is_empty() {
         let no_street_faces = block_report.street_blocks == 0;
         run(Stage::ClusterTree, &mut || {
@@ -200,10 +246,17 @@ pub fn preprocess(
                     tree
                 })
             } else {
-                let quadtree = build_quadtree(&blocks);
-                let tiles = plan_tiles(&quadtree, &blocks, params.tile_buildings);
-                tiling_quadtree = Some((quadtree, tiles.len()));
-                build_cluster_tree_tiled(&city, &blocks.block_of_building, &tiles, &params.cluster)
+                let tiles = tiling.as_ref().map_or(&[][..], |(_, tiles)| &tiles[..]);
+                match tile_trees.take() {
+                    Some(mut trees) if trees.len() == 1 => Ok(trees.remove(0)),
+                    Some(trees) => tree_above_tiles(&city, trees, &params.cluster),
+                    None => build_cluster_tree_tiled(
+                        &city,
+                        &blocks.block_of_building,
+                        tiles,
+                        &params.cluster,
+                    ),
+                }
             };
             match result {
                 Ok(tree) => {
@@ -211,8 +264,10 @@ pub fn preprocess(
                         "{} nodes, depth {}{}{}",
                         tree.nodes.len(),
                         tree.max_depth(),
-                        match &tiling_quadtree {
-                            Some((_, tiles)) if *tiles > 1 => format!(", {tiles} tiles"),
+                        match &tiling {
+                            Some((_, tiles)) if tiles.len() > 1 && !no_street_faces => {
+                                format!(", {} tiles", tiles.len())
+                            }
                             _ => String::new(),
                         },
                         if no_street_faces {
@@ -246,9 +301,9 @@ pub fn preprocess(
 
     let mut quadtree = Default::default();
     run(Stage::Quadtree, &mut || {
-        quadtree = match tiling_quadtree.take() {
-            Some((planned, _)) => planned,
-            None => build_quadtree(&blocks),
+        quadtree = match tiling.take() {
+            Some((planned, _)) if block_report.street_blocks > 0 => planned,
+            _ => build_quadtree(&blocks),
         };
         format!(
             "{} nodes, {} leaves, depth {}",

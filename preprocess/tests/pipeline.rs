@@ -129,9 +129,13 @@ fn preprocessing_round_trips_through_a_package_and_is_deterministic() {
 
 #[test]
 fn the_package_is_the_same_on_one_thread_and_on_four() {
-    // Enough buildings for several chunks of the parallel occluder stage.
+    // Enough buildings for several chunks of the parallel occluder stage, and several tiles
+    // of the cluster tree's tiled build.
     let city = generated(9_000, 5);
-    let params = PreprocessParams::default();
+    let params = PreprocessParams {
+        tile_buildings: 2_000,
+        ..PreprocessParams::default()
+    };
     let on = |threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
@@ -140,6 +144,10 @@ fn the_package_is_the_same_on_one_thread_and_on_four() {
         let package = pool
             .install(|| preprocess(city.clone(), &params, &NoProgress))
             .expect("preprocess");
+        check_package(&package);
+        let tiles =
+            citywalk_preprocess::tiles::plan_tiles(&package.quadtree, &package.blocks, 2_000);
+        assert!(tiles.len() >= 4, "{} tiles", tiles.len());
         package.to_bytes(WriteOptions::default()).expect("encode")
     };
     assert!(on(1) == on(4), "1 and 4 threads gave different packages");

@@ -17,6 +17,7 @@ mod render;
 mod report_items;
 mod scene_input;
 mod texture_args;
+mod tile_jobs;
 mod view;
 
 /// mimalloc instead of glibc's allocator: preprocessing allocates and frees millions of small

@@ -10,11 +10,12 @@ use citywalk_bench::output::resident_mib;
 use citywalk_preprocess::pipeline::{
     DEFAULT_TILE_BUILDINGS, PreprocessParams, ProgressSink, Stage, preprocess,
 };
+use citywalk_preprocess::tile_jobs::merge;
 use citywalk_runtime::gpu::GpuContext;
 use citywalk_runtime::texture_bake::{BakeStats, bake_cluster_textures};
 use citywalk_scenes::cluster_texture::bins::CHANG_BIN_SIDE_PX;
-use citywalk_scenes::load_cities;
 use citywalk_scenes::package::{ScenePackage, StageTiming, WriteOptions, check_output_path};
+use citywalk_scenes::{City, LoadOptions, load_cities};
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use serde::Serialize;
 
@@ -24,14 +25,36 @@ use crate::report_items::{self, ReportItem};
 /// Arguments of `citywalk preprocess`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Input files (OSM PBF, GeoJSON, CityJSON, glTF/GLB, OBJ), merged into one city.
-    #[arg(required = true)]
-    inputs: Vec<PathBuf>,
+    /// Input files (OSM PBF, GeoJSON, CityJSON, glTF/GLB, OBJ), merged into one city. With
+    /// `--tiles-of` or `--merge`: the plan's inputs by default; given, they must be the same
+    /// files (size and SHA-256) wherever they lie.
+    #[arg(required_unless_present_any = ["tiles_of", "merge"])]
+    pub(crate) inputs: Vec<PathBuf>,
     #[command(flatten)]
-    input: InputArgs,
-    /// The scene package to write.
+    pub(crate) input: InputArgs,
+    /// The scene package to write (with `--plan-tiles`: the plan; with `--tiles-of`: the tile
+    /// file, by default `PLAN.tile-I` beside the plan).
     #[arg(short, long)]
-    output: PathBuf,
+    pub(crate) output: Option<PathBuf>,
+    /// Plan tile jobs instead of preprocessing: write the city's tiles, inputs and parameters
+    /// to the plan file `-o PLAN`, for `--tiles-of PLAN --tile I` jobs and a `--merge PLAN`.
+    #[arg(long, conflicts_with_all = ["tiles_of", "merge", "cluster_textures"])]
+    pub(crate) plan_tiles: bool,
+    /// Run tile job `--tile I` of the plan PLAN: that tile's occluders and cluster tree, to a
+    /// checksummed tile file. Jobs are independent and may run anywhere.
+    #[arg(long, value_name = "PLAN", requires = "tile", conflicts_with_all = ["merge", "cluster_textures"])]
+    pub(crate) tiles_of: Option<PathBuf>,
+    /// The tile of `--tiles-of` (0 to the plan's tile count - 1).
+    #[arg(long, value_name = "I", requires = "tiles_of")]
+    pub(crate) tile: Option<usize>,
+    /// Merge the tile files of the plan PLAN (`PLAN.tile-0`, ... beside it, or in
+    /// `--tile-dir`) into the package `-o`: the same package as one run with the plan's
+    /// parameters.
+    #[arg(long, value_name = "PLAN")]
+    pub(crate) merge: Option<PathBuf>,
+    /// With `--merge`: the folder holding the tile files (default: the plan's).
+    #[arg(long, value_name = "DIR", requires = "merge")]
+    pub(crate) tile_dir: Option<PathBuf>,
     /// Print the summary as JSON on stdout.
     #[arg(long)]
     json: bool,
@@ -159,42 +182,43 @@ struct Summary {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let start = Instant::now();
+    if args.plan_tiles || args.tiles_of.is_some() {
+        start_threads(args.threads)?;
+        return if args.plan_tiles {
+            crate::tile_jobs::plan(&args, tile_buildings(&args))
+        } else {
+            crate::tile_jobs::job(&args)
+        };
+    }
+    let Some(output) = args.output.clone() else {
+        anyhow::bail!("-o/--output: the scene package to write is missing");
+    };
     // Refuse a device, a folder or a read-only file before minutes of work, not after.
-    check_output_path(&args.output).context("cannot write the package")?;
+    check_output_path(&output).context("cannot write the package")?;
     if args.cluster_textures && args.no_cluster_tree {
         anyhow::bail!(
             "--cluster-textures needs the cluster tree (drop --no-cluster-tree): the textures are the cluster meshes'"
         );
     }
-    rayon::ThreadPoolBuilder::new()
-        .num_threads(args.threads)
-        .build_global()
-        .context("cannot start the worker threads")?;
-    let load_options = args.input.load_options(&args.inputs)?;
-    let load = ProgressBar::new_spinner();
-    if let Ok(style) = ProgressStyle::with_template("{spinner} {msg} {elapsed}") {
-        load.set_style(style);
-    }
-    load.set_message(format!("loading {} input(s)", args.inputs.len()));
-    load.enable_steady_tick(Duration::from_millis(120));
-    let city = load_cities(&args.inputs, &load_options).context("cannot load the inputs")?;
-    let load_seconds = start.elapsed().as_secs_f64();
-    load.finish_with_message(format!("load: {} ({load_seconds:.2} s)", city.report));
-    let loaded = StepMemory::now("load");
-
-    let params = PreprocessParams {
-        load: load_options,
-        build_occluders: !args.no_occluders,
-        build_cluster_tree: !args.no_cluster_tree,
-        tile_buildings: usize::try_from(args.tile_buildings).unwrap_or(usize::MAX),
-        ..PreprocessParams::default()
+    start_threads(args.threads)?;
+    let (mut package, bars, load_seconds) = if let Some(plan_path) = &args.merge {
+        let plan = crate::tile_jobs::read_plan(plan_path)?;
+        let (city, load_seconds) = crate::tile_jobs::load_plan_inputs(&args, &plan, start)?;
+        let bars = Bars::after_load();
+        let results = crate::tile_jobs::read_tiles(&args, plan_path, &plan)?;
+        let package = merge(city, &plan, results, &bars).context("cannot merge the tiles")?;
+        (package, bars, load_seconds)
+    } else {
+        let load_options = args.input.load_options(&args.inputs)?;
+        let (city, load_seconds) = load_with_spinner(&args.inputs, &load_options, start)?;
+        let params = PreprocessParams {
+            load: load_options,
+            ..preprocess_params(&args)
+        };
+        let bars = Bars::after_load();
+        let package = preprocess(city, &params, &bars).context("preprocessing failed")?;
+        (package, bars, load_seconds)
     };
-    let bars = Bars {
-        multi: MultiProgress::new(),
-        bars: Default::default(),
-        memory: std::cell::RefCell::new(vec![loaded]),
-    };
-    let mut package = preprocess(city, &params, &bars).context("preprocessing failed")?;
     let textures = if args.cluster_textures {
         let baked = bake_textures(&mut package, args.texture_bin_px)?;
         bars.memory
@@ -207,7 +231,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let write_start = Instant::now();
     let bytes = package
         .write(
-            &args.output,
+            &output,
             WriteOptions {
                 include_timings: args.store_timings,
             },
@@ -216,7 +240,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let write_seconds = write_start.elapsed().as_secs_f64();
     bars.memory.borrow_mut().push(StepMemory::now("write"));
 
-    let mut summary = summarise(&package, &args, bytes, load_seconds, write_seconds, start);
+    let mut summary = summarise(&package, &output, bytes, load_seconds, write_seconds, start);
     summary.cluster_textures = textures.map(TextureSummary::from);
     summary.step_memory = bars.memory.take();
     if args.json {
@@ -225,6 +249,57 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         print_summary(&summary);
     }
     Ok(())
+}
+
+/// The rayon pool of `--threads` (0: one thread per core).
+fn start_threads(threads: usize) -> anyhow::Result<()> {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build_global()
+        .context("cannot start the worker threads")
+}
+
+fn tile_buildings(args: &Args) -> usize {
+    usize::try_from(args.tile_buildings).unwrap_or(usize::MAX)
+}
+
+/// The parameters the command line sets (the load options apart).
+pub(crate) fn preprocess_params(args: &Args) -> PreprocessParams {
+    PreprocessParams {
+        build_occluders: !args.no_occluders,
+        build_cluster_tree: !args.no_cluster_tree,
+        tile_buildings: tile_buildings(args),
+        ..PreprocessParams::default()
+    }
+}
+
+/// Loads `inputs` behind a spinner; the seconds since `start` when done.
+pub(crate) fn load_with_spinner(
+    inputs: &[PathBuf],
+    load_options: &LoadOptions,
+    start: Instant,
+) -> anyhow::Result<(City, f64)> {
+    let load = ProgressBar::new_spinner();
+    if let Ok(style) = ProgressStyle::with_template("{spinner} {msg} {elapsed}") {
+        load.set_style(style);
+    }
+    load.set_message(format!("loading {} input(s)", inputs.len()));
+    load.enable_steady_tick(Duration::from_millis(120));
+    let city = load_cities(inputs, load_options).context("cannot load the inputs")?;
+    let load_seconds = start.elapsed().as_secs_f64();
+    load.finish_with_message(format!("load: {} ({load_seconds:.2} s)", city.report));
+    Ok((city, load_seconds))
+}
+
+impl Bars {
+    /// The stages' spinners, the memory after the load recorded first.
+    fn after_load() -> Bars {
+        Bars {
+            multi: MultiProgress::new(),
+            bars: Default::default(),
+            memory: std::cell::RefCell::new(vec![StepMemory::now("load")]),
+        }
+    }
 }
 
 /// Bakes the cluster textures of `package` on a headless GPU and stores them in it.
@@ -296,7 +371,7 @@ impl From<BakeStats> for TextureSummary {
 
 fn summarise(
     package: &ScenePackage,
-    args: &Args,
+    output: &std::path::Path,
     package_bytes: u64,
     load_seconds: f64,
     write_seconds: f64,
@@ -305,7 +380,7 @@ fn summarise(
     let report = &package.provenance.load_report;
     let (rejected, load_warnings) = report_items::items(report);
     Summary {
-        output: args.output.display().to_string(),
+        output: output.display().to_string(),
         package_bytes,
         buildings_found: report.buildings_found,
         buildings_loaded: report.buildings_loaded,

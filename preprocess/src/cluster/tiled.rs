@@ -43,17 +43,39 @@ pub fn build_cluster_tree_tiled(
             got: blocks.len(),
         });
     }
+    let start = std::time::Instant::now();
     let subtrees = tiles
         .par_iter()
         .map(|members| tile_tree(city, blocks, members, params))
         .collect::<Result<Vec<_>, _>>()?;
+    tracing::debug!(
+        seconds = start.elapsed().as_secs_f64(),
+        tiles = tiles.len(),
+        "cluster tree: the tiles' trees"
+    );
+    let tree = tree_above_tiles(city, subtrees, params)?;
+    tracing::debug!(
+        seconds = start.elapsed().as_secs_f64(),
+        "cluster tree: the tiles' trees, the tree above them and its data"
+    );
+    Ok(tree)
+}
+
+/// The city's tree from its tiles' trees ([`tile_tree`], in tile order): the tiles' roots
+/// clustered as a city of their own, whose leaves are replaced by the tiles' trees.
+pub fn tree_above_tiles(
+    city: &City,
+    subtrees: Vec<ClusterTree>,
+    params: &ClusterParams,
+) -> Result<ClusterTree, ClusterError> {
     let roots = city_of_tile_roots(city, &subtrees);
     let top = build_cluster_tree(&roots, &vec![0; subtrees.len()], params)?;
     Ok(graft(city, top, subtrees, params))
 }
 
-/// The tree of one tile's buildings, its building ids those of `city`.
-fn tile_tree(
+/// The tree of one tile's buildings (`members`, ascending), its building ids those of `city`:
+/// the same whichever job builds it.
+pub fn tile_tree(
     city: &City,
     blocks: &[u32],
     members: &[u32],

@@ -178,11 +178,18 @@ pub struct BuildingOccluders {
 /// Builds the virtual occluders of every building of `city`. Never panics: a building
 /// without an occluder gets a reason in its [`OccluderOutcome`].
 pub fn build_occluders(city: &City, params: &OccluderParams) -> OccluderSet {
+    let buildings: Vec<&Building> = city.buildings.iter().collect();
+    build_occluders_of(&buildings, params)
+}
+
+/// [`build_occluders`] for some of a city's buildings (a tile's), their outcomes in the order
+/// given and their ids kept: [`merge_occluder_sets`] of the sets of all tiles is the city's.
+pub fn build_occluders_of(buildings: &[&Building], params: &OccluderParams) -> OccluderSet {
     let mut set = OccluderSet::default();
     // Buildings are independent: each chunk is built on rayon's threads, then appended in
     // building order, so the set is the same for every thread count and only one chunk's
     // results wait at a time.
-    for chunk in city.buildings.chunks(BUILDINGS_PER_CHUNK) {
+    for chunk in buildings.chunks(BUILDINGS_PER_CHUNK) {
         let built: Vec<BuildingOccluders> = chunk
             .par_iter()
             .map(|building| occluders_or_reason(building, params))
@@ -192,11 +199,53 @@ pub fn build_occluders(city: &City, params: &OccluderParams) -> OccluderSet {
         }
     }
     tracing::debug!(
-        buildings = city.buildings.len(),
+        buildings = buildings.len(),
         occluders = set.occluders.len(),
         "built virtual occluders"
     );
     set
+}
+
+/// The occluder set of a city of `buildings` buildings from the sets of its tiles
+/// ([`build_occluders_of`]), outcomes and occluders in building order; `None` when a building
+/// is in no set or in two.
+pub fn merge_occluder_sets(buildings: usize, sets: Vec<OccluderSet>) -> Option<OccluderSet> {
+    // Where each building's outcome is: (set, position in it).
+    let mut at = vec![None; buildings];
+    for (s, set) in sets.iter().enumerate() {
+        for (k, outcome) in set.per_building.iter().enumerate() {
+            let slot = at.get_mut(outcome.building.index())?;
+            if slot.replace((s, k)).is_some() {
+                return None;
+            }
+        }
+    }
+    let mut merged = OccluderSet {
+        occluders: Vec::with_capacity(sets.iter().map(|s| s.occluders.len()).sum()),
+        per_building: Vec::with_capacity(buildings),
+    };
+    // Each set's buildings are ascending, so its occluders are taken in their order.
+    let mut outcomes: Vec<Vec<OccluderOutcome>> = Vec::with_capacity(sets.len());
+    let mut occluders: Vec<(u32, std::vec::IntoIter<Occluder>)> = Vec::with_capacity(sets.len());
+    for set in sets {
+        outcomes.push(set.per_building);
+        occluders.push((0, set.occluders.into_iter()));
+    }
+    for slot in at {
+        let (s, k) = slot?;
+        let mut outcome = outcomes[s][k].clone();
+        let (taken, rest) = &mut occluders[s];
+        if outcome.occluder_range.start != *taken || outcome.occluder_range.end < *taken {
+            return None;
+        }
+        let count = (outcome.occluder_range.end - *taken) as usize;
+        *taken = outcome.occluder_range.end;
+        let start = merged.occluders.len() as u32;
+        merged.occluders.extend(rest.by_ref().take(count));
+        outcome.occluder_range = start..merged.occluders.len() as u32;
+        merged.per_building.push(outcome);
+    }
+    Some(merged)
 }
 
 /// Buildings built in parallel before their occluders are appended to the set.

@@ -1,0 +1,342 @@
+//! Tile jobs (issue 17): a city's preprocessing cut into independent, deterministic jobs, one
+//! per tile ([`crate::tiles`]), and a merge that gives the same package as one run.
+//!
+//! 1. **Plan** ([`plan`]): the tiles of the city under the parameters, written as a small JSON
+//!    file with the inputs (path, size, SHA-256) and the parameters.
+//! 2. **Tile job** ([`run_tile`]): one tile's occluders and cluster tree
+//!    ([`crate::cluster::tiled::tile_tree`]), written as a checksummed tile file
+//!    ([`TileResult::write`]). Jobs need nothing of each other: they may run on other machines.
+//! 3. **Merge** ([`merge`]): every tile file checked (checksum, plan, tile index, buildings)
+//!    and the pipeline run with their occluders and trees instead of making them
+//!    ([`crate::pipeline::preprocess_with`]); the tree above the tiles, the GPU scene and the
+//!    rest as in one run, which builds the same tiles' trees itself.
+//!
+//! Every job reads the whole input and files its buildings into blocks to find its tile: what
+//! is cut is the work of the occluders and the cluster tree (most of a large city's time), not
+//! yet the memory.
+
+use std::io::{Read, Write};
+use std::path::Path;
+
+use citywalk_scenes::City;
+use citywalk_scenes::blocks::UrbanBlocks;
+use citywalk_scenes::cluster_tree::ClusterTree;
+use citywalk_scenes::occluder::OccluderSet;
+use citywalk_scenes::package::{InputFile, ScenePackage};
+use citywalk_scenes::{Building, TriangleMesh};
+use serde::{Deserialize, Serialize};
+
+use crate::cluster::tiled::tile_tree;
+use crate::occluders::{build_occluders_of, merge_occluder_sets};
+use crate::pipeline::{
+    FromTiles, PreprocessError, PreprocessParams, ProgressSink, city_tiles, preprocess_with,
+};
+
+/// The plan file's format name, checked on reading.
+pub const PLAN_FORMAT: &str = "citywalk tile plan 1";
+/// The first bytes of a tile file.
+const TILE_MAGIC: &[u8; 8] = b"CWTILE01";
+/// A tile file larger than this is refused before it is read (a 1M-building city's tiles hold
+/// about 100 MB each at the default tile size).
+const MAX_TILE_FILE_BYTES: u64 = 16 << 30;
+
+/// The plan: what every job and the merge must agree on.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TilePlan {
+    pub format: String,
+    /// The inputs as the plan read them; jobs check theirs against the sizes and digests.
+    pub inputs: Vec<InputFile>,
+    pub params: PreprocessParams,
+    /// The number of buildings of each tile.
+    pub tiles: Vec<u32>,
+}
+
+impl TilePlan {
+    /// The plan as its file holds it.
+    pub fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).unwrap_or_default()
+    }
+
+    /// Reads a plan file.
+    pub fn read(path: &Path) -> Result<TilePlan, TileJobError> {
+        let text = std::fs::read_to_string(path).map_err(|e| TileJobError::Io {
+            path: path.display().to_string(),
+            reason: e.to_string(),
+        })?;
+        let plan: TilePlan = serde_json::from_str(&text).map_err(|e| TileJobError::Plan {
+            path: path.display().to_string(),
+            reason: e.to_string(),
+        })?;
+        if plan.format != PLAN_FORMAT {
+            return Err(TileJobError::Plan {
+                path: path.display().to_string(),
+                reason: format!("format {:?}, expected {PLAN_FORMAT:?}", plan.format),
+            });
+        }
+        Ok(plan)
+    }
+
+    /// SHA-256 of the plan's JSON: the identity each tile file carries.
+    pub fn digest(&self) -> String {
+        use sha2::Digest;
+        let hash = sha2::Sha256::digest(self.to_json().as_bytes());
+        hash.iter().map(|b| format!("{b:02x}")).collect()
+    }
+}
+
+/// One tile job's output.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TileResult {
+    /// [`TilePlan::digest`] of the plan it was made for.
+    pub plan: String,
+    pub tile: u32,
+    /// The tile's buildings (indices into the city, ascending).
+    pub buildings: Vec<u32>,
+    /// The occluders of its buildings (`None` when the parameters leave occluders out).
+    pub occluders: Option<OccluderSet>,
+    /// Its cluster tree (`None` when the parameters leave the tree out).
+    pub tree: Option<ClusterTree>,
+    /// The tree's cluster meshes, by node (a package keeps them in its GPU scene, not in the
+    /// tree's own encoding).
+    pub meshes: Vec<TriangleMesh>,
+}
+
+/// Why a tile job or the merge failed.
+#[derive(Debug, thiserror::Error)]
+pub enum TileJobError {
+    #[error("{path}: {reason}")]
+    Io { path: String, reason: String },
+    #[error("tile plan {path}: {reason}")]
+    Plan { path: String, reason: String },
+    #[error("tile file {path} is damaged: {reason}")]
+    Damaged { path: String, reason: String },
+    #[error("{0}")]
+    Mismatch(String),
+    #[error(
+        "the city has no blocks bounded by streets, which tiles are made of; preprocess it in one run"
+    )]
+    NoStreetBlocks,
+    #[error(transparent)]
+    Preprocess(#[from] PreprocessError),
+}
+
+/// The plan of `city` (read from `inputs`) under `params`.
+pub fn plan(
+    city: &City,
+    params: &PreprocessParams,
+    inputs: Vec<InputFile>,
+) -> Result<TilePlan, TileJobError> {
+    let (_, _, tiling) = city_tiles(city, params);
+    let (_, tiles) = tiling.ok_or(TileJobError::NoStreetBlocks)?;
+    Ok(TilePlan {
+        format: PLAN_FORMAT.into(),
+        inputs,
+        params: params.clone(),
+        tiles: tiles.iter().map(|t| t.len() as u32).collect(),
+    })
+}
+
+/// The blocks and tiles of `city` under `plan`, checked against it (the same inputs give the
+/// same tiles).
+fn planned_tiles(
+    city: &City,
+    plan: &TilePlan,
+) -> Result<(UrbanBlocks, Vec<Vec<u32>>), TileJobError> {
+    let (blocks, _, tiling) = city_tiles(city, &plan.params);
+    let (_, tiles) = tiling.ok_or(TileJobError::NoStreetBlocks)?;
+    let sizes: Vec<u32> = tiles.iter().map(|t| t.len() as u32).collect();
+    if sizes != plan.tiles {
+        return Err(TileJobError::Mismatch(format!(
+            "the inputs give {} tiles of {} buildings, the plan {} of {}: not the plan's inputs",
+            sizes.len(),
+            sizes.iter().sum::<u32>(),
+            plan.tiles.len(),
+            plan.tiles.iter().sum::<u32>()
+        )));
+    }
+    Ok((blocks, tiles))
+}
+
+/// Tile `tile` of `plan`: its occluders and its cluster tree.
+pub fn run_tile(city: &City, plan: &TilePlan, tile: usize) -> Result<TileResult, TileJobError> {
+    let (blocks, tiles) = planned_tiles(city, plan)?;
+    let members = tiles.get(tile).ok_or_else(|| {
+        TileJobError::Mismatch(format!("tile {tile} of a plan of {} tiles", tiles.len()))
+    })?;
+    let params = &plan.params;
+    let buildings: Vec<&Building> = members
+        .iter()
+        .map(|&i| &city.buildings[i as usize])
+        .collect();
+    let occluders = params
+        .build_occluders
+        .then(|| build_occluders_of(&buildings, &params.occluders));
+    let mut tree = if params.build_cluster_tree {
+        Some(
+            tile_tree(city, &blocks.block_of_building, members, &params.cluster)
+                .map_err(PreprocessError::from)?,
+        )
+    } else {
+        None
+    };
+    let meshes = tree.as_mut().map_or_else(Vec::new, |t| {
+        t.nodes
+            .iter_mut()
+            .map(|n| std::mem::take(&mut n.mesh))
+            .collect()
+    });
+    Ok(TileResult {
+        plan: plan.digest(),
+        tile: tile as u32,
+        buildings: members.clone(),
+        occluders,
+        tree,
+        meshes,
+    })
+}
+
+/// The package of `city` from its tiles' results (any order), as one run of `plan`'s
+/// parameters makes it.
+pub fn merge(
+    city: City,
+    plan: &TilePlan,
+    results: Vec<(String, TileResult)>,
+    progress: &dyn ProgressSink,
+) -> Result<ScenePackage, TileJobError> {
+    let (_, tiles) = planned_tiles(&city, plan)?;
+    let digest = plan.digest();
+    let mut by_tile: Vec<Option<TileResult>> = vec![None; tiles.len()];
+    for (path, result) in results {
+        let t = result.tile as usize;
+        let fail = |reason: String| Err(TileJobError::Mismatch(format!("{path}: {reason}")));
+        if result.plan != digest {
+            return fail("made for another plan".into());
+        }
+        if t >= tiles.len() || result.buildings != tiles[t] {
+            return fail(format!("tile {t} is not tile {t} of the plan"));
+        }
+        if by_tile[t].is_some() {
+            return fail(format!("tile {t} given twice"));
+        }
+        by_tile[t] = Some(result);
+    }
+    let missing: Vec<String> = (0..tiles.len())
+        .filter(|&t| by_tile[t].is_none())
+        .map(|t| t.to_string())
+        .collect();
+    if !missing.is_empty() {
+        return Err(TileJobError::Mismatch(format!(
+            "no tile file for tiles {}",
+            missing.join(", ")
+        )));
+    }
+    let results: Vec<TileResult> = by_tile.into_iter().flatten().collect();
+    let n = city.buildings.len();
+    let mut sets = Vec::new();
+    let mut trees = Vec::new();
+    for result in results {
+        sets.extend(result.occluders);
+        if let Some(mut tree) = result.tree {
+            if tree.nodes.len() != result.meshes.len() {
+                return Err(TileJobError::Mismatch(format!(
+                    "tile {}: {} meshes for {} nodes",
+                    result.tile,
+                    result.meshes.len(),
+                    tree.nodes.len()
+                )));
+            }
+            for (node, mesh) in tree.nodes.iter_mut().zip(result.meshes) {
+                node.mesh = mesh;
+            }
+            trees.push(tree);
+        }
+    }
+    let occluders = if plan.params.build_occluders {
+        Some(merge_occluder_sets(n, sets).ok_or_else(|| {
+            TileJobError::Mismatch("the tiles' occluders do not cover every building once".into())
+        })?)
+    } else {
+        None
+    };
+    if plan.params.build_cluster_tree && trees.len() != tiles.len() {
+        return Err(TileJobError::Mismatch(
+            "a tile file has no cluster tree".into(),
+        ));
+    }
+    let from_tiles = FromTiles {
+        occluders,
+        trees: if plan.params.build_cluster_tree {
+            trees
+        } else {
+            Vec::new()
+        },
+    };
+    Ok(preprocess_with(
+        city,
+        &plan.params,
+        progress,
+        Some(from_tiles),
+    )?)
+}
+
+impl TileResult {
+    /// Writes the tile file: [`TILE_MAGIC`], the payload's length (u64, little-endian), the
+    /// payload (postcard) and its CRC-32 (u32, little-endian).
+    pub fn write(&self, path: &Path) -> Result<(), TileJobError> {
+        let io = |e: std::io::Error| TileJobError::Io {
+            path: path.display().to_string(),
+            reason: e.to_string(),
+        };
+        let payload = postcard::to_stdvec(self).map_err(|e| TileJobError::Io {
+            path: path.display().to_string(),
+            reason: format!("cannot encode the tile: {e}"),
+        })?;
+        let mut file = std::io::BufWriter::new(std::fs::File::create(path).map_err(io)?);
+        file.write_all(TILE_MAGIC).map_err(io)?;
+        file.write_all(&(payload.len() as u64).to_le_bytes())
+            .map_err(io)?;
+        file.write_all(&payload).map_err(io)?;
+        file.write_all(&crc32fast::hash(&payload).to_le_bytes())
+            .map_err(io)?;
+        file.flush().map_err(io)
+    }
+
+    /// Reads a tile file, refusing one whose length, checksum or encoding is wrong.
+    pub fn read(path: &Path) -> Result<TileResult, TileJobError> {
+        let name = path.display().to_string();
+        let damaged = |reason: &str| TileJobError::Damaged {
+            path: name.clone(),
+            reason: reason.into(),
+        };
+        let io = |e: std::io::Error| TileJobError::Io {
+            path: name.clone(),
+            reason: e.to_string(),
+        };
+        let mut file = std::fs::File::open(path).map_err(io)?;
+        let size = file.metadata().map_err(io)?.len();
+        if size > MAX_TILE_FILE_BYTES {
+            return Err(damaged("larger than any tile file"));
+        }
+        let mut head = [0u8; 16];
+        file.read_exact(&mut head)
+            .map_err(|_| damaged("shorter than its header"))?;
+        if &head[..8] != TILE_MAGIC {
+            return Err(damaged("not a citywalk tile file"));
+        }
+        let length = u64::from_le_bytes(head[8..].try_into().expect("8 bytes"));
+        if length.checked_add(20) != Some(size) {
+            return Err(damaged(&format!(
+                "{size} bytes, its header says {}",
+                length.saturating_add(20)
+            )));
+        }
+        let mut payload = vec![0u8; length as usize];
+        file.read_exact(&mut payload).map_err(io)?;
+        let mut crc = [0u8; 4];
+        file.read_exact(&mut crc).map_err(io)?;
+        if crc32fast::hash(&payload) != u32::from_le_bytes(crc) {
+            return Err(damaged("checksum mismatch"));
+        }
+        postcard::from_bytes(&payload).map_err(|e| damaged(&format!("cannot decode: {e}")))
+    }
+}

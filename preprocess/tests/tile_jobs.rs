@@ -1,0 +1,120 @@
+//! Tile jobs and their merge (issue 17): the package merged from independent tile jobs,
+//! each written to and read back from its tile file, is byte for byte the one run's; damaged,
+//! missing, repeated and foreign tile files are refused naming the file.
+
+use citywalk_preprocess::pipeline::{NoProgress, PreprocessParams, preprocess};
+use citywalk_preprocess::tile_jobs::{TileJobError, TileResult, merge, plan, run_tile};
+use citywalk_scenes::City;
+use citywalk_scenes::package::WriteOptions;
+
+fn generated(buildings: usize, seed: u64) -> City {
+    citywalk_scenes::generate::generate_city(&citywalk_scenes::generate::GenerateParams::new(
+        buildings, seed,
+    ))
+    .expect("generated city")
+}
+
+#[test]
+fn tile_jobs_merge_to_the_one_runs_package_and_bad_tile_files_are_refused() {
+    let city = generated(4_000, 3);
+    let params = PreprocessParams {
+        tile_buildings: 600,
+        ..PreprocessParams::default()
+    };
+    let one_run = preprocess(city.clone(), &params, &NoProgress)
+        .expect("one run")
+        .to_bytes(WriteOptions::default())
+        .expect("encode");
+
+    let plan = plan(&city, &params, Vec::new()).expect("plan");
+    assert!(plan.tiles.len() >= 6, "{} tiles", plan.tiles.len());
+    assert_eq!(
+        plan.tiles.iter().sum::<u32>() as usize,
+        city.buildings.len()
+    );
+    let dir = tempfile::tempdir().expect("temp dir");
+    let mut files = Vec::new();
+    // Jobs in reverse order: the merge takes them in any.
+    for t in (0..plan.tiles.len()).rev() {
+        let path = dir.path().join(format!("city.tile-{t}"));
+        run_tile(&city, &plan, t)
+            .expect("tile job")
+            .write(&path)
+            .expect("write the tile file");
+        files.push(path);
+    }
+    let read = |paths: &[std::path::PathBuf]| -> Vec<(String, TileResult)> {
+        paths
+            .iter()
+            .map(|p| {
+                (
+                    p.display().to_string(),
+                    TileResult::read(p).expect("tile file"),
+                )
+            })
+            .collect()
+    };
+    let merged = merge(city.clone(), &plan, read(&files), &NoProgress)
+        .expect("merge")
+        .to_bytes(WriteOptions::default())
+        .expect("encode");
+    assert!(
+        merged == one_run,
+        "the merged package differs from the one run's"
+    );
+
+    // A missing tile and a tile given twice.
+    let mut short = read(&files[1..]);
+    let err = merge(city.clone(), &plan, short.clone(), &NoProgress).expect_err("missing");
+    assert!(
+        matches!(err, TileJobError::Mismatch(ref m) if m.contains("no tile file")),
+        "{err}"
+    );
+    short.push(short[0].clone());
+    let err = merge(city.clone(), &plan, short, &NoProgress).expect_err("repeated");
+    assert!(err.to_string().contains("given twice"), "{err}");
+
+    // A tile of another plan.
+    let other = PreprocessParams {
+        tile_buildings: 700,
+        ..params.clone()
+    };
+    let other_plan = plan_of(&city, &other);
+    let foreign = run_tile(&city, &other_plan, 0).expect("tile job");
+    let mut mixed = read(&files);
+    mixed[0] = ("foreign".into(), foreign);
+    let err = merge(city.clone(), &plan, mixed, &NoProgress).expect_err("foreign");
+    assert!(
+        err.to_string().contains("foreign: made for another plan"),
+        "{err}"
+    );
+
+    // A damaged file (one byte flipped in the payload) and a truncated one.
+    let bytes = std::fs::read(&files[0]).expect("read");
+    let mut flipped = bytes.clone();
+    flipped[bytes.len() / 2] ^= 0x40;
+    let damaged = dir.path().join("damaged.tile");
+    std::fs::write(&damaged, &flipped).expect("write");
+    let err = TileResult::read(&damaged).expect_err("damaged");
+    assert!(
+        matches!(err, TileJobError::Damaged { ref path, ref reason }
+            if path.ends_with("damaged.tile") && reason.contains("checksum")),
+        "{err}"
+    );
+    std::fs::write(&damaged, &bytes[..bytes.len() - 9]).expect("write");
+    let err = TileResult::read(&damaged).expect_err("truncated");
+    assert!(matches!(err, TileJobError::Damaged { .. }), "{err}");
+}
+
+fn plan_of(city: &City, params: &PreprocessParams) -> citywalk_preprocess::tile_jobs::TilePlan {
+    plan(city, params, Vec::new()).expect("plan")
+}
+
+/// A city without streets bounding blocks has no tiles: the plan says so.
+#[test]
+fn a_city_without_street_blocks_cannot_be_tiled() {
+    let mut city = generated(300, 5);
+    city.streets.clear();
+    let err = plan(&city, &PreprocessParams::default(), Vec::new()).expect_err("no tiles");
+    assert!(matches!(err, TileJobError::NoStreetBlocks), "{err}");
+}
