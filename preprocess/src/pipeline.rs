@@ -7,6 +7,11 @@
 //! the shallowest level cut with at least `⌈n / PreprocessParams::buildings_per_block⌉` nodes
 //! (a citywalk choice: 20 buildings per block on average, about a city block). The nodes'
 //! `block` fields are then recomputed for those blocks.
+//!
+//! With street blocks, the city is cut into tiles along the B-Quadtree ([`city_tiles`]) and
+//! the cluster tree built tile by tile ([`crate::cluster::tiled`]); tile jobs
+//! ([`crate::tile_jobs`]) hand the pipeline their occluders and tiles' trees instead
+//! ([`preprocess_with`]).
 
 use std::time::Instant;
 

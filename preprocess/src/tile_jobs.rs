@@ -1,32 +1,32 @@
 //! Tile jobs (issue 17): a city's preprocessing cut into independent, deterministic jobs, one
 //! per tile ([`crate::tiles`]), and a merge that gives the same package as one run.
 //!
-//! 1. **Plan** ([`plan`]): the tiles of the city under the parameters, written as a small JSON
-//!    file with the inputs (path, size, SHA-256) and the parameters.
+//! 1. **Plan** ([`plan_and_shard`]): the tiles of the city under the parameters, written as a
+//!    small JSON file with the inputs (path, size, SHA-256) and the parameters, and each tile's
+//!    buildings as a checksummed shard file ([`TileShard`]).
 //! 2. **Tile job** ([`run_tile`]): one tile's occluders and cluster tree
-//!    ([`crate::cluster::tiled::tile_tree`]), written as a checksummed tile file
-//!    ([`TileResult::write`]). Jobs need nothing of each other: they may run on other machines.
+//!    ([`crate::cluster::tiled::tree_of_tile`]) from its shard alone, written as a checksummed
+//!    tile file ([`TileResult::write`]). Jobs need nothing of each other nor the input: they
+//!    may run on other machines, each holding one tile.
 //! 3. **Merge** ([`merge`]): every tile file checked (checksum, plan, tile index, buildings)
 //!    and the pipeline run with their occluders and trees instead of making them
 //!    ([`crate::pipeline::preprocess_with`]); the tree above the tiles, the GPU scene and the
 //!    rest as in one run, which builds the same tiles' trees itself.
 //!
-//! Every job reads the whole input and files its buildings into blocks to find its tile: what
-//! is cut is the work of the occluders and the cluster tree (most of a large city's time), not
-//! yet the memory.
+//! The plan and the merge still hold the whole city; a job holds one tile.
 
 use std::io::{Read, Write};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-use citywalk_scenes::City;
 use citywalk_scenes::blocks::UrbanBlocks;
 use citywalk_scenes::cluster_tree::ClusterTree;
 use citywalk_scenes::occluder::OccluderSet;
 use citywalk_scenes::package::{InputFile, ScenePackage};
-use citywalk_scenes::{Building, TriangleMesh};
+use citywalk_scenes::{Building, BuildingId, BuildingPart, City, Frame, TriangleMesh};
+use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
-use crate::cluster::tiled::tile_tree;
+use crate::cluster::tiled::{tile_city, tree_of_tile};
 use crate::occluders::{build_occluders_of, merge_occluder_sets};
 use crate::pipeline::{
     FromTiles, PreprocessError, PreprocessParams, ProgressSink, city_tiles, preprocess_with,
@@ -36,9 +36,11 @@ use crate::pipeline::{
 pub const PLAN_FORMAT: &str = "citywalk tile plan 1";
 /// The first bytes of a tile file.
 const TILE_MAGIC: &[u8; 8] = b"CWTILE01";
-/// A tile file larger than this is refused before it is read (a 1M-building city's tiles hold
-/// about 100 MB each at the default tile size).
-const MAX_TILE_FILE_BYTES: u64 = 16 << 30;
+/// The first bytes of a shard file.
+const SHARD_MAGIC: &[u8; 8] = b"CWSHRD01";
+/// A tile or shard file larger than this is refused before it is read (a 1M-building city's
+/// tiles hold about 100 MB each at the default tile size).
+const MAX_FRAMED_FILE_BYTES: u64 = 16 << 30;
 
 /// The plan: what every job and the merge must agree on.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -101,6 +103,23 @@ pub struct TileResult {
     pub meshes: Vec<TriangleMesh>,
 }
 
+/// One tile's buildings, all a tile job needs of the city.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TileShard {
+    /// [`TilePlan::digest`] of the plan it was cut for.
+    pub plan: String,
+    pub tile: u32,
+    /// The tile's buildings (indices into the city, ascending).
+    pub buildings: Vec<u32>,
+    /// Their blocks.
+    pub blocks: Vec<u32>,
+    pub frame: Frame,
+    /// The tile's buildings, ids their positions here ([`tile_city`]); their parts apart, as
+    /// a building's encoding leaves them out.
+    pub city: Vec<Building>,
+    pub parts: Vec<Vec<BuildingPart>>,
+}
+
 /// Why a tile job or the merge failed.
 #[derive(Debug, thiserror::Error)]
 pub enum TileJobError {
@@ -108,7 +127,7 @@ pub enum TileJobError {
     Io { path: String, reason: String },
     #[error("tile plan {path}: {reason}")]
     Plan { path: String, reason: String },
-    #[error("tile file {path} is damaged: {reason}")]
+    #[error("{path} is damaged: {reason}")]
     Damaged { path: String, reason: String },
     #[error("{0}")]
     Mismatch(String),
@@ -120,20 +139,44 @@ pub enum TileJobError {
     Preprocess(#[from] PreprocessError),
 }
 
-/// The plan of `city` (read from `inputs`) under `params`.
-pub fn plan(
+/// The plan of `city` (read from `inputs`) under `params`, each tile's shard written to
+/// `shard_path(tile)` on the way.
+pub fn plan_and_shard(
     city: &City,
     params: &PreprocessParams,
     inputs: Vec<InputFile>,
+    shard_path: &dyn Fn(usize) -> PathBuf,
 ) -> Result<TilePlan, TileJobError> {
-    let (_, _, tiling) = city_tiles(city, params);
+    let (blocks, _, tiling) = city_tiles(city, params);
     let (_, tiles) = tiling.ok_or(TileJobError::NoStreetBlocks)?;
-    Ok(TilePlan {
+    let plan = TilePlan {
         format: PLAN_FORMAT.into(),
         inputs,
         params: params.clone(),
         tiles: tiles.iter().map(|t| t.len() as u32).collect(),
-    })
+    };
+    let digest = plan.digest();
+    for (t, members) in tiles.iter().enumerate() {
+        let mut tile = tile_city(city, members);
+        let shard = TileShard {
+            plan: digest.clone(),
+            tile: t as u32,
+            buildings: members.clone(),
+            blocks: members
+                .iter()
+                .map(|&i| blocks.block_of_building[i as usize])
+                .collect(),
+            frame: tile.frame.clone(),
+            parts: tile
+                .buildings
+                .iter_mut()
+                .map(|b| std::mem::take(&mut b.parts))
+                .collect(),
+            city: tile.buildings,
+        };
+        write_framed(&shard_path(t), SHARD_MAGIC, &shard)?;
+    }
+    Ok(plan)
 }
 
 /// The blocks and tiles of `city` under `plan`, checked against it (the same inputs give the
@@ -157,23 +200,53 @@ fn planned_tiles(
     Ok((blocks, tiles))
 }
 
-/// Tile `tile` of `plan`: its occluders and its cluster tree.
-pub fn run_tile(city: &City, plan: &TilePlan, tile: usize) -> Result<TileResult, TileJobError> {
-    let (blocks, tiles) = planned_tiles(city, plan)?;
-    let members = tiles.get(tile).ok_or_else(|| {
-        TileJobError::Mismatch(format!("tile {tile} of a plan of {} tiles", tiles.len()))
-    })?;
+/// The tile job: the occluders and the cluster tree of the tile `shard` holds.
+pub fn run_tile(shard: TileShard, plan: &TilePlan) -> Result<TileResult, TileJobError> {
+    let digest = plan.digest();
+    if shard.plan != digest {
+        return Err(TileJobError::Mismatch(format!(
+            "the shard of tile {} was cut for another plan",
+            shard.tile
+        )));
+    }
+    let n = shard.buildings.len();
+    if shard.city.len() != n || shard.parts.len() != n || shard.blocks.len() != n {
+        return Err(TileJobError::Mismatch(format!(
+            "the shard of tile {} lists {n} buildings but holds {}",
+            shard.tile,
+            shard.city.len()
+        )));
+    }
+    let mut buildings = shard.city;
+    for (b, parts) in buildings.iter_mut().zip(shard.parts) {
+        b.parts = parts;
+    }
+    let tile = City {
+        frame: shard.frame,
+        buildings,
+        streets: Vec::new(),
+        ground_areas: Vec::new(),
+        report: Default::default(),
+    };
+    tile.check_invariants()
+        .map_err(|e| TileJobError::Mismatch(format!("the shard of tile {}: {e}", shard.tile)))?;
     let params = &plan.params;
-    let buildings: Vec<&Building> = members
-        .iter()
-        .map(|&i| &city.buildings[i as usize])
-        .collect();
-    let occluders = params
-        .build_occluders
-        .then(|| build_occluders_of(&buildings, &params.occluders));
+    let occluders = params.build_occluders.then(|| {
+        let refs: Vec<&Building> = tile.buildings.iter().collect();
+        let mut set = build_occluders_of(&refs, &params.occluders);
+        // The city's ids, not the tile's.
+        let global = |b: &mut BuildingId| *b = BuildingId(shard.buildings[b.index()]);
+        set.occluders
+            .iter_mut()
+            .for_each(|o| global(&mut o.building));
+        set.per_building
+            .iter_mut()
+            .for_each(|o| global(&mut o.building));
+        set
+    });
     let mut tree = if params.build_cluster_tree {
         Some(
-            tile_tree(city, &blocks.block_of_building, members, &params.cluster)
+            tree_of_tile(&tile, &shard.blocks, &shard.buildings, &params.cluster)
                 .map_err(PreprocessError::from)?,
         )
     } else {
@@ -186,9 +259,9 @@ pub fn run_tile(city: &City, plan: &TilePlan, tile: usize) -> Result<TileResult,
             .collect()
     });
     Ok(TileResult {
-        plan: plan.digest(),
-        tile: tile as u32,
-        buildings: members.clone(),
+        plan: digest,
+        tile: shard.tile,
+        buildings: shard.buildings,
         occluders,
         tree,
         meshes,
@@ -280,63 +353,84 @@ pub fn merge(
 }
 
 impl TileResult {
-    /// Writes the tile file: [`TILE_MAGIC`], the payload's length (u64, little-endian), the
-    /// payload (postcard) and its CRC-32 (u32, little-endian).
+    /// Writes the tile file (framed as [`write_framed`] says).
     pub fn write(&self, path: &Path) -> Result<(), TileJobError> {
-        let io = |e: std::io::Error| TileJobError::Io {
-            path: path.display().to_string(),
-            reason: e.to_string(),
-        };
-        let payload = postcard::to_stdvec(self).map_err(|e| TileJobError::Io {
-            path: path.display().to_string(),
-            reason: format!("cannot encode the tile: {e}"),
-        })?;
-        let mut file = std::io::BufWriter::new(std::fs::File::create(path).map_err(io)?);
-        file.write_all(TILE_MAGIC).map_err(io)?;
-        file.write_all(&(payload.len() as u64).to_le_bytes())
-            .map_err(io)?;
-        file.write_all(&payload).map_err(io)?;
-        file.write_all(&crc32fast::hash(&payload).to_le_bytes())
-            .map_err(io)?;
-        file.flush().map_err(io)
+        write_framed(path, TILE_MAGIC, self)
     }
 
     /// Reads a tile file, refusing one whose length, checksum or encoding is wrong.
     pub fn read(path: &Path) -> Result<TileResult, TileJobError> {
-        let name = path.display().to_string();
-        let damaged = |reason: &str| TileJobError::Damaged {
-            path: name.clone(),
-            reason: reason.into(),
-        };
-        let io = |e: std::io::Error| TileJobError::Io {
-            path: name.clone(),
-            reason: e.to_string(),
-        };
-        let mut file = std::fs::File::open(path).map_err(io)?;
-        let size = file.metadata().map_err(io)?.len();
-        if size > MAX_TILE_FILE_BYTES {
-            return Err(damaged("larger than any tile file"));
-        }
-        let mut head = [0u8; 16];
-        file.read_exact(&mut head)
-            .map_err(|_| damaged("shorter than its header"))?;
-        if &head[..8] != TILE_MAGIC {
-            return Err(damaged("not a citywalk tile file"));
-        }
-        let length = u64::from_le_bytes(head[8..].try_into().expect("8 bytes"));
-        if length.checked_add(20) != Some(size) {
-            return Err(damaged(&format!(
-                "{size} bytes, its header says {}",
-                length.saturating_add(20)
-            )));
-        }
-        let mut payload = vec![0u8; length as usize];
-        file.read_exact(&mut payload).map_err(io)?;
-        let mut crc = [0u8; 4];
-        file.read_exact(&mut crc).map_err(io)?;
-        if crc32fast::hash(&payload) != u32::from_le_bytes(crc) {
-            return Err(damaged("checksum mismatch"));
-        }
-        postcard::from_bytes(&payload).map_err(|e| damaged(&format!("cannot decode: {e}")))
+        read_framed(path, TILE_MAGIC)
     }
+}
+
+impl TileShard {
+    /// Reads a shard file, refusing one whose length, checksum or encoding is wrong.
+    pub fn read(path: &Path) -> Result<TileShard, TileJobError> {
+        read_framed(path, SHARD_MAGIC)
+    }
+}
+
+/// Writes `value` framed: `magic`, the payload's length (u64, little-endian), the payload
+/// (postcard) and its CRC-32 (u32, little-endian).
+fn write_framed<T: Serialize>(path: &Path, magic: &[u8; 8], value: &T) -> Result<(), TileJobError> {
+    let io = |e: std::io::Error| TileJobError::Io {
+        path: path.display().to_string(),
+        reason: e.to_string(),
+    };
+    let payload = postcard::to_stdvec(value).map_err(|e| TileJobError::Io {
+        path: path.display().to_string(),
+        reason: format!("cannot encode: {e}"),
+    })?;
+    let mut file = std::io::BufWriter::new(std::fs::File::create(path).map_err(io)?);
+    file.write_all(magic).map_err(io)?;
+    file.write_all(&(payload.len() as u64).to_le_bytes())
+        .map_err(io)?;
+    file.write_all(&payload).map_err(io)?;
+    file.write_all(&crc32fast::hash(&payload).to_le_bytes())
+        .map_err(io)?;
+    file.flush().map_err(io)
+}
+
+/// Reads a file [`write_framed`] wrote with `magic`, refusing one whose length, checksum or
+/// encoding is wrong.
+fn read_framed<T: DeserializeOwned>(path: &Path, magic: &[u8; 8]) -> Result<T, TileJobError> {
+    let name = path.display().to_string();
+    let damaged = |reason: &str| TileJobError::Damaged {
+        path: name.clone(),
+        reason: reason.into(),
+    };
+    let io = |e: std::io::Error| TileJobError::Io {
+        path: name.clone(),
+        reason: e.to_string(),
+    };
+    let mut file = std::fs::File::open(path).map_err(io)?;
+    let size = file.metadata().map_err(io)?.len();
+    if size > MAX_FRAMED_FILE_BYTES {
+        return Err(damaged("larger than any tile or shard file"));
+    }
+    let mut head = [0u8; 16];
+    file.read_exact(&mut head)
+        .map_err(|_| damaged("shorter than its header"))?;
+    if &head[..8] != magic {
+        return Err(damaged(&format!(
+            "not a citywalk {} file",
+            String::from_utf8_lossy(&magic[2..6]).to_lowercase()
+        )));
+    }
+    let length = u64::from_le_bytes(head[8..].try_into().expect("8 bytes"));
+    if length.checked_add(20) != Some(size) {
+        return Err(damaged(&format!(
+            "{size} bytes, its header says {}",
+            length.saturating_add(20)
+        )));
+    }
+    let mut payload = vec![0u8; length as usize];
+    file.read_exact(&mut payload).map_err(io)?;
+    let mut crc = [0u8; 4];
+    file.read_exact(&mut crc).map_err(io)?;
+    if crc32fast::hash(&payload) != u32::from_le_bytes(crc) {
+        return Err(damaged("checksum mismatch"));
+    }
+    postcard::from_bytes(&payload).map_err(|e| damaged(&format!("cannot decode: {e}")))
 }

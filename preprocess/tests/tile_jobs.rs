@@ -3,9 +3,12 @@
 //! missing, repeated and foreign tile files are refused naming the file.
 
 use citywalk_preprocess::pipeline::{NoProgress, PreprocessParams, preprocess};
-use citywalk_preprocess::tile_jobs::{TileJobError, TileResult, merge, plan, run_tile};
+use citywalk_preprocess::tile_jobs::{
+    TileJobError, TilePlan, TileResult, TileShard, merge, plan_and_shard, run_tile,
+};
 use citywalk_scenes::City;
 use citywalk_scenes::package::WriteOptions;
+use std::path::Path;
 
 fn generated(buildings: usize, seed: u64) -> City {
     citywalk_scenes::generate::generate_city(&citywalk_scenes::generate::GenerateParams::new(
@@ -26,19 +29,18 @@ fn tile_jobs_merge_to_the_one_runs_package_and_bad_tile_files_are_refused() {
         .to_bytes(WriteOptions::default())
         .expect("encode");
 
-    let plan = plan(&city, &params, Vec::new()).expect("plan");
+    let dir = tempfile::tempdir().expect("temp dir");
+    let plan = plan_of(&city, &params, dir.path());
     assert!(plan.tiles.len() >= 6, "{} tiles", plan.tiles.len());
     assert_eq!(
         plan.tiles.iter().sum::<u32>() as usize,
         city.buildings.len()
     );
-    let dir = tempfile::tempdir().expect("temp dir");
     let mut files = Vec::new();
     // Jobs in reverse order: the merge takes them in any.
     for t in (0..plan.tiles.len()).rev() {
         let path = dir.path().join(format!("city.tile-{t}"));
-        run_tile(&city, &plan, t)
-            .expect("tile job")
+        job(dir.path(), &plan, t)
             .write(&path)
             .expect("write the tile file");
         files.push(path);
@@ -79,8 +81,13 @@ fn tile_jobs_merge_to_the_one_runs_package_and_bad_tile_files_are_refused() {
         tile_buildings: 700,
         ..params.clone()
     };
-    let other_plan = plan_of(&city, &other);
-    let foreign = run_tile(&city, &other_plan, 0).expect("tile job");
+    let other_dir = tempfile::tempdir().expect("temp dir");
+    let other_plan = plan_of(&city, &other, other_dir.path());
+    let foreign = job(other_dir.path(), &other_plan, 0);
+    // Its shard is refused by this plan's job too.
+    let shard = TileShard::read(&other_dir.path().join("city.shard-0")).expect("shard");
+    let err = run_tile(shard, &plan).expect_err("a shard of another plan");
+    assert!(err.to_string().contains("another plan"), "{err}");
     let mut mixed = read(&files);
     mixed[0] = ("foreign".into(), foreign);
     let err = merge(city.clone(), &plan, mixed, &NoProgress).expect_err("foreign");
@@ -106,8 +113,16 @@ fn tile_jobs_merge_to_the_one_runs_package_and_bad_tile_files_are_refused() {
     assert!(matches!(err, TileJobError::Damaged { .. }), "{err}");
 }
 
-fn plan_of(city: &City, params: &PreprocessParams) -> citywalk_preprocess::tile_jobs::TilePlan {
-    plan(city, params, Vec::new()).expect("plan")
+/// The plan of `city`, its shards written to `dir`.
+fn plan_of(city: &City, params: &PreprocessParams, dir: &Path) -> TilePlan {
+    let shard = |t: usize| dir.join(format!("city.shard-{t}"));
+    plan_and_shard(city, params, Vec::new(), &shard).expect("plan")
+}
+
+/// Tile `t`'s job, reading only its shard from `dir`.
+fn job(dir: &Path, plan: &TilePlan, t: usize) -> TileResult {
+    let shard = TileShard::read(&dir.join(format!("city.shard-{t}"))).expect("shard");
+    run_tile(shard, plan).expect("tile job")
 }
 
 /// A city without streets bounding blocks has no tiles: the plan says so.
@@ -115,6 +130,9 @@ fn plan_of(city: &City, params: &PreprocessParams) -> citywalk_preprocess::tile_
 fn a_city_without_street_blocks_cannot_be_tiled() {
     let mut city = generated(300, 5);
     city.streets.clear();
-    let err = plan(&city, &PreprocessParams::default(), Vec::new()).expect_err("no tiles");
+    let dir = tempfile::tempdir().expect("temp dir");
+    let shard = |t: usize| dir.path().join(format!("city.shard-{t}"));
+    let err = plan_and_shard(&city, &PreprocessParams::default(), Vec::new(), &shard)
+        .expect_err("no tiles");
     assert!(matches!(err, TileJobError::NoStreetBlocks), "{err}");
 }

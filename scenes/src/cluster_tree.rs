@@ -125,7 +125,9 @@ pub enum MergeFailure {
 /// One merge whose first construction failed, and what it fell back to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub struct MergeFallback {
-    /// Index of the merge in the binary merge order (the merge created binary node n + k).
+    /// Index of the merge in the binary merge order (the merge created binary node n + k); in a
+    /// tree built tile by tile, the tiles' merges are numbered in tile order, then those of the
+    /// tree above the tiles.
     pub merge: u32,
     /// Why the first construction failed.
     pub reason: MergeFailure,

@@ -26,8 +26,9 @@ use crate::report_items::{self, ReportItem};
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Input files (OSM PBF, GeoJSON, CityJSON, glTF/GLB, OBJ), merged into one city. With
-    /// `--tiles-of` or `--merge`: the plan's inputs by default; given, they must be the same
-    /// files (size and SHA-256) wherever they lie.
+    /// `--merge`: the plan's inputs by default; given, they must be the same files (size and
+    /// SHA-256) wherever they lie. A `--tiles-of` job reads none: its tile's shard holds its
+    /// buildings.
     #[arg(required_unless_present_any = ["tiles_of", "merge"])]
     pub(crate) inputs: Vec<PathBuf>,
     #[command(flatten)]
@@ -37,11 +38,13 @@ pub struct Args {
     #[arg(short, long)]
     pub(crate) output: Option<PathBuf>,
     /// Plan tile jobs instead of preprocessing: write the city's tiles, inputs and parameters
-    /// to the plan file `-o PLAN`, for `--tiles-of PLAN --tile I` jobs and a `--merge PLAN`.
+    /// to the plan file `-o PLAN` and each tile's buildings to `PLAN.shard-I` beside it, for
+    /// `--tiles-of PLAN --tile I` jobs and a `--merge PLAN`.
     #[arg(long, conflicts_with_all = ["tiles_of", "merge", "cluster_textures"])]
     pub(crate) plan_tiles: bool,
-    /// Run tile job `--tile I` of the plan PLAN: that tile's occluders and cluster tree, to a
-    /// checksummed tile file. Jobs are independent and may run anywhere.
+    /// Run tile job `--tile I` of the plan PLAN: that tile's occluders and cluster tree, from
+    /// its shard `PLAN.shard-I` beside the plan, to a checksummed tile file. Jobs are
+    /// independent and may run anywhere, each holding one tile.
     #[arg(long, value_name = "PLAN", requires = "tile", conflicts_with_all = ["merge", "cluster_textures"])]
     pub(crate) tiles_of: Option<PathBuf>,
     /// The tile of `--tiles-of` (0 to the plan's tile count - 1).

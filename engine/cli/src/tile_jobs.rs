@@ -1,13 +1,15 @@
 //! `citywalk preprocess --plan-tiles`, `--tiles-of PLAN --tile I` and `--merge PLAN`: a
 //! city's preprocessing as independent tile jobs and their merge
-//! ([`citywalk_preprocess::tile_jobs`]).
+//! ([`citywalk_preprocess::tile_jobs`]). Beside the plan `PLAN` lie the tiles' shards
+//! `PLAN.shard-I` (the plan writes them, a job reads its own) and tile files `PLAN.tile-I`
+//! (a job writes its own, the merge reads them all).
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::Context;
 use citywalk_preprocess::pipeline::PreprocessParams;
-use citywalk_preprocess::tile_jobs::{TilePlan, TileResult, run_tile};
+use citywalk_preprocess::tile_jobs::{TilePlan, TileResult, TileShard, plan_and_shard, run_tile};
 use citywalk_scenes::City;
 use citywalk_scenes::package::{InputFile, sha256_file};
 
@@ -39,19 +41,24 @@ pub fn plan(args: &Args, tile_buildings: usize) -> anyhow::Result<()> {
             })
         })
         .collect::<anyhow::Result<Vec<_>>>()?;
-    let plan = citywalk_preprocess::tile_jobs::plan(&city, &params, inputs)?;
+    let shard_path = |t: usize| sibling(output, None, "shard", t);
+    let plan = plan_and_shard(&city, &params, inputs, &shard_path)?;
     std::fs::write(output, plan.to_json())
         .with_context(|| format!("cannot write the plan {}", output.display()))?;
     let mut sizes = plan.tiles.clone();
     sizes.sort_unstable();
     println!(
-        "{} tiles of {} buildings (smallest {}, median {}, largest {}) -> {}",
+        "{} tiles of {} buildings (smallest {}, median {}, largest {}) -> {}, shards {}",
         plan.tiles.len(),
         city.buildings.len(),
         sizes.first().unwrap_or(&0),
         sizes.get(sizes.len() / 2).unwrap_or(&0),
         sizes.last().unwrap_or(&0),
-        output.display()
+        output.display(),
+        shard_path(0)
+            .display()
+            .to_string()
+            .replace(".shard-0", ".shard-I")
     );
     println!(
         "next: citywalk preprocess --tiles-of {0} --tile I   (I = 0 to {1}, anywhere, in any order)\n      citywalk preprocess --merge {0} -o city.cwk",
@@ -61,12 +68,18 @@ pub fn plan(args: &Args, tile_buildings: usize) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// `--tiles-of PLAN --tile I`: one tile job.
+/// `--tiles-of PLAN --tile I`: one tile job, from the tile's shard beside the plan.
 pub fn job(args: &Args) -> anyhow::Result<()> {
     let start = Instant::now();
     let (Some(plan_path), Some(tile)) = (&args.tiles_of, args.tile) else {
         anyhow::bail!("--tiles-of PLAN needs --tile I");
     };
+    if !args.inputs.is_empty() {
+        anyhow::bail!(
+            "a tile job reads its tile's shard beside the plan, not input files: leave out {}",
+            args.inputs[0].display()
+        );
+    }
     let plan = read_plan(plan_path)?;
     if tile >= plan.tiles.len() {
         anyhow::bail!(
@@ -78,9 +91,9 @@ pub fn job(args: &Args) -> anyhow::Result<()> {
     let output = args
         .output
         .clone()
-        .unwrap_or_else(|| tile_file(plan_path, None, tile));
-    let (city, _) = load_plan_inputs(args, &plan, start)?;
-    let result = run_tile(&city, &plan, tile)?;
+        .unwrap_or_else(|| sibling(plan_path, None, "tile", tile));
+    let shard = TileShard::read(&sibling(plan_path, None, "shard", tile))?;
+    let result = run_tile(shard, &plan)?;
     result.write(&output)?;
     println!(
         "tile {tile}: {} buildings, {} occluders, {} cluster tree nodes ({:.2} s) -> {}",
@@ -98,10 +111,11 @@ pub fn read_plan(path: &Path) -> anyhow::Result<TilePlan> {
     Ok(TilePlan::read(path)?)
 }
 
-/// Tile `tile`'s file of the plan `plan_path`: `PLAN.tile-I`, in `dir` or beside the plan.
-fn tile_file(plan_path: &Path, dir: Option<&Path>, tile: usize) -> PathBuf {
+/// Tile `tile`'s `kind` file (`shard`, `tile`) of the plan `plan_path`: `PLAN.KIND-I`, in
+/// `dir` or beside the plan.
+fn sibling(plan_path: &Path, dir: Option<&Path>, kind: &str, tile: usize) -> PathBuf {
     let name = format!(
-        "{}.tile-{tile}",
+        "{}.{kind}-{tile}",
         plan_path.file_name().unwrap_or_default().to_string_lossy()
     );
     match dir {
@@ -153,7 +167,7 @@ pub fn read_tiles(
 ) -> anyhow::Result<Vec<(String, TileResult)>> {
     (0..plan.tiles.len())
         .map(|t| {
-            let path = tile_file(plan_path, args.tile_dir.as_deref(), t);
+            let path = sibling(plan_path, args.tile_dir.as_deref(), "tile", t);
             let result = TileResult::read(&path)?;
             Ok((path.display().to_string(), result))
         })

@@ -1,7 +1,8 @@
 //! `citywalk preprocess --plan-tiles`, `--tiles-of PLAN --tile I` and `--merge PLAN` end to
 //! end (issue 17): a generated city's tile jobs, run as separate processes in reverse order
-//! with their files in another folder, merge to the same package bytes as one run; a damaged
-//! tile file, a missing one and an input that is not the plan's are refused, naming the file.
+//! from their shards alone (the input moved away) and with their files in another folder,
+//! merge to the same package bytes as one run; a damaged tile file, a missing one and an input
+//! that is not the plan's are refused, naming the file.
 //! CPU only.
 
 use std::ffi::OsStr;
@@ -92,6 +93,8 @@ fn tile_jobs_merge_to_the_one_runs_package() {
         "{planned}"
     );
     std::fs::create_dir_all(dir.join("jobs")).expect("jobs folder");
+    // The jobs read their shards, not the input.
+    std::fs::rename(dir.join("city.geojson"), dir.join("away.geojson")).expect("move");
     for t in (0..tiles).rev() {
         let out = format!("jobs/city.plan.tile-{t}");
         let said = citywalk(
@@ -108,6 +111,8 @@ fn tile_jobs_merge_to_the_one_runs_package() {
         );
         assert!(said.starts_with(&format!("tile {t}: ")), "{said}");
     }
+    // The merge reads the input again.
+    std::fs::rename(dir.join("away.geojson"), dir.join("city.geojson")).expect("move back");
     citywalk(
         dir,
         &[
@@ -172,6 +177,24 @@ fn tile_jobs_merge_to_the_one_runs_package() {
         &[
             "preprocess",
             "other.geojson",
+            "--merge",
+            "city.plan",
+            "--tile-dir",
+            "jobs",
+            "-o",
+            "x.cwk",
+        ],
+    );
+    assert!(
+        err.contains("other.geojson is not the plan's input city.geojson"),
+        "{err}"
+    );
+    // A job takes no inputs: it reads its shard.
+    let err = refused(
+        dir,
+        &[
+            "preprocess",
+            "other.geojson",
             "--tiles-of",
             "city.plan",
             "--tile",
@@ -180,8 +203,5 @@ fn tile_jobs_merge_to_the_one_runs_package() {
             "x",
         ],
     );
-    assert!(
-        err.contains("other.geojson is not the plan's input city.geojson"),
-        "{err}"
-    );
+    assert!(err.contains("not input files"), "{err}");
 }

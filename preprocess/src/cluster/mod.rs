@@ -11,6 +11,9 @@
 //! 4. depth reduction and balancing ([`depth`]);
 //! 5. node data: heights, errors (made monotone; the geometric and colour errors in [`error`]),
 //!    bounds, landmarks, meshes.
+//!
+//! A large city's tree is built tile by tile ([`tiled`]): this pipeline on each tile, then
+//! once more on the tiles' roots for the tree above them.
 
 pub mod depth;
 pub mod error;

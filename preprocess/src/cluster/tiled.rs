@@ -81,7 +81,14 @@ pub fn tile_tree(
     members: &[u32],
     params: &ClusterParams,
 ) -> Result<ClusterTree, ClusterError> {
-    let tile = City {
+    let tile_blocks: Vec<u32> = members.iter().map(|&i| blocks[i as usize]).collect();
+    tree_of_tile(&tile_city(city, members), &tile_blocks, members, params)
+}
+
+/// One tile's buildings (`members`, ascending) as a city of their own, their ids their
+/// positions in it; tags are left out (the tree reads none).
+pub fn tile_city(city: &City, members: &[u32]) -> City {
+    City {
         frame: city.frame.clone(),
         buildings: members
             .iter()
@@ -104,9 +111,18 @@ pub fn tile_tree(
         streets: Vec::new(),
         ground_areas: Vec::new(),
         report: Default::default(),
-    };
-    let tile_blocks: Vec<u32> = members.iter().map(|&i| blocks[i as usize]).collect();
-    let mut tree = build_cluster_tree(&tile, &tile_blocks, params)?;
+    }
+}
+
+/// The tree of a tile's city ([`tile_city`]; `tile_blocks` its buildings' blocks), its
+/// building ids mapped back to the city's through `members`.
+pub fn tree_of_tile(
+    tile: &City,
+    tile_blocks: &[u32],
+    members: &[u32],
+    params: &ClusterParams,
+) -> Result<ClusterTree, ClusterError> {
+    let mut tree = build_cluster_tree(tile, tile_blocks, params)?;
     let global = |b: &mut BuildingId| *b = BuildingId(members[b.index()]);
     tree.building_order.iter_mut().for_each(global);
     for node in &mut tree.nodes {
