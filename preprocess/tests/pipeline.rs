@@ -153,6 +153,58 @@ fn the_package_is_the_same_on_one_thread_and_on_four() {
     assert!(on(1) == on(4), "1 and 4 threads gave different packages");
 }
 
+/// The GPU scene is written in place after its arrays are counted ([`GpuScene::build`]); it
+/// must be the bytes of the same arrays laid out in growable vectors and copied, with and
+/// without a cluster tree and occluders.
+#[test]
+fn the_gpu_scene_built_in_place_equals_the_arrays_copied() {
+    use citywalk_scenes::occluder_draws::OccluderArrays;
+    use citywalk_scenes::package::GpuScene;
+    use citywalk_scenes::scene_geometry::{
+        SceneGeometry, cull_records, draw_id_parents, lod_geometry,
+    };
+
+    let city = generated(1_500, 7);
+    let pkg =
+        preprocess(city.clone(), &PreprocessParams::default(), &NoProgress).expect("preprocess");
+    let (tree, occluders) = (
+        pkg.cluster_tree.as_ref().expect("a tree"),
+        pkg.occluders.as_ref().expect("occluders"),
+    );
+    let n = city.buildings.len() as u32;
+    let geometry = lod_geometry(&city, tree);
+    let cull = cull_records(&geometry.records, n, tree);
+    let copied = GpuScene::from_arrays(
+        n,
+        geometry,
+        Some(cull),
+        Some(draw_id_parents(tree, n)),
+        OccluderArrays::of(occluders),
+    );
+    let in_place = GpuScene::build(&city, Some(tree), Some(occluders));
+    assert!(in_place.view().records.len() > city.buildings.len());
+    assert!(!in_place.view().occluders.records.is_empty());
+    assert!(
+        in_place.bytes() == copied.bytes(),
+        "with a tree and occluders"
+    );
+    assert!(
+        pkg.gpu_scene.bytes() == copied.bytes(),
+        "the pipeline's scene"
+    );
+
+    let copied = GpuScene::from_arrays(
+        n,
+        SceneGeometry::from_city(&city),
+        None,
+        None,
+        Default::default(),
+    );
+    let in_place = GpuScene::build(&city, None, None);
+    assert!(in_place.view().records.len() == city.buildings.len());
+    assert!(in_place.bytes() == copied.bytes(), "buildings alone");
+}
+
 #[test]
 fn a_city_without_streets_takes_its_blocks_from_the_cluster_tree() {
     let mut city = generated(400, 5);

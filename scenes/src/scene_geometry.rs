@@ -76,79 +76,12 @@ impl SceneGeometry {
         with_parts: usize,
     ) -> SceneGeometry {
         let mut g = SceneGeometry::default();
-        let mut lo = Vec3::splat(f32::INFINITY);
-        let mut hi = Vec3::splat(f32::NEG_INFINITY);
-        for (i, (mesh, fallback)) in meshes.enumerate() {
-            let (bmin, bmax) = mesh.bounds().unwrap_or(fallback);
-            // Indices that point outside the mesh would read other buildings' vertices: drop
-            // those triangles.
-            let n = mesh.positions.len() as u32;
-            let first_index = g.indices.len() as u32;
-            for t in mesh.indices.chunks_exact(3) {
-                if t.iter().all(|&v| v < n) {
-                    g.indices.extend_from_slice(t);
-                }
-            }
-            let first_part = g.parts.len() as u32;
-            if i < with_parts {
-                g.parts.extend(cull_parts::cull_parts(
-                    &mesh.positions,
-                    &g.indices[first_index as usize..],
-                ));
-            }
-            g.records.push(BuildingRecord {
-                bounds_min_m: bmin.to_array(),
-                first_index,
-                bounds_max_m: bmax.to_array(),
-                index_count: g.indices.len() as u32 - first_index,
-                base_vertex: g.vertices.len() as i32,
-                vertex_count: n,
-                first_part,
-                part_count: g.parts.len() as u32 - first_part,
-            });
-            g.vertices
-                .extend(mesh.positions.iter().map(|p| SceneVertex {
-                    position_m: p.to_array(),
-                    building_id: i as u32,
-                }));
-            if bmin.cmple(bmax).all() {
-                lo = lo.min(bmin);
-                hi = hi.max(bmax);
-            }
-        }
-        if !lo.cmple(hi).all() {
-            (lo, hi) = (Vec3::ZERO, Vec3::ONE);
-        }
-        g.bounds = (lo, hi);
-        g.push_ground();
+        let (bounds, ground) = lay_out_meshes(meshes, with_parts, &mut g);
+        g.bounds = bounds;
+        g.ground = ground;
         g.vertices.shrink_to_fit();
         g.indices.shrink_to_fit();
         g
-    }
-
-    /// A ground quad reaching well past the city (so the horizon is ground, not sky), at the
-    /// lowest base height (at most 0).
-    fn push_ground(&mut self) {
-        let (lo, hi) = self.bounds;
-        let centre = (lo + hi) * 0.5;
-        let half_m = ((hi - lo).truncate().max_element() * 0.5).max(100.0) * 50.0 + 5_000.0;
-        let z = ground_plane_z(lo.z);
-        let base_vertex = self.vertices.len() as i32;
-        for (dx, dy) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
-            self.vertices.push(SceneVertex {
-                position_m: [centre.x + dx * half_m, centre.y + dy * half_m, z],
-                building_id: GROUND_ID,
-            });
-        }
-        let first_index = self.indices.len() as u32;
-        self.indices.extend_from_slice(&[0, 1, 2, 0, 2, 3]);
-        self.ground = DrawIndexedIndirectArgs {
-            index_count: 6,
-            instance_count: 1,
-            first_index,
-            base_vertex,
-            first_instance: 0,
-        };
     }
 
     /// Number of buildings.
@@ -173,6 +106,150 @@ impl SceneGeometry {
             &self.parts,
             self.ground,
         )
+    }
+}
+
+/// Where [`lay_out_meshes`] puts the scene's arrays, in order: growable vectors
+/// ([`SceneGeometry`]), the counts alone ([`ArrayCounts`]), or arrays of exactly the counted
+/// size ([`crate::package::GpuScene::build`]).
+pub trait SceneArraysOut {
+    /// The vertices, indices and cull parts so far.
+    fn lens(&self) -> (usize, usize, usize);
+    /// One vertex per position, all with `id`.
+    fn push_vertices(&mut self, id: u32, positions: &[Vec3]);
+    fn push_indices(&mut self, indices: &[u32]);
+    fn push_parts(&mut self, parts: &[CullPart]);
+    fn push_record(&mut self, record: BuildingRecord);
+}
+
+impl SceneArraysOut for SceneGeometry {
+    fn lens(&self) -> (usize, usize, usize) {
+        (self.vertices.len(), self.indices.len(), self.parts.len())
+    }
+
+    fn push_vertices(&mut self, id: u32, positions: &[Vec3]) {
+        self.vertices.extend(positions.iter().map(|p| SceneVertex {
+            position_m: p.to_array(),
+            building_id: id,
+        }));
+    }
+
+    fn push_indices(&mut self, indices: &[u32]) {
+        self.indices.extend_from_slice(indices);
+    }
+
+    fn push_parts(&mut self, parts: &[CullPart]) {
+        self.parts.extend_from_slice(parts);
+    }
+
+    fn push_record(&mut self, record: BuildingRecord) {
+        self.records.push(record);
+    }
+}
+
+/// The lengths of a scene's arrays, counted by a [`lay_out_meshes`] that keeps nothing.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ArrayCounts {
+    pub vertices: usize,
+    pub indices: usize,
+    pub parts: usize,
+    pub records: usize,
+}
+
+impl SceneArraysOut for ArrayCounts {
+    fn lens(&self) -> (usize, usize, usize) {
+        (self.vertices, self.indices, self.parts)
+    }
+
+    fn push_vertices(&mut self, _id: u32, positions: &[Vec3]) {
+        self.vertices += positions.len();
+    }
+
+    fn push_indices(&mut self, indices: &[u32]) {
+        self.indices += indices.len();
+    }
+
+    fn push_parts(&mut self, parts: &[CullPart]) {
+        self.parts += parts.len();
+    }
+
+    fn push_record(&mut self, _record: BuildingRecord) {
+        self.records += 1;
+    }
+}
+
+/// Lays out one building per mesh (id = position), with cull parts for the first `with_parts`,
+/// then the ground quad, into `out`: the one place the scene's layout is decided. Returns the
+/// bounds of every mesh (a 1 m cube at the origin when there are none) and the ground's draw.
+/// `meshes` gives each mesh with the box to use when it is empty (it then draws nothing).
+pub fn lay_out_meshes<'m>(
+    meshes: impl Iterator<Item = (Cow<'m, TriangleMesh>, (Vec3, Vec3))>,
+    with_parts: usize,
+    out: &mut impl SceneArraysOut,
+) -> ((Vec3, Vec3), DrawIndexedIndirectArgs) {
+    let mut lo = Vec3::splat(f32::INFINITY);
+    let mut hi = Vec3::splat(f32::NEG_INFINITY);
+    let mut kept = Vec::new();
+    for (i, (mesh, fallback)) in meshes.enumerate() {
+        let (bmin, bmax) = mesh.bounds().unwrap_or(fallback);
+        // Indices that point outside the mesh would read other buildings' vertices: drop
+        // those triangles.
+        let n = mesh.positions.len() as u32;
+        kept.clear();
+        kept.extend(
+            mesh.indices
+                .chunks_exact(3)
+                .filter(|t| t.iter().all(|&v| v < n))
+                .flatten(),
+        );
+        let parts = if i < with_parts {
+            cull_parts::cull_parts(&mesh.positions, &kept)
+        } else {
+            Vec::new()
+        };
+        let (vertices, indices, first_part) = out.lens();
+        out.push_record(BuildingRecord {
+            bounds_min_m: bmin.to_array(),
+            first_index: indices as u32,
+            bounds_max_m: bmax.to_array(),
+            index_count: kept.len() as u32,
+            base_vertex: vertices as i32,
+            vertex_count: n,
+            first_part: first_part as u32,
+            part_count: parts.len() as u32,
+        });
+        out.push_indices(&kept);
+        out.push_parts(&parts);
+        out.push_vertices(i as u32, &mesh.positions);
+        if bmin.cmple(bmax).all() {
+            lo = lo.min(bmin);
+            hi = hi.max(bmax);
+        }
+    }
+    if !lo.cmple(hi).all() {
+        (lo, hi) = (Vec3::ZERO, Vec3::ONE);
+    }
+    let ground = push_ground(out, (lo, hi));
+    ((lo, hi), ground)
+}
+
+/// A ground quad reaching well past the city (so the horizon is ground, not sky), at the lowest
+/// base height (at most 0), after the buildings.
+fn push_ground(out: &mut impl SceneArraysOut, (lo, hi): (Vec3, Vec3)) -> DrawIndexedIndirectArgs {
+    let centre = (lo + hi) * 0.5;
+    let half_m = ((hi - lo).truncate().max_element() * 0.5).max(100.0) * 50.0 + 5_000.0;
+    let z = ground_plane_z(lo.z);
+    let (base_vertex, first_index, _) = out.lens();
+    let corners = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
+        .map(|(dx, dy)| Vec3::new(centre.x + dx * half_m, centre.y + dy * half_m, z));
+    out.push_vertices(GROUND_ID, &corners);
+    out.push_indices(&[0, 1, 2, 0, 2, 3]);
+    DrawIndexedIndirectArgs {
+        index_count: 6,
+        instance_count: 1,
+        first_index: first_index as u32,
+        base_vertex: base_vertex as i32,
+        first_instance: 0,
     }
 }
 
@@ -269,15 +346,24 @@ fn building_meshes<'m>(city: &City) -> impl Iterator<Item = (Cow<'m, TriangleMes
 /// [`SceneGeometry::from_city`]), then id `building_count + n` is the cluster mesh of tree node
 /// `n` (empty for leaves, which draw nothing under that id).
 pub fn lod_geometry(city: &City, tree: &ClusterTree) -> SceneGeometry {
-    let clusters = tree.nodes.iter().map(|node| {
+    // Cluster meshes are culled by the box of everything under them (`cull_records`): no parts.
+    SceneGeometry::from_mesh_iter(lod_meshes(city, Some(tree)), city.buildings.len())
+}
+
+/// The meshes of [`lod_geometry`] in draw-id order, made a chunk at a time: every building's,
+/// then every node's cluster mesh of `tree` (none without a tree: [`SceneGeometry::from_city`]).
+pub fn lod_meshes<'m>(
+    city: &City,
+    tree: Option<&'m ClusterTree>,
+) -> impl Iterator<Item = (Cow<'m, TriangleMesh>, (Vec3, Vec3))> {
+    let clusters = tree.into_iter().flat_map(|tree| &tree.nodes).map(|node| {
         let bounds = (
             Vec3::from_array(node.bounds_min),
             Vec3::from_array(node.bounds_max),
         );
         (Cow::Borrowed(&node.mesh), bounds)
     });
-    // Cluster meshes are culled by the box of everything under them (`cull_records`): no parts.
-    SceneGeometry::from_mesh_iter(building_meshes(city).chain(clusters), city.buildings.len())
+    building_meshes(city).chain(clusters)
 }
 
 /// The occlusion cull's record of every draw id, from `geometry_records` (the records of

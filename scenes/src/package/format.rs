@@ -16,7 +16,6 @@
 //! ([`super::gpu_scene`]). Every byte of the file is covered by a checksum or checked to be zero, so any
 //! corruption is reported as an error.
 
-use std::borrow::Cow;
 use std::io::{Seek, SeekFrom, Write};
 use std::sync::Arc;
 
@@ -161,16 +160,55 @@ pub struct SectionEntry {
     pub crc32: u32,
 }
 
-fn encode_one<T: Serialize>(
+/// Encodes `value` into `out` as it goes (no copy of the section in memory; postcard's many
+/// small writes gathered into blocks before they are checksummed).
+fn encode_one<T: Serialize, W: Write>(
     kind: SectionKind,
     value: &T,
-) -> Result<(SectionKind, Vec<u8>), PackageError> {
-    postcard::to_stdvec(value)
-        .map(|bytes| (kind, bytes))
-        .map_err(|e| PackageError::Encode {
+    out: &mut SectionSink<'_, W>,
+) -> Result<(), PackageError> {
+    let mut buffered = std::io::BufWriter::with_capacity(1 << 16, &mut *out);
+    let written = postcard::to_io(value, &mut buffered).map(|_| ());
+    // A failed write (kept in the sink) is reported by the caller, with its cause.
+    let _ = buffered.flush();
+    drop(buffered);
+    match written {
+        Err(e) if out.error.is_none() => Err(PackageError::Encode {
             section: kind.name().into(),
             reason: e.to_string(),
-        })
+        }),
+        _ => Ok(()),
+    }
+}
+
+/// A section's bytes on their way to the file: counted and checksummed as they pass, and the
+/// first write error kept for the caller.
+struct SectionSink<'w, W> {
+    out: &'w mut W,
+    length: u64,
+    crc: crc32fast::Hasher,
+    error: Option<std::io::Error>,
+}
+
+impl<W: Write> Write for SectionSink<'_, W> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        match self.out.write(buf) {
+            Ok(n) => {
+                self.crc.update(&buf[..n]);
+                self.length += n as u64;
+                Ok(n)
+            }
+            Err(e) => {
+                let kind = e.kind();
+                self.error.get_or_insert(e);
+                Err(kind.into())
+            }
+        }
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.out.flush()
+    }
 }
 
 /// The sections `pkg` is written with, in the file's (ascending) order.
@@ -205,38 +243,46 @@ fn sections_of(pkg: &ScenePackage, options: WriteOptions) -> Vec<SectionKind> {
     kinds
 }
 
-/// The payload of one section of `pkg`: encoded when asked for, or the GPU scene's own bytes.
-fn payload(pkg: &ScenePackage, kind: SectionKind) -> Result<Cow<'_, [u8]>, PackageError> {
+/// Writes the payload of one section of `pkg` to `out`: encoded as it is written, or the GPU
+/// scene's own bytes.
+fn write_payload<W: Write>(
+    pkg: &ScenePackage,
+    kind: SectionKind,
+    out: &mut SectionSink<'_, W>,
+) -> Result<(), PackageError> {
     use SectionKind as K;
-    let encoded = match kind {
-        K::Frame => encode_one(kind, &pkg.frame),
-        K::Buildings => encode_one(kind, &pkg.buildings),
-        K::Streets => encode_one(kind, &pkg.streets),
-        K::Blocks => encode_one(kind, &pkg.blocks),
-        K::Quadtree => encode_one(kind, &pkg.quadtree),
-        K::Provenance => encode_one(kind, &pkg.provenance),
+    match kind {
+        K::Frame => encode_one(kind, &pkg.frame, out),
+        K::Buildings => encode_one(kind, &pkg.buildings, out),
+        K::Streets => encode_one(kind, &pkg.streets, out),
+        K::Blocks => encode_one(kind, &pkg.blocks, out),
+        K::Quadtree => encode_one(kind, &pkg.quadtree, out),
+        K::Provenance => encode_one(kind, &pkg.provenance, out),
         K::Occluders => match &pkg.occluders {
-            Some(occluders) => encode_one(kind, occluders),
+            Some(occluders) => encode_one(kind, occluders, out),
             None => Err(absent(kind)),
         },
         K::ClusterTree => match &pkg.cluster_tree {
-            Some(tree) => encode_one(kind, tree),
+            Some(tree) => encode_one(kind, tree, out),
             None => Err(absent(kind)),
         },
-        K::Timings => encode_one(kind, &pkg.timings),
-        K::GpuScene => return Ok(Cow::Borrowed(pkg.gpu_scene.bytes())),
+        K::Timings => encode_one(kind, &pkg.timings, out),
+        K::GpuScene => {
+            // A failed write is kept in the sink.
+            let _ = out.write_all(pkg.gpu_scene.bytes());
+            Ok(())
+        }
         K::BuildingDetails => {
             let details: Vec<_> = pkg.buildings.iter().map(|b| (&b.parts, &b.tags)).collect();
-            encode_one(kind, &details)
+            encode_one(kind, &details, out)
         }
-        K::GroundAreas => encode_one(kind, &pkg.ground_areas),
-        K::GroundSurfaces => encode_one(kind, &pkg.ground_surfaces),
+        K::GroundAreas => encode_one(kind, &pkg.ground_areas, out),
+        K::GroundSurfaces => encode_one(kind, &pkg.ground_surfaces, out),
         K::ClusterTextures => match &pkg.cluster_textures {
-            Some(textures) => encode_one(kind, textures),
+            Some(textures) => encode_one(kind, textures, out),
             None => Err(absent(kind)),
         },
-    };
-    encoded.map(|(_, bytes)| Cow::Owned(bytes))
+    }
 }
 
 /// An optional section asked for though the package lacks it ([`sections_of`] never does).
@@ -248,9 +294,9 @@ fn absent(kind: SectionKind) -> PackageError {
 }
 
 /// Writes a package (see the module documentation) to `out` and returns its length. The
-/// sections are encoded and written one at a time, and the table, which needs their lengths
-/// and checksums, last: beside the package itself, at most one encoded section is in memory
-/// (at a million buildings the file is gigabytes). `io` names a failed write.
+/// sections are encoded straight into `out` one at a time, counted and checksummed as they
+/// pass, and the table, which needs their lengths and checksums, last: no encoded section is
+/// held in memory (at a million buildings the file is gigabytes). `io` names a failed write.
 pub fn encode_to<W: Write + Seek>(
     pkg: &ScenePackage,
     options: WriteOptions,
@@ -267,15 +313,24 @@ pub fn encode_to<W: Write + Seek>(
         let gap = (start - offset) as usize;
         out.write_all(&[0; SECTION_ALIGN as usize][..gap])
             .map_err(&io)?;
-        let bytes = payload(pkg, kind)?;
-        out.write_all(&bytes).map_err(&io)?;
+        let mut sink = SectionSink {
+            out: &mut *out,
+            length: 0,
+            crc: crc32fast::Hasher::new(),
+            error: None,
+        };
+        write_payload(pkg, kind, &mut sink)?;
+        if let Some(e) = sink.error {
+            return Err(io(e));
+        }
+        let (length, crc32) = (sink.length, sink.crc.finalize());
         entries.push(SectionEntry {
             kind: kind as u32,
             offset: start,
-            length: bytes.len() as u64,
-            crc32: crc32fast::hash(&bytes),
+            length,
+            crc32,
         });
-        offset = start + bytes.len() as u64;
+        offset = start + length;
     }
     let mut head = Vec::with_capacity(table_end as usize);
     head.extend_from_slice(&MAGIC);

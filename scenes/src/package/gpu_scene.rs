@@ -35,7 +35,10 @@ use crate::City;
 use crate::cluster_tree::ClusterTree;
 use crate::occluder::OccluderSet;
 use crate::occluder_draws::{OccluderArrays, OccluderArraysView, OccluderRecord};
-use crate::scene_geometry::{SceneGeometry, cull_records, draw_id_parents, lod_geometry};
+use crate::scene_geometry::{
+    ArrayCounts, SceneArraysOut, SceneGeometry, cull_records, draw_id_parents, lay_out_meshes,
+    lod_meshes,
+};
 
 // The arrays are the GPU's little-endian layout, read in place.
 #[cfg(target_endian = "big")]
@@ -190,14 +193,85 @@ impl GpuScene {
     ) -> GpuScene {
         let n = city.buildings.len() as u32;
         let occluders = occluders.map(OccluderArrays::of).unwrap_or_default();
+        // Twice over the meshes: once to count the arrays, once to write them where the scene
+        // keeps them, so they are never held twice (a gigabyte at a million buildings, where
+        // extruding the buildings again takes a few seconds).
+        let mut counts = ArrayCounts::default();
+        let (bounds, ground) = lay_out_meshes(lod_meshes(city, tree), n as usize, &mut counts);
+        let header = Header {
+            building_count: n,
+            record_count: counts.records as u32,
+            vertex_count: counts.vertices as u32,
+            index_count: counts.indices as u32,
+            part_count: counts.parts as u32,
+            occluder_vertex_count: occluders.vertices.len() as u32,
+            occluder_index_count: occluders.indices.len() as u32,
+            occluder_count: occluders.records.len() as u32,
+            reserved: [0; 4],
+            ground,
+            bounds_min_m: bounds.0.to_array(),
+            bounds_max_m: bounds.1.to_array(),
+            padding: 0,
+        };
+        let layout = Layout::of(header).expect("a scene that fits in memory fits its layout");
+        let mut words = vec![0u32; layout.len / 4];
+        let bytes: &mut [u8] = bytemuck::cast_slice_mut(&mut words);
+        let [
+            head,
+            vertices,
+            indices,
+            records,
+            parts,
+            cull_out,
+            parents_out,
+            occluder_vertices,
+            occluder_indices,
+            occluder_records,
+        ] = split_regions(
+            bytes,
+            [
+                (0, HEADER_LEN),
+                layout.vertices,
+                layout.indices,
+                layout.records,
+                layout.parts,
+                layout.cull_records,
+                layout.parents,
+                layout.occluder_vertices,
+                layout.occluder_indices,
+                layout.occluder_records,
+            ],
+        );
+        head.copy_from_slice(bytemuck::bytes_of(&header));
+        let mut writer = ArraysInPlace {
+            vertices: bytemuck::cast_slice_mut(vertices),
+            indices: bytemuck::cast_slice_mut(indices),
+            parts: bytemuck::cast_slice_mut(parts),
+            records: bytemuck::cast_slice_mut(records),
+            lens: ArrayCounts::default(),
+        };
+        let written = lay_out_meshes(lod_meshes(city, tree), n as usize, &mut writer);
+        assert!(
+            written == (bounds, ground) && writer.lens == counts,
+            "the meshes are laid out the same twice"
+        );
+        let records: &[BuildingRecord] = writer.records;
         match tree {
             Some(tree) => {
-                let geometry = lod_geometry(city, tree);
-                let cull = cull_records(&geometry.records, n, tree);
-                let parents = draw_id_parents(tree, n);
-                GpuScene::from_arrays(n, geometry, Some(cull), Some(parents), occluders)
+                cull_out.copy_from_slice(bytemuck::cast_slice(&cull_records(records, n, tree)));
+                parents_out.copy_from_slice(bytemuck::cast_slice(&draw_id_parents(tree, n)));
             }
-            None => GpuScene::from_arrays(n, SceneGeometry::from_city(city), None, None, occluders),
+            None => {
+                cull_out.copy_from_slice(bytemuck::cast_slice(records));
+                bytemuck::cast_slice_mut::<u8, u32>(parents_out).fill(NO_PARENT);
+            }
+        }
+        occluder_vertices.copy_from_slice(bytemuck::cast_slice(&occluders.vertices));
+        occluder_indices.copy_from_slice(bytemuck::cast_slice(&occluders.indices));
+        occluder_records.copy_from_slice(bytemuck::cast_slice(&occluders.records));
+        GpuScene {
+            storage: Storage::Owned(words),
+            layout,
         }
     }
 
@@ -540,4 +614,66 @@ impl fmt::Debug for GpuScene {
             .field("mapped", &self.is_mapped())
             .finish()
     }
+}
+
+/// The arrays of a scene being built, of exactly their counted lengths ([`GpuScene::build`]).
+struct ArraysInPlace<'a> {
+    vertices: &'a mut [SceneVertex],
+    indices: &'a mut [u32],
+    parts: &'a mut [CullPart],
+    records: &'a mut [BuildingRecord],
+    lens: ArrayCounts,
+}
+
+impl SceneArraysOut for ArraysInPlace<'_> {
+    fn lens(&self) -> (usize, usize, usize) {
+        self.lens.lens()
+    }
+
+    fn push_vertices(&mut self, id: u32, positions: &[Vec3]) {
+        let at = self.lens.vertices;
+        for (v, p) in self.vertices[at..at + positions.len()]
+            .iter_mut()
+            .zip(positions)
+        {
+            *v = SceneVertex {
+                position_m: p.to_array(),
+                building_id: id,
+            };
+        }
+        self.lens.push_vertices(id, positions);
+    }
+
+    fn push_indices(&mut self, indices: &[u32]) {
+        let at = self.lens.indices;
+        self.indices[at..at + indices.len()].copy_from_slice(indices);
+        self.lens.push_indices(indices);
+    }
+
+    fn push_parts(&mut self, parts: &[CullPart]) {
+        let at = self.lens.parts;
+        self.parts[at..at + parts.len()].copy_from_slice(parts);
+        self.lens.push_parts(parts);
+    }
+
+    fn push_record(&mut self, record: BuildingRecord) {
+        self.records[self.lens.records] = record;
+        self.lens.push_record(record);
+    }
+}
+
+/// `bytes` cut into the `N` disjoint `ranges` (in increasing order), each mutable on its own.
+fn split_regions<const N: usize>(
+    mut bytes: &mut [u8],
+    ranges: [(usize, usize); N],
+) -> [&mut [u8]; N] {
+    let mut consumed = 0;
+    ranges.map(|(start, end)| {
+        let rest = std::mem::take(&mut bytes);
+        let (_, rest) = rest.split_at_mut(start - consumed);
+        let (region, rest) = rest.split_at_mut(end - start);
+        bytes = rest;
+        consumed = end;
+        region
+    })
 }

@@ -589,6 +589,58 @@ fn a_written_file_is_the_encoded_package() {
     }
 }
 
+/// Sections are encoded straight into the writer: a write that fails partway through one (a
+/// full disk) is reported with its own cause, whichever section it hits, never as a failure
+/// to encode.
+#[test]
+fn a_write_failing_inside_a_section_reports_its_cause() {
+    /// A file that takes `room` bytes and then is full.
+    struct FullAfter {
+        inner: std::io::Cursor<Vec<u8>>,
+        room: u64,
+    }
+    impl std::io::Write for FullAfter {
+        fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+            let left = self.room.saturating_sub(self.inner.position()) as usize;
+            if left == 0 && !buf.is_empty() {
+                return Err(std::io::Error::new(
+                    std::io::ErrorKind::StorageFull,
+                    "no space left on the test device",
+                ));
+            }
+            self.inner.write(&buf[..buf.len().min(left)])
+        }
+        fn flush(&mut self) -> std::io::Result<()> {
+            Ok(())
+        }
+    }
+    impl std::io::Seek for FullAfter {
+        fn seek(&mut self, to: std::io::SeekFrom) -> std::io::Result<u64> {
+            self.inner.seek(to)
+        }
+    }
+    let pkg = small_package();
+    let whole = pkg.to_bytes(WriteOptions::default()).expect("encode");
+    for room in [0, 200, whole.len() as u64 / 3, whole.len() as u64 - 1] {
+        let mut out = FullAfter {
+            inner: Default::default(),
+            room,
+        };
+        let err = format::encode_to(&pkg, WriteOptions::default(), &mut out, |e| {
+            PackageError::Io {
+                path: "test.cwk".into(),
+                source: e,
+            }
+        })
+        .expect_err("a full device");
+        assert!(
+            matches!(&err, PackageError::Io { source, .. }
+                if source.kind() == std::io::ErrorKind::StorageFull),
+            "room {room}: {err}"
+        );
+    }
+}
+
 /// A package written over an existing regular file or through a symbolic link replaces the
 /// file the link points to (keeping its permissions), and the link stays a link.
 #[cfg(unix)]
