@@ -120,6 +120,21 @@ impl Layout {
             len: at,
         })
     }
+
+    /// Every array's range, in the payload's order.
+    fn arrays(&self) -> [(usize, usize); 9] {
+        [
+            self.vertices,
+            self.indices,
+            self.records,
+            self.parts,
+            self.cull_records,
+            self.parents,
+            self.occluder_vertices,
+            self.occluder_indices,
+            self.occluder_records,
+        ]
+    }
 }
 
 /// Where the payload's bytes live.
@@ -216,8 +231,8 @@ impl GpuScene {
         let layout = Layout::of(header).expect("a scene that fits in memory fits its layout");
         let mut words = vec![0u32; layout.len / 4];
         let bytes: &mut [u8] = bytemuck::cast_slice_mut(&mut words);
+        bytes[..HEADER_LEN].copy_from_slice(bytemuck::bytes_of(&header));
         let [
-            head,
             vertices,
             indices,
             records,
@@ -227,22 +242,7 @@ impl GpuScene {
             occluder_vertices,
             occluder_indices,
             occluder_records,
-        ] = split_regions(
-            bytes,
-            [
-                (0, HEADER_LEN),
-                layout.vertices,
-                layout.indices,
-                layout.records,
-                layout.parts,
-                layout.cull_records,
-                layout.parents,
-                layout.occluder_vertices,
-                layout.occluder_indices,
-                layout.occluder_records,
-            ],
-        );
-        head.copy_from_slice(bytemuck::bytes_of(&header));
+        ] = split_regions(bytes, layout.arrays());
         let mut writer = ArraysInPlace {
             vertices: bytemuck::cast_slice_mut(vertices),
             indices: bytemuck::cast_slice_mut(indices),
@@ -527,19 +527,8 @@ fn validate(payload: &[u8]) -> Result<Layout, String> {
             payload.len()
         ));
     }
-    let arrays = [
-        layout.vertices,
-        layout.indices,
-        layout.records,
-        layout.parts,
-        layout.cull_records,
-        layout.parents,
-        layout.occluder_vertices,
-        layout.occluder_indices,
-        layout.occluder_records,
-    ];
     let mut end = HEADER_LEN;
-    for (start, stop) in arrays {
+    for (start, stop) in layout.arrays() {
         if payload[end..start].iter().any(|&b| b != 0) {
             return Err("non-zero padding between arrays".into());
         }
