@@ -5,7 +5,6 @@
 //! `-- cluster/10000` for one size, `-- cluster-stage` for the stages of a 10k city, e.g.
 //! `-- cluster-stage/yang/hull-merging`).
 
-use std::collections::BTreeMap;
 use std::hint::black_box;
 
 use std::time::Duration;
@@ -58,7 +57,7 @@ pub fn synthetic_city(n: usize) -> (City, Vec<u32>) {
             top_m,
             height_source: HeightSource::Tagged,
             mesh: None,
-            tags: BTreeMap::new(),
+            tags: Default::default(),
         });
         blocks.push(((j / 10) * side.div_ceil(10) + i / 10) as u32);
     }

@@ -4,14 +4,13 @@
 //! kept in [`Frame`]. Footprints are `geo` polygons in f64 (exact predicates want f64); meshes are
 //! f32 (`glam::Vec3`), which is ample within a few tens of kilometres of the origin.
 
-use std::collections::BTreeMap;
-
 use geo::{Area, BoundingRect, MultiPolygon};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
 use crate::frame::Frame;
 use crate::report::LoadReport;
+use crate::tags::Tags;
 
 /// Index of a building in [`City::buildings`]; stable for a given input and loader options.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
@@ -123,18 +122,15 @@ pub struct Building {
     pub mesh: Option<TriangleMesh>,
     /// Source attributes / tags, as strings (in the package's section with the parts).
     #[serde(skip)]
-    pub tags: BTreeMap<String, String>,
+    pub tags: Tags,
 }
 
 /// Tag keys whose value is a building's number of storeys above ground (OSM, CityJSON).
 pub const LEVEL_TAGS: [&str; 3] = ["building:levels", "storeysAboveGround", "levels"];
 
 /// The storeys above ground as `tags` give them ([`LEVEL_TAGS`], first found), if at all.
-pub fn levels_tag(tags: &BTreeMap<String, String>) -> Option<&str> {
-    LEVEL_TAGS
-        .iter()
-        .find_map(|k| tags.get(*k))
-        .map(String::as_str)
+pub fn levels_tag(tags: &Tags) -> Option<&str> {
+    LEVEL_TAGS.iter().find_map(|k| tags.get(k))
 }
 
 impl Building {

@@ -27,6 +27,7 @@ pub mod package;
 pub mod quadtree;
 pub mod report;
 pub mod scene_geometry;
+pub mod tags;
 pub mod validate;
 
 pub use city::{
@@ -36,3 +37,4 @@ pub use city::{
 pub use frame::{Crs, Frame};
 pub use load::{LoadOptions, load_cities, load_city};
 pub use report::{LoadError, LoadReport, LoadWarning, RejectReason, Rejection};
+pub use tags::Tags;

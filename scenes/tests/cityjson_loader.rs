@@ -222,8 +222,8 @@ fn cube_solid_with_transform() {
     );
     // Translate z 5 m: the base (5 m in the source) rests on the ground, the origin keeps 5 m.
     assert_eq!((b.base_m, b.top_m), (0.0, 10.0));
-    assert_eq!(b.tags["name"], "Cube");
-    assert_eq!(b.tags["storeys"], "3");
+    assert_eq!(b.tags.get("name"), Some("Cube"));
+    assert_eq!(b.tags.get("storeys"), Some("3"));
     assert_eq!(b.mesh.as_ref().unwrap().triangle_count(), 12);
     assert_eq!(city.frame.crs, Crs::Projected("EPSG:7415".into()));
     // Origin at the centre of the extent: the cube spans 1000..1010, 2000..2010.
@@ -291,7 +291,7 @@ fn building_with_two_parts() {
     assert_eq!(b.footprint.0.len(), 1);
     assert!((b.footprint_area_m2() - 150.0).abs() < 1e-6);
     assert_eq!(b.mesh.as_ref().unwrap().triangle_count(), 24);
-    assert_eq!(b.tags["function"], "office");
+    assert_eq!(b.tags.get("function"), Some("office"));
     city.check_invariants().unwrap();
 }
 

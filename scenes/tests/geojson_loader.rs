@@ -250,10 +250,7 @@ fn streets_crs_and_ids() {
         .collect();
     assert_eq!(ids, ["7", "way/12"]);
     assert_eq!(city.buildings[0].footprint.0.len(), 2);
-    assert_eq!(
-        city.buildings[0].tags.get("osm_id").map(String::as_str),
-        Some("9")
-    );
+    assert_eq!(city.buildings[0].tags.get("osm_id"), Some("9"));
     assert_eq!(city.streets.len(), 3);
     assert_eq!(city.streets[0].class, StreetClass::Major);
     assert_eq!(city.streets[0].name.as_deref(), Some("Main"));

@@ -177,7 +177,7 @@ fn a_3dfier_style_file_loads_its_buildings_and_reports_the_rest() {
         assert!((b.base_m - base).abs() < 1e-3, "{id} {}", b.base_m);
         assert_eq!(b.mesh.as_ref().unwrap().triangle_count(), 12, "{id}");
     }
-    assert_eq!(by_id("b3").tags["obj:material"], "BuildingRoof");
+    assert_eq!(by_id("b3").tags.get("obj:material"), Some("BuildingRoof"));
     // Back to the file's coordinates through the frame.
     let b1 = by_id("b1");
     let lo = b1.mesh.as_ref().unwrap().bounds().unwrap().0;

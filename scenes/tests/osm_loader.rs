@@ -377,10 +377,7 @@ fn parts_replace_the_outline() {
         (house.top_m, house.height_source),
         (6.0, HeightSource::Levels)
     );
-    assert_eq!(
-        house.tags.get("building").map(String::as_str),
-        Some("house")
-    );
+    assert_eq!(house.tags.get("building"), Some("house"));
 }
 
 #[test]

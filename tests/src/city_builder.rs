@@ -1,7 +1,5 @@
 //! Small hand-built cities for tests: boxes and walls with known geometry.
 
-use std::collections::BTreeMap;
-
 use citywalk_scenes::{Building, BuildingId, BuildingPart, City, Frame, HeightSource, LoadReport};
 use geo::{MultiPolygon, Rect};
 
@@ -25,7 +23,7 @@ pub fn box_building(id: u32, x0: f64, y0: f64, x1: f64, y1: f64, height_m: f32) 
         top_m: height_m,
         height_source: HeightSource::Tagged,
         mesh: None,
-        tags: BTreeMap::new(),
+        tags: Default::default(),
     }
 }
 

@@ -2,10 +2,8 @@
 //! its id, source id, height, levels and tags, or the tree node and the buildings it stands
 //! for.
 
-use std::collections::BTreeMap;
-
-use citywalk_scenes::City;
 use citywalk_scenes::package::BuildingDetails;
+use citywalk_scenes::{City, Tags};
 
 /// The buildings' source ids, kept when the viewer frees the buildings of a package (one
 /// string and its offsets: ~14 MB at a million buildings, against ~40 MB as strings).
@@ -80,13 +78,13 @@ impl Picked {
 }
 
 /// The levels row and the tags rows (at most [`LISTED_TAGS`]).
-fn tag_rows(levels: Option<&str>, tags: &BTreeMap<String, String>) -> Vec<(String, String)> {
+fn tag_rows(levels: Option<&str>, tags: &Tags) -> Vec<(String, String)> {
     let mut rows = Vec::new();
     if let Some(levels) = levels {
         rows.push(("levels".to_string(), levels.to_string()));
     }
     for (k, v) in tags.iter().take(LISTED_TAGS) {
-        rows.push((k.clone(), v.clone()));
+        rows.push((k.to_string(), v.to_string()));
     }
     if tags.len() > LISTED_TAGS {
         rows.push((
@@ -188,7 +186,6 @@ pub fn describe(f: &PickFacts<'_>) -> Picked {
 mod tests {
     use super::*;
     use citywalk_scenes::{Building, BuildingId, Crs, Frame, HeightSource};
-    use std::collections::BTreeMap;
 
     fn city() -> City {
         let building = |id: u32, source: &str, levels: Option<&str>| Building {
@@ -201,7 +198,7 @@ mod tests {
             height_source: HeightSource::Levels,
             mesh: None,
             tags: levels
-                .map(|l| BTreeMap::from([("building:levels".to_string(), l.to_string())]))
+                .map(|l| Tags::from([("building:levels", l)]))
                 .unwrap_or_default(),
         };
         City {
@@ -272,10 +269,7 @@ mod tests {
         assert!(get(&picked.rows, "tags").unwrap().contains("reading"));
         let details = BuildingDetails {
             parts: Vec::new(),
-            tags: BTreeMap::from([
-                ("building".to_string(), "yes".to_string()),
-                ("building:levels".to_string(), "6".to_string()),
-            ]),
+            tags: Tags::from([("building", "yes"), ("building:levels", "6")]),
         };
         let mut other = picked.clone();
         other.fill_details(0, Ok(details.clone()));

@@ -29,7 +29,7 @@ fn building(i: usize, ring: Vec<(f64, f64)>, top_m: f32) -> Building {
         top_m,
         height_source: HeightSource::Tagged,
         mesh: None,
-        tags: BTreeMap::new(),
+        tags: Default::default(),
     }
 }
 

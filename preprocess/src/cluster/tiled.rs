@@ -11,8 +11,6 @@
 //! distance from their hull to the tiles' hulls plus the tiles' own error, so they need no
 //! footprint of a building.
 
-use std::collections::BTreeMap;
-
 use citywalk_scenes::city::{Building, BuildingPart, HeightSource};
 use citywalk_scenes::cluster_tree::{ClusterNode, ClusterParams, ClusterStats, ClusterTree};
 use citywalk_scenes::{BuildingId, City};
@@ -104,7 +102,7 @@ pub fn tile_city(city: &City, members: &[u32]) -> City {
                     top_m: b.top_m,
                     height_source: b.height_source,
                     mesh: b.mesh.clone(),
-                    tags: BTreeMap::new(),
+                    tags: Default::default(),
                 }
             })
             .collect(),
@@ -164,7 +162,7 @@ fn city_of_tile_roots(city: &City, subtrees: &[ClusterTree]) -> City {
                 top_m,
                 height_source: HeightSource::Geometry,
                 mesh: None,
-                tags: BTreeMap::new(),
+                tags: Default::default(),
             }
         })
         .collect();

@@ -1,8 +1,6 @@
 //! Tests of the whole occluder pipeline: hand-made and random stepped buildings (height fields
 //! on rectilinear grids, as closed meshes), random footprints for the simplifier.
 
-use std::collections::BTreeMap;
-
 use citywalk_scenes::occluder::FacadeKind;
 use citywalk_scenes::{
     Building, BuildingId, BuildingPart, City, Frame, HeightSource, LoadReport, TriangleMesh,
@@ -142,7 +140,7 @@ impl HeightField {
             top_m,
             height_source: HeightSource::Geometry,
             mesh: Some(self.mesh()),
-            tags: BTreeMap::new(),
+            tags: Default::default(),
         }
     }
 }

@@ -103,7 +103,7 @@ impl Plan {
             top_m,
             height_source: HeightSource::Tagged,
             mesh: None,
-            tags,
+            tags: tags.into(),
         }
     }
 }
@@ -517,7 +517,7 @@ mod tests {
         assert!(plans[5].parts.iter().map(|p| p.2).fold(0.0, f32::max) >= 96.0);
         let b = plans[5].clone().into_building(7);
         assert_eq!(b.source_id, "b7");
-        assert_eq!(b.tags.get("landmark").map(String::as_str), Some("yes"));
+        assert_eq!(b.tags.get("landmark"), Some("yes"));
         assert_eq!(b.parts[1].source_id, "b7/p1");
     }
 

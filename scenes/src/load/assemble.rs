@@ -24,7 +24,7 @@
 //!    footprints, without heights; one that fails, or lies beyond the local range, is a
 //!    [`Rejection`] in the report's ground-area list. They take no part in placing the frame.
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::HashMap;
 use std::path::Path;
 
 use geo::{Area, BoundingRect, Coord, InteriorPoint, Intersects, LineString, MultiPolygon};
@@ -41,6 +41,7 @@ use crate::city::{
 };
 use crate::frame::Frame;
 use crate::report::{LoadError, LoadReport, LoadWarning, RejectReason, Rejection};
+use crate::tags::Tags;
 use crate::validate::{CleanFootprint, MAX_LOCAL_COORDINATE_M, check_heights, clean_footprint};
 
 /// Polygons of rings (outer ring first, then holes), in source coordinates.
@@ -62,7 +63,7 @@ pub(crate) struct RawArea {
     pub kind: AreaKind,
     /// The geometry, or why it could not be read (missing nodes, unassembled rings).
     pub polygons: Result<RawPolygons, RejectReason>,
-    pub tags: BTreeMap<String, String>,
+    pub tags: Tags,
     pub heights: TaggedHeights,
     /// Further names by which a part may link to this building (`part_of`).
     pub link_ids: Vec<String>,
@@ -127,7 +128,7 @@ struct Area2 {
     footprint: MultiPolygon<f64>,
     heights: ResolvedHeights,
     has_own_heights: bool,
-    tags: BTreeMap<String, String>,
+    tags: Tags,
     part_of: Option<String>,
 }
 
@@ -682,15 +683,9 @@ mod tests {
             Coord { x: x + s, y: y + s },
             Coord { x, y: y + s },
         ];
-        let tags: BTreeMap<String, String> = tags
-            .iter()
-            .map(|(k, v)| (k.to_string(), v.to_string()))
-            .collect();
-        let heights = TaggedHeights::read(
-            |k| tags.get(k).map(String::as_str),
-            &HeightKeys::osm(),
-            &LoadOptions::default(),
-        );
+        let tags: Tags = tags.iter().copied().collect();
+        let heights =
+            TaggedHeights::read(|k| tags.get(k), &HeightKeys::osm(), &LoadOptions::default());
         RawArea {
             source_id: id.into(),
             kind,

@@ -56,6 +56,7 @@ use super::assemble::{
 use super::heights::{HeightKeys, TaggedHeights};
 use crate::city::{City, GroundClass, StreetClass};
 use crate::report::{LoadError, LoadWarning, RejectReason};
+use crate::tags::Tags;
 
 mod parallel;
 
@@ -519,7 +520,7 @@ fn value_string(v: &Value) -> Option<String> {
 }
 
 /// The tags of a feature: its properties as strings, with an object property `tags` flattened.
-fn tags_of(properties: &Map<String, Value>) -> BTreeMap<String, String> {
+fn tags_of(properties: &Map<String, Value>) -> Tags {
     let mut tags = BTreeMap::new();
     for (k, v) in properties {
         if k == "tags" && v.is_object() {
@@ -536,7 +537,7 @@ fn tags_of(properties: &Map<String, Value>) -> BTreeMap<String, String> {
             }
         }
     }
-    tags
+    Tags::from(tags)
 }
 
 impl<'a> Sink<'a> {
@@ -603,7 +604,7 @@ impl<'a> Sink<'a> {
         let ground = match properties.get("kind").and_then(Value::as_str) {
             Some("building" | "building:part") => None,
             _ if part || building || has_height => None,
-            _ => GroundClass::from_osm_tags(|k| tags.get(k).map(String::as_str)),
+            _ => GroundClass::from_osm_tags(|k| tags.get(k)),
         };
         match (geometry_kind, highway) {
             ("LineString" | "MultiLineString", Some(highway)) => {
@@ -667,7 +668,7 @@ impl<'a> Sink<'a> {
         });
     }
 
-    fn heights(&self, tags: &BTreeMap<String, String>) -> TaggedHeights {
+    fn heights(&self, tags: &Tags) -> TaggedHeights {
         let mut top = Vec::with_capacity(4);
         if let Some(p) = &self.options.height_property {
             top.push(p.as_str());
@@ -689,7 +690,7 @@ impl<'a> Sink<'a> {
                 if k == "render_height_m" && render_from_levels {
                     return None;
                 }
-                tags.get(k).map(String::as_str)
+                tags.get(k)
             },
             &keys,
             self.options,
@@ -782,8 +783,8 @@ mod tests {
         )
         .unwrap();
         let tags = tags_of(&props);
-        assert_eq!(tags.get("height_m").map(String::as_str), Some("7.5"));
-        assert_eq!(tags.get("height").map(String::as_str), Some("7.5 m"));
+        assert_eq!(tags.get("height_m"), Some("7.5"));
+        assert_eq!(tags.get("height"), Some("7.5 m"));
         assert!(!tags.contains_key("levels") && !tags.contains_key("tags"));
     }
 }

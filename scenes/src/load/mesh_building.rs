@@ -70,7 +70,7 @@ pub(crate) fn assemble(
                         top_m,
                         height_source: HeightSource::Geometry,
                         mesh: Some(mesh),
-                        tags: raw.tags,
+                        tags: raw.tags.into(),
                     });
                 }
                 Err(reason) => report.rejected.push(Rejection {

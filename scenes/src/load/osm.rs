@@ -26,7 +26,7 @@
 
 mod multipolygon;
 
-use std::collections::{BTreeMap, HashMap, HashSet};
+use std::collections::{HashMap, HashSet};
 use std::fs::File;
 use std::io::BufReader;
 use std::panic::{AssertUnwindSafe, catch_unwind};
@@ -42,6 +42,7 @@ use super::assemble::{
 use super::heights::{HeightKeys, TaggedHeights};
 use crate::city::{City, GroundClass, StreetClass};
 use crate::report::{LoadError, LoadWarning, RejectReason};
+use crate::tags::Tags;
 
 const FORMAT: &str = "OSM PBF";
 
@@ -90,23 +91,19 @@ where
         && !tags().any(|(k, v)| k == "area" && v == "yes")
 }
 
-fn tag_map<'a>(tags: impl Iterator<Item = (&'a str, &'a str)>) -> BTreeMap<String, String> {
-    tags.map(|(k, v)| (k.to_string(), v.to_string())).collect()
+fn tag_map<'a>(tags: impl Iterator<Item = (&'a str, &'a str)>) -> Tags {
+    tags.collect()
 }
 
-fn read_heights(tags: &BTreeMap<String, String>, options: &LoadOptions) -> TaggedHeights {
-    TaggedHeights::read(
-        |k| tags.get(k).map(String::as_str),
-        &HeightKeys::osm(),
-        options,
-    )
+fn read_heights(tags: &Tags, options: &LoadOptions) -> TaggedHeights {
+    TaggedHeights::read(|k| tags.get(k), &HeightKeys::osm(), options)
 }
 
 /// A multipolygon relation to assemble.
 struct Relation {
     id: i64,
     kind: AreaKind,
-    tags: BTreeMap<String, String>,
+    tags: Tags,
     /// Member ways and whether each is an inner ring.
     members: Vec<(i64, bool)>,
 }
@@ -116,7 +113,7 @@ struct Way {
     id: i64,
     kind: Option<AreaKind>,
     street: bool,
-    tags: BTreeMap<String, String>,
+    tags: Tags,
     refs: Vec<i64>,
 }
 
@@ -314,14 +311,13 @@ fn read(path: &Path, options: &LoadOptions) -> Result<RawCity, LoadError> {
         let source_id = format!("way/{}", w.id);
         if w.street {
             let points: Vec<Coord<f64>> = w.refs.iter().filter_map(node).collect();
-            let class =
-                StreetClass::from_osm_highway(w.tags.get("highway").map_or("", String::as_str));
+            let class = StreetClass::from_osm_highway(w.tags.get("highway").unwrap_or(""));
             streets.push(RawStreet {
                 source_id: source_id.clone(),
                 class,
-                name: w.tags.get("name").cloned(),
+                name: w.tags.get("name").map(str::to_string),
                 points: Ok(points),
-                tagged_width_m: street_width_m(|k| w.tags.get(k).cloned()),
+                tagged_width_m: street_width_m(|k| w.tags.get(k).map(str::to_string)),
             });
         }
         if let Some(kind) = w.kind {

@@ -85,7 +85,7 @@ pub enum SectionKind {
     Timings = 9,
     /// [`super::GpuScene`]: raw arrays, not postcard.
     GpuScene = 10,
-    /// Per building, its parts and tags (`Vec<(Vec<BuildingPart>, BTreeMap<String, String>)>`,
+    /// Per building, its parts and tags (`Vec<(Vec<BuildingPart>, Tags)>`, tags as a map),
     /// in building order): what preprocessing and inspection read and drawing does not, kept
     /// apart from the buildings so a package opened to draw does not decode them.
     BuildingDetails = 11,
@@ -621,10 +621,7 @@ pub fn decode_one<T: DeserializeOwned>(
 }
 
 /// One building's entry of [`SectionKind::BuildingDetails`], as it is encoded.
-type DetailsEntry = (
-    Vec<crate::BuildingPart>,
-    std::collections::BTreeMap<String, String>,
-);
+type DetailsEntry = (Vec<crate::BuildingPart>, crate::Tags);
 
 /// [`DetailsEntry`] with the tags read past ([`SkippedTags`]).
 type PartsOnly = (Vec<crate::BuildingPart>, SkippedTags);
@@ -633,7 +630,7 @@ type PartsOnly = (Vec<crate::BuildingPart>, SkippedTags);
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct BuildingDetails {
     pub parts: Vec<crate::BuildingPart>,
-    pub tags: std::collections::BTreeMap<String, String>,
+    pub tags: crate::Tags,
 }
 
 impl BuildingDetails {
@@ -737,7 +734,8 @@ impl<'de> serde::Deserialize<'de> for SkippedTags {
 /// A [`DetailsEntry`] read past without allocating: the same layout with every string
 /// borrowed from the payload and every `Vec` walked element by element. postcard is not
 /// self-describing (`serde::de::IgnoredAny` is refused), so the skip spells out the layout of
-/// `(Vec<BuildingPart>, BTreeMap<String, String>)`; the round-trip tests hold it to the type.
+/// `(Vec<BuildingPart>, Tags)` (tags as a map of strings); the round-trip tests hold it to the
+/// type.
 #[derive(serde::Deserialize)]
 struct SkippedEntry<'a>(#[serde(borrow)] SkippedSeq<SkippedPart<'a>>, SkippedTags);
 

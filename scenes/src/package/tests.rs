@@ -39,7 +39,7 @@ fn building(i: u32, x: f64) -> Building {
             ],
             indices: vec![0, 1, 2],
         }),
-        tags,
+        tags: tags.into(),
     }
 }
 
