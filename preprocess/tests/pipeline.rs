@@ -153,9 +153,9 @@ fn the_package_is_the_same_on_one_thread_and_on_four() {
     assert!(on(1) == on(4), "1 and 4 threads gave different packages");
 }
 
-/// The GPU scene is written in place after its arrays are counted ([`GpuScene::build`]); it
-/// must be the bytes of the same arrays laid out in growable vectors and copied, with and
-/// without a cluster tree and occluders.
+/// The GPU scene is written in place, chunk by chunk on every thread, after its arrays are
+/// counted ([`GpuScene::build`]); it must be the bytes of the same arrays laid out in growable
+/// vectors and copied, with and without a cluster tree and occluders.
 #[test]
 fn the_gpu_scene_built_in_place_equals_the_arrays_copied() {
     use citywalk_scenes::occluder_draws::OccluderArrays;
@@ -164,7 +164,7 @@ fn the_gpu_scene_built_in_place_equals_the_arrays_copied() {
         SceneGeometry, cull_records, draw_id_parents, lod_geometry,
     };
 
-    let city = generated(1_500, 7);
+    let city = generated(4_200, 7);
     let pkg =
         preprocess(city.clone(), &PreprocessParams::default(), &NoProgress).expect("preprocess");
     let (tree, occluders) = (
@@ -182,7 +182,8 @@ fn the_gpu_scene_built_in_place_equals_the_arrays_copied() {
         OccluderArrays::of(occluders),
     );
     let in_place = GpuScene::build(&city, Some(tree), Some(occluders));
-    assert!(in_place.view().records.len() > city.buildings.len());
+    // Several chunks, each laid out on its own.
+    assert!(in_place.view().records.len() > citywalk_scenes::scene_geometry::in_place::CHUNK);
     assert!(!in_place.view().occluders.records.is_empty());
     assert!(
         in_place.bytes() == copied.bytes(),
@@ -202,6 +203,7 @@ fn the_gpu_scene_built_in_place_equals_the_arrays_copied() {
     );
     let in_place = GpuScene::build(&city, None, None);
     assert!(in_place.view().records.len() == city.buildings.len());
+    assert!(city.buildings.len() > citywalk_scenes::scene_geometry::in_place::CHUNK);
     assert!(in_place.bytes() == copied.bytes(), "buildings alone");
 }
 

@@ -21,6 +21,8 @@ use crate::cull_parts;
 use crate::extrude::building_mesh;
 use crate::{City, TriangleMesh};
 
+pub mod in_place;
+
 /// The scene's geometry on the CPU, in exactly the layout uploaded to the GPU.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct SceneGeometry {
@@ -156,6 +158,18 @@ pub struct ArrayCounts {
     pub records: usize,
 }
 
+impl ArrayCounts {
+    /// The lengths of two arrays one after the other.
+    pub fn plus(self, other: ArrayCounts) -> ArrayCounts {
+        ArrayCounts {
+            vertices: self.vertices + other.vertices,
+            indices: self.indices + other.indices,
+            parts: self.parts + other.parts,
+            records: self.records + other.records,
+        }
+    }
+}
+
 impl SceneArraysOut for ArrayCounts {
     fn lens(&self) -> (usize, usize, usize) {
         (self.vertices, self.indices, self.parts)
@@ -179,63 +193,94 @@ impl SceneArraysOut for ArrayCounts {
 }
 
 /// Lays out one building per mesh (id = position), with cull parts for the first `with_parts`,
-/// then the ground quad, into `out`: the one place the scene's layout is decided. Returns the
-/// bounds of every mesh (a 1 m cube at the origin when there are none) and the ground's draw.
-/// `meshes` gives each mesh with the box to use when it is empty (it then draws nothing).
+/// then the ground quad, into `out`. Returns the bounds of every mesh (a 1 m cube at the origin
+/// when there are none) and the ground's draw. `meshes` gives each mesh with the box to use
+/// when it is empty (it then draws nothing).
 pub fn lay_out_meshes<'m>(
     meshes: impl Iterator<Item = (Cow<'m, TriangleMesh>, (Vec3, Vec3))>,
     with_parts: usize,
     out: &mut impl SceneArraysOut,
 ) -> ((Vec3, Vec3), DrawIndexedIndirectArgs) {
-    let mut lo = Vec3::splat(f32::INFINITY);
-    let mut hi = Vec3::splat(f32::NEG_INFINITY);
+    let mut bounds = EMPTY_BOUNDS;
     let mut kept = Vec::new();
     for (i, (mesh, fallback)) in meshes.enumerate() {
-        let (bmin, bmax) = mesh.bounds().unwrap_or(fallback);
-        // Indices that point outside the mesh would read other buildings' vertices: drop
-        // those triangles.
-        let n = mesh.positions.len() as u32;
-        kept.clear();
-        kept.extend(
-            mesh.indices
-                .chunks_exact(3)
-                .filter(|t| t.iter().all(|&v| v < n))
-                .flatten(),
-        );
-        let parts = if i < with_parts {
-            cull_parts::cull_parts(&mesh.positions, &kept)
-        } else {
-            Vec::new()
-        };
-        let (vertices, indices, first_part) = out.lens();
-        out.push_record(BuildingRecord {
-            bounds_min_m: bmin.to_array(),
-            first_index: indices as u32,
-            bounds_max_m: bmax.to_array(),
-            index_count: kept.len() as u32,
-            base_vertex: vertices as i32,
-            vertex_count: n,
-            first_part: first_part as u32,
-            part_count: parts.len() as u32,
-        });
-        out.push_indices(&kept);
-        out.push_parts(&parts);
-        out.push_vertices(i as u32, &mesh.positions);
-        if bmin.cmple(bmax).all() {
-            lo = lo.min(bmin);
-            hi = hi.max(bmax);
-        }
+        let mesh_bounds = lay_out_mesh(i as u32, &mesh, fallback, i < with_parts, out, &mut kept);
+        bounds = union(bounds, mesh_bounds);
     }
-    if !lo.cmple(hi).all() {
-        (lo, hi) = (Vec3::ZERO, Vec3::ONE);
+    let bounds = scene_bounds(bounds);
+    (bounds, push_ground(out, bounds))
+}
+
+/// Bounds that contain nothing yet ([`union`]).
+pub const EMPTY_BOUNDS: (Vec3, Vec3) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+
+/// The union of two bounds, either of which may be empty (min above max).
+pub fn union(a: (Vec3, Vec3), b: (Vec3, Vec3)) -> (Vec3, Vec3) {
+    if !b.0.cmple(b.1).all() {
+        return a;
     }
-    let ground = push_ground(out, (lo, hi));
-    ((lo, hi), ground)
+    (a.0.min(b.0), a.1.max(b.1))
+}
+
+/// The scene's bounds from the union of its meshes': a 1 m cube at the origin when empty.
+pub fn scene_bounds(bounds: (Vec3, Vec3)) -> (Vec3, Vec3) {
+    if bounds.0.cmple(bounds.1).all() {
+        bounds
+    } else {
+        (Vec3::ZERO, Vec3::ONE)
+    }
+}
+
+/// Lays out draw id `id`'s mesh, with its cull parts if `with_parts`, at the end of `out`: the
+/// one place the scene's layout of a mesh is decided. `kept` is scratch space. Returns the
+/// mesh's bounds (`fallback` when it is empty).
+pub fn lay_out_mesh(
+    id: u32,
+    mesh: &TriangleMesh,
+    fallback: (Vec3, Vec3),
+    with_parts: bool,
+    out: &mut impl SceneArraysOut,
+    kept: &mut Vec<u32>,
+) -> (Vec3, Vec3) {
+    let (bmin, bmax) = mesh.bounds().unwrap_or(fallback);
+    // Indices that point outside the mesh would read other buildings' vertices: drop those
+    // triangles.
+    let n = mesh.positions.len() as u32;
+    kept.clear();
+    kept.extend(
+        mesh.indices
+            .chunks_exact(3)
+            .filter(|t| t.iter().all(|&v| v < n))
+            .flatten(),
+    );
+    let parts = if with_parts {
+        cull_parts::cull_parts(&mesh.positions, kept)
+    } else {
+        Vec::new()
+    };
+    let (vertices, indices, first_part) = out.lens();
+    out.push_record(BuildingRecord {
+        bounds_min_m: bmin.to_array(),
+        first_index: indices as u32,
+        bounds_max_m: bmax.to_array(),
+        index_count: kept.len() as u32,
+        base_vertex: vertices as i32,
+        vertex_count: n,
+        first_part: first_part as u32,
+        part_count: parts.len() as u32,
+    });
+    out.push_indices(kept);
+    out.push_parts(&parts);
+    out.push_vertices(id, &mesh.positions);
+    (bmin, bmax)
 }
 
 /// A ground quad reaching well past the city (so the horizon is ground, not sky), at the lowest
 /// base height (at most 0), after the buildings.
-fn push_ground(out: &mut impl SceneArraysOut, (lo, hi): (Vec3, Vec3)) -> DrawIndexedIndirectArgs {
+pub fn push_ground(
+    out: &mut impl SceneArraysOut,
+    (lo, hi): (Vec3, Vec3),
+) -> DrawIndexedIndirectArgs {
     let centre = (lo + hi) * 0.5;
     let half_m = ((hi - lo).truncate().max_element() * 0.5).max(100.0) * 50.0 + 5_000.0;
     let z = ground_plane_z(lo.z);
@@ -333,12 +378,9 @@ const MESH_CHUNK: usize = 4096;
 /// building order: made on every thread a chunk at a time, so the geometry is the same on any
 /// number of threads and one chunk of meshes is held at once.
 fn building_meshes<'m>(city: &City) -> impl Iterator<Item = (Cow<'m, TriangleMesh>, (Vec3, Vec3))> {
-    city.buildings.chunks(MESH_CHUNK).flat_map(|chunk| {
-        chunk
-            .par_iter()
-            .map(|b| (Cow::Owned(building_mesh(b)), b.bounds()))
-            .collect::<Vec<_>>()
-    })
+    city.buildings
+        .chunks(MESH_CHUNK)
+        .flat_map(|chunk| chunk.par_iter().map(building_draw).collect::<Vec<_>>())
 }
 
 /// The combined geometry of buildings and cluster meshes, so a LOD cut is one draw list. Draw
@@ -356,14 +398,45 @@ pub fn lod_meshes<'m>(
     city: &City,
     tree: Option<&'m ClusterTree>,
 ) -> impl Iterator<Item = (Cow<'m, TriangleMesh>, (Vec3, Vec3))> {
-    let clusters = tree.into_iter().flat_map(|tree| &tree.nodes).map(|node| {
-        let bounds = (
-            Vec3::from_array(node.bounds_min),
-            Vec3::from_array(node.bounds_max),
-        );
-        (Cow::Borrowed(&node.mesh), bounds)
-    });
+    let clusters = tree.into_iter().flat_map(|tree| &tree.nodes).map(node_mesh);
     building_meshes(city).chain(clusters)
+}
+
+/// Draw id `id`'s mesh and box of [`lod_meshes`]: building `id`'s, else the cluster mesh of node
+/// `id - building_count` of `tree`; an empty mesh past the last.
+pub fn lod_mesh<'m>(
+    city: &City,
+    tree: Option<&'m ClusterTree>,
+    id: usize,
+) -> (Cow<'m, TriangleMesh>, (Vec3, Vec3)) {
+    match city.buildings.get(id) {
+        Some(b) => building_draw(b),
+        None => tree
+            .and_then(|t| t.nodes.get(id - city.buildings.len()))
+            .map_or_else(
+                || {
+                    (
+                        Cow::Owned(TriangleMesh::default()),
+                        (Vec3::ZERO, Vec3::ZERO),
+                    )
+                },
+                node_mesh,
+            ),
+    }
+}
+
+/// A building's mesh ([`building_mesh`]: its own mesh, else extruded parts), with its box.
+fn building_draw<'m>(b: &crate::Building) -> (Cow<'m, TriangleMesh>, (Vec3, Vec3)) {
+    (Cow::Owned(building_mesh(b)), b.bounds())
+}
+
+/// A tree node's cluster mesh, with the node's box.
+fn node_mesh(node: &crate::cluster_tree::ClusterNode) -> (Cow<'_, TriangleMesh>, (Vec3, Vec3)) {
+    let bounds = (
+        Vec3::from_array(node.bounds_min),
+        Vec3::from_array(node.bounds_max),
+    );
+    (Cow::Borrowed(&node.mesh), bounds)
 }
 
 /// The occlusion cull's record of every draw id, from `geometry_records` (the records of

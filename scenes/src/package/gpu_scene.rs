@@ -35,10 +35,8 @@ use crate::City;
 use crate::cluster_tree::ClusterTree;
 use crate::occluder::OccluderSet;
 use crate::occluder_draws::{OccluderArrays, OccluderArraysView, OccluderRecord};
-use crate::scene_geometry::{
-    ArrayCounts, SceneArraysOut, SceneGeometry, cull_records, draw_id_parents, lay_out_meshes,
-    lod_meshes,
-};
+use crate::scene_geometry::in_place::{SceneSlices, count_lod_layout, write_lod_layout};
+use crate::scene_geometry::{SceneGeometry, cull_records, draw_id_parents};
 
 // The arrays are the GPU's little-endian layout, read in place.
 #[cfg(target_endian = "big")]
@@ -211,8 +209,8 @@ impl GpuScene {
         // Twice over the meshes: once to count the arrays, once to write them where the scene
         // keeps them, so they are never held twice (a gigabyte at a million buildings, where
         // extruding the buildings again takes a few seconds).
-        let mut counts = ArrayCounts::default();
-        let (bounds, ground) = lay_out_meshes(lod_meshes(city, tree), n as usize, &mut counts);
+        let lod = count_lod_layout(city, tree);
+        let counts = lod.counts;
         let header = Header {
             building_count: n,
             record_count: counts.records as u32,
@@ -223,9 +221,9 @@ impl GpuScene {
             occluder_index_count: occluders.indices.len() as u32,
             occluder_count: occluders.records.len() as u32,
             reserved: [0; 4],
-            ground,
-            bounds_min_m: bounds.0.to_array(),
-            bounds_max_m: bounds.1.to_array(),
+            ground: lod.ground,
+            bounds_min_m: lod.bounds.0.to_array(),
+            bounds_max_m: lod.bounds.1.to_array(),
             padding: 0,
         };
         let layout = Layout::of(header).expect("a scene that fits in memory fits its layout");
@@ -243,19 +241,19 @@ impl GpuScene {
             occluder_indices,
             occluder_records,
         ] = split_regions(bytes, layout.arrays());
-        let mut writer = ArraysInPlace {
-            vertices: bytemuck::cast_slice_mut(vertices),
-            indices: bytemuck::cast_slice_mut(indices),
-            parts: bytemuck::cast_slice_mut(parts),
-            records: bytemuck::cast_slice_mut(records),
-            lens: ArrayCounts::default(),
-        };
-        let written = lay_out_meshes(lod_meshes(city, tree), n as usize, &mut writer);
-        assert!(
-            written == (bounds, ground) && writer.lens == counts,
-            "the meshes are laid out the same twice"
+        let records: &mut [BuildingRecord] = bytemuck::cast_slice_mut(records);
+        write_lod_layout(
+            city,
+            tree,
+            &lod,
+            SceneSlices {
+                vertices: bytemuck::cast_slice_mut(vertices),
+                indices: bytemuck::cast_slice_mut(indices),
+                parts: bytemuck::cast_slice_mut(parts),
+                records: &mut *records,
+            },
         );
-        let records: &[BuildingRecord] = writer.records;
+        let records: &[BuildingRecord] = records;
         match tree {
             Some(tree) => {
                 cull_out.copy_from_slice(bytemuck::cast_slice(&cull_records(records, n, tree)));
@@ -602,52 +600,6 @@ impl fmt::Debug for GpuScene {
             .field("occluders", &h.occluder_count)
             .field("mapped", &self.is_mapped())
             .finish()
-    }
-}
-
-/// The arrays of a scene being built, of exactly their counted lengths ([`GpuScene::build`]).
-struct ArraysInPlace<'a> {
-    vertices: &'a mut [SceneVertex],
-    indices: &'a mut [u32],
-    parts: &'a mut [CullPart],
-    records: &'a mut [BuildingRecord],
-    lens: ArrayCounts,
-}
-
-impl SceneArraysOut for ArraysInPlace<'_> {
-    fn lens(&self) -> (usize, usize, usize) {
-        self.lens.lens()
-    }
-
-    fn push_vertices(&mut self, id: u32, positions: &[Vec3]) {
-        let at = self.lens.vertices;
-        for (v, p) in self.vertices[at..at + positions.len()]
-            .iter_mut()
-            .zip(positions)
-        {
-            *v = SceneVertex {
-                position_m: p.to_array(),
-                building_id: id,
-            };
-        }
-        self.lens.push_vertices(id, positions);
-    }
-
-    fn push_indices(&mut self, indices: &[u32]) {
-        let at = self.lens.indices;
-        self.indices[at..at + indices.len()].copy_from_slice(indices);
-        self.lens.push_indices(indices);
-    }
-
-    fn push_parts(&mut self, parts: &[CullPart]) {
-        let at = self.lens.parts;
-        self.parts[at..at + parts.len()].copy_from_slice(parts);
-        self.lens.push_parts(parts);
-    }
-
-    fn push_record(&mut self, record: BuildingRecord) {
-        self.records[self.lens.records] = record;
-        self.lens.push_record(record);
     }
 }
 
