@@ -82,20 +82,24 @@ pub fn write_lod_layout(
     slices: SceneSlices<'_>,
 ) {
     let SceneSlices {
-        mut vertices,
-        mut indices,
-        mut parts,
-        mut records,
+        vertices,
+        indices,
+        parts,
+        records,
     } = slices;
-    let mut writers = Vec::with_capacity(layout.chunks.len());
-    let mut base = ArrayCounts::default();
-    for (range, counts) in &layout.chunks {
-        let writer;
-        (writer, vertices, indices, parts, records) =
-            ArraysInPlace::take(base, *counts, vertices, indices, parts, records);
-        writers.push((range.clone(), writer));
-        base = base.plus(*counts);
-    }
+    let mut rest = ArraysInPlace {
+        base: ArrayCounts::default(),
+        lens: ArrayCounts::default(),
+        vertices,
+        indices,
+        parts,
+        records,
+    };
+    let mut writers: Vec<_> = layout
+        .chunks
+        .iter()
+        .map(|(range, counts)| (range.clone(), rest.split_front(*counts)))
+        .collect();
     writers.par_iter_mut().for_each(|(range, writer)| {
         lay_out_range(city, tree, range.clone(), writer);
     });
@@ -105,15 +109,8 @@ pub fn write_lod_layout(
             "a chunk is laid out as it was counted"
         );
     }
-    let mut ground = ArraysInPlace {
-        base,
-        lens: ArrayCounts::default(),
-        vertices,
-        indices,
-        parts,
-        records,
-    };
-    push_ground(&mut ground, layout.bounds);
+    // What is left after the chunks is the ground's.
+    push_ground(&mut rest, layout.bounds);
 }
 
 /// Lays out draw ids `range` into `out`; returns the union of their bounds.
@@ -144,43 +141,27 @@ struct ArraysInPlace<'a> {
     records: &'a mut [BuildingRecord],
 }
 
-/// A chunk's writer over the first `counts` of each array, and the rest of each.
-type TakenChunk<'a> = (
-    ArraysInPlace<'a>,
-    &'a mut [SceneVertex],
-    &'a mut [u32],
-    &'a mut [CullPart],
-    &'a mut [BuildingRecord],
-);
-
 impl<'a> ArraysInPlace<'a> {
-    fn take(
-        base: ArrayCounts,
-        counts: ArrayCounts,
-        vertices: &'a mut [SceneVertex],
-        indices: &'a mut [u32],
-        parts: &'a mut [CullPart],
-        records: &'a mut [BuildingRecord],
-    ) -> TakenChunk<'a> {
-        let (vertices, vertices_rest) = vertices.split_at_mut(counts.vertices);
-        let (indices, indices_rest) = indices.split_at_mut(counts.indices);
-        let (parts, parts_rest) = parts.split_at_mut(counts.parts);
-        let (records, records_rest) = records.split_at_mut(counts.records);
-        let writer = ArraysInPlace {
-            base,
+    /// The first `counts` of each array, as a writer of its own; `self` keeps the rest.
+    fn split_front(&mut self, counts: ArrayCounts) -> ArraysInPlace<'a> {
+        let (vertices, rest) = std::mem::take(&mut self.vertices).split_at_mut(counts.vertices);
+        self.vertices = rest;
+        let (indices, rest) = std::mem::take(&mut self.indices).split_at_mut(counts.indices);
+        self.indices = rest;
+        let (parts, rest) = std::mem::take(&mut self.parts).split_at_mut(counts.parts);
+        self.parts = rest;
+        let (records, rest) = std::mem::take(&mut self.records).split_at_mut(counts.records);
+        self.records = rest;
+        let front = ArraysInPlace {
+            base: self.base,
             lens: ArrayCounts::default(),
             vertices,
             indices,
             parts,
             records,
         };
-        (
-            writer,
-            vertices_rest,
-            indices_rest,
-            parts_rest,
-            records_rest,
-        )
+        self.base = self.base.plus(counts);
+        front
     }
 }
 
