@@ -111,9 +111,9 @@ impl SceneGeometry {
     }
 }
 
-/// Where [`lay_out_meshes`] puts the scene's arrays, in order: growable vectors
-/// ([`SceneGeometry`]), the counts alone ([`ArrayCounts`]), or arrays of exactly the counted
-/// size ([`crate::package::GpuScene::build`]).
+/// Where [`lay_out_mesh`] puts the scene's arrays, in order: growable vectors
+/// ([`SceneGeometry`]), the counts alone ([`ArrayCounts`]), or slices of arrays of exactly the
+/// counted length ([`in_place`], for the package's GPU scene).
 pub trait SceneArraysOut {
     /// The vertices, indices and cull parts so far.
     fn lens(&self) -> (usize, usize, usize);
