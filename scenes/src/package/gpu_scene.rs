@@ -36,7 +36,7 @@ use crate::cluster_tree::ClusterTree;
 use crate::occluder::OccluderSet;
 use crate::occluder_draws::{OccluderArrays, OccluderArraysView, OccluderRecord};
 use crate::scene_geometry::in_place::{SceneSlices, count_lod_layout, write_lod_layout};
-use crate::scene_geometry::{SceneGeometry, cull_records, draw_id_parents};
+use crate::scene_geometry::{ArrayCounts, SceneGeometry, cull_records, draw_id_parents};
 
 // The arrays are the GPU's little-endian layout, read in place.
 #[cfg(target_endian = "big")]
@@ -63,6 +63,33 @@ struct Header {
     bounds_min_m: [f32; 3],
     bounds_max_m: [f32; 3],
     padding: u32,
+}
+
+impl Header {
+    /// The header of a scene of `counts` arrays (the ground's included) and `occluders`.
+    fn of(
+        building_count: u32,
+        counts: ArrayCounts,
+        occluders: &OccluderArrays,
+        ground: DrawIndexedIndirectArgs,
+        bounds: (Vec3, Vec3),
+    ) -> Header {
+        Header {
+            building_count,
+            record_count: counts.records as u32,
+            vertex_count: counts.vertices as u32,
+            index_count: counts.indices as u32,
+            part_count: counts.parts as u32,
+            occluder_vertex_count: occluders.vertices.len() as u32,
+            occluder_index_count: occluders.indices.len() as u32,
+            occluder_count: occluders.records.len() as u32,
+            reserved: [0; 4],
+            ground,
+            bounds_min_m: bounds.0.to_array(),
+            bounds_max_m: bounds.1.to_array(),
+            padding: 0,
+        }
+    }
 }
 
 const HEADER_LEN: usize = size_of::<Header>();
@@ -210,22 +237,7 @@ impl GpuScene {
         // keeps them, so they are never held twice (a gigabyte at a million buildings, where
         // extruding the buildings again takes a few seconds).
         let lod = count_lod_layout(city, tree);
-        let counts = lod.counts;
-        let header = Header {
-            building_count: n,
-            record_count: counts.records as u32,
-            vertex_count: counts.vertices as u32,
-            index_count: counts.indices as u32,
-            part_count: counts.parts as u32,
-            occluder_vertex_count: occluders.vertices.len() as u32,
-            occluder_index_count: occluders.indices.len() as u32,
-            occluder_count: occluders.records.len() as u32,
-            reserved: [0; 4],
-            ground: lod.ground,
-            bounds_min_m: lod.bounds.0.to_array(),
-            bounds_max_m: lod.bounds.1.to_array(),
-            padding: 0,
-        };
+        let header = Header::of(n, lod.counts, &occluders, lod.ground, lod.bounds);
         let layout = Layout::of(header).expect("a scene that fits in memory fits its layout");
         let mut words = vec![0u32; layout.len / 4];
         let bytes: &mut [u8] = bytemuck::cast_slice_mut(&mut words);
@@ -286,21 +298,19 @@ impl GpuScene {
         parents: Option<Vec<u32>>,
         mut occluders: OccluderArrays,
     ) -> GpuScene {
-        let header = Header {
-            building_count,
-            record_count: geometry.records.len() as u32,
-            vertex_count: geometry.vertices.len() as u32,
-            index_count: geometry.indices.len() as u32,
-            part_count: geometry.parts.len() as u32,
-            occluder_vertex_count: occluders.vertices.len() as u32,
-            occluder_index_count: occluders.indices.len() as u32,
-            occluder_count: occluders.records.len() as u32,
-            reserved: [0; 4],
-            ground: geometry.ground,
-            bounds_min_m: geometry.bounds.0.to_array(),
-            bounds_max_m: geometry.bounds.1.to_array(),
-            padding: 0,
+        let counts = ArrayCounts {
+            vertices: geometry.vertices.len(),
+            indices: geometry.indices.len(),
+            parts: geometry.parts.len(),
+            records: geometry.records.len(),
         };
+        let header = Header::of(
+            building_count,
+            counts,
+            &occluders,
+            geometry.ground,
+            geometry.bounds,
+        );
         let layout = Layout::of(header).expect("a scene that fits in memory fits its layout");
         // Written straight into the `u32`s the scene keeps (the length is a multiple of 16).
         let mut words = vec![0u32; layout.len / 4];
