@@ -20,7 +20,8 @@ use citywalk_scenes::cluster_tree::{ClusterParams, ClusterTree};
 use citywalk_scenes::ground_surfaces::GroundSurfaces;
 use citywalk_scenes::occluder::OccluderSet;
 use citywalk_scenes::package::{
-    GpuScene, InputFile, PackageError, Provenance, ScenePackage, StageTiming, sha256_file,
+    GpuScene, InputFile, PackageError, Provenance, ScenePackage, SceneStore, StageTiming,
+    sha256_file,
 };
 use citywalk_scenes::quadtree::BQuadtree;
 use citywalk_scenes::{BuildingId, City, LoadOptions};
@@ -140,6 +141,8 @@ pub enum PreprocessError {
     Cluster(#[from] ClusterError),
     #[error("package: {0}")]
     Package(#[from] PackageError),
+    #[error("the GPU scene's scratch file: {0}")]
+    Scratch(std::io::Error),
 }
 
 /// What tile jobs ([`crate::tile_jobs`]) made, which the pipeline takes instead of making
@@ -157,7 +160,7 @@ pub fn preprocess(
     params: &PreprocessParams,
     progress: &dyn ProgressSink,
 ) -> Result<ScenePackage, PreprocessError> {
-    preprocess_with(city, params, progress, None)
+    preprocess_with(city, params, progress, None, SceneStore::Memory)
 }
 
 /// A city's B-Quadtree and its tiles (each tile's buildings, [`plan_tiles`]).
@@ -178,12 +181,15 @@ pub fn city_tiles(
     (blocks, report, tiles)
 }
 
-/// [`preprocess`], the occluders and the tiles' trees taken from `from_tiles` when given.
+/// [`preprocess`], the occluders and the tiles' trees taken from `from_tiles` when given, the
+/// GPU scene laid out where `store` says (a scratch file keeps the largest section out of
+/// resident memory until the package is written).
 pub fn preprocess_with(
     city: City,
     params: &PreprocessParams,
     progress: &dyn ProgressSink,
     from_tiles: Option<FromTiles>,
+    store: SceneStore<'_>,
 ) -> Result<ScenePackage, PreprocessError> {
     let (mut tile_occluders, mut tile_trees) = match from_tiles {
         Some(f) => (f.occluders, Some(f.trees)),
@@ -338,8 +344,17 @@ pub fn preprocess_with(
     }
 
     let mut gpu_scene = None;
+    let mut scratch_error = None;
     run(Stage::GpuScene, &mut || {
-        let scene = GpuScene::build(&city, cluster_tree.as_ref(), occluders.as_ref());
+        let scene =
+            match GpuScene::build_in(&city, cluster_tree.as_ref(), occluders.as_ref(), store) {
+                Ok(scene) => scene,
+                Err(e) => {
+                    let s = format!("failed: {e}");
+                    scratch_error = Some(e);
+                    return s;
+                }
+            };
         let view = scene.view();
         let s = format!(
             "{} records, {} vertices, {} triangles, {} cull parts, {} MB",
@@ -352,6 +367,9 @@ pub fn preprocess_with(
         gpu_scene = Some(scene);
         s
     });
+    if let Some(e) = scratch_error {
+        return Err(PreprocessError::Scratch(e));
+    }
     let gpu_scene = gpu_scene.expect("the gpu scene stage ran");
 
     let mut inputs = Vec::new();

@@ -21,7 +21,7 @@ use std::path::{Path, PathBuf};
 use citywalk_scenes::blocks::UrbanBlocks;
 use citywalk_scenes::cluster_tree::ClusterTree;
 use citywalk_scenes::occluder::OccluderSet;
-use citywalk_scenes::package::{InputFile, ScenePackage};
+use citywalk_scenes::package::{InputFile, ScenePackage, SceneStore};
 use citywalk_scenes::{Building, BuildingId, BuildingPart, City, Frame, TriangleMesh};
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
@@ -269,12 +269,13 @@ pub fn run_tile(shard: TileShard, plan: &TilePlan) -> Result<TileResult, TileJob
 }
 
 /// The package of `city` from its tiles' results (any order), as one run of `plan`'s
-/// parameters makes it.
+/// parameters makes it, its GPU scene laid out where `store` says.
 pub fn merge(
     city: City,
     plan: &TilePlan,
     results: Vec<(String, TileResult)>,
     progress: &dyn ProgressSink,
+    store: SceneStore<'_>,
 ) -> Result<ScenePackage, TileJobError> {
     let (_, tiles) = planned_tiles(&city, plan)?;
     let digest = plan.digest();
@@ -349,6 +350,7 @@ pub fn merge(
         &plan.params,
         progress,
         Some(from_tiles),
+        store,
     )?)
 }
 

@@ -159,7 +159,7 @@ fn the_package_is_the_same_on_one_thread_and_on_four() {
 #[test]
 fn the_gpu_scene_built_in_place_equals_the_arrays_copied() {
     use citywalk_scenes::occluder_draws::OccluderArrays;
-    use citywalk_scenes::package::GpuScene;
+    use citywalk_scenes::package::{GpuScene, SceneStore};
     use citywalk_scenes::scene_geometry::{
         SceneGeometry, cull_records, draw_id_parents, lod_geometry,
     };
@@ -192,6 +192,27 @@ fn the_gpu_scene_built_in_place_equals_the_arrays_copied() {
     assert!(
         pkg.gpu_scene.bytes() == copied.bytes(),
         "the pipeline's scene"
+    );
+    // The same scene laid out in a scratch file, and written out from there.
+    let dir = tempfile::tempdir().expect("temp dir");
+    let scratch = GpuScene::build_in(
+        &city,
+        Some(tree),
+        Some(occluders),
+        SceneStore::ScratchFileIn(dir.path()),
+    )
+    .expect("a scratch file");
+    assert!(scratch.is_mapped());
+    assert!(scratch.bytes() == copied.bytes(), "in a scratch file");
+    let mut written = Vec::new();
+    scratch.write_payload(&mut written).expect("write");
+    assert!(written == copied.bytes(), "written from the scratch file");
+    assert!(
+        std::fs::read_dir(dir.path())
+            .expect("list")
+            .next()
+            .is_none(),
+        "the scratch file has no name"
     );
 
     let copied = GpuScene::from_arrays(

@@ -7,7 +7,7 @@ use citywalk_preprocess::tile_jobs::{
     TileJobError, TilePlan, TileResult, TileShard, merge, plan_and_shard, run_tile,
 };
 use citywalk_scenes::City;
-use citywalk_scenes::package::WriteOptions;
+use citywalk_scenes::package::{SceneStore, WriteOptions};
 use std::path::Path;
 
 fn generated(buildings: usize, seed: u64) -> City {
@@ -56,10 +56,17 @@ fn tile_jobs_merge_to_the_one_runs_package_and_bad_tile_files_are_refused() {
             })
             .collect()
     };
-    let merged = merge(city.clone(), &plan, read(&files), &NoProgress)
-        .expect("merge")
-        .to_bytes(WriteOptions::default())
-        .expect("encode");
+    // The merge lays its GPU scene out in a scratch file, as the command line's does.
+    let merged = merge(
+        city.clone(),
+        &plan,
+        read(&files),
+        &NoProgress,
+        SceneStore::ScratchFileIn(dir.path()),
+    )
+    .expect("merge")
+    .to_bytes(WriteOptions::default())
+    .expect("encode");
     assert!(
         merged == one_run,
         "the merged package differs from the one run's"
@@ -67,13 +74,21 @@ fn tile_jobs_merge_to_the_one_runs_package_and_bad_tile_files_are_refused() {
 
     // A missing tile and a tile given twice.
     let mut short = read(&files[1..]);
-    let err = merge(city.clone(), &plan, short.clone(), &NoProgress).expect_err("missing");
+    let err = merge(
+        city.clone(),
+        &plan,
+        short.clone(),
+        &NoProgress,
+        SceneStore::Memory,
+    )
+    .expect_err("missing");
     assert!(
         matches!(err, TileJobError::Mismatch(ref m) if m.contains("no tile file")),
         "{err}"
     );
     short.push(short[0].clone());
-    let err = merge(city.clone(), &plan, short, &NoProgress).expect_err("repeated");
+    let err =
+        merge(city.clone(), &plan, short, &NoProgress, SceneStore::Memory).expect_err("repeated");
     assert!(err.to_string().contains("given twice"), "{err}");
 
     // A tile of another plan.
@@ -90,7 +105,8 @@ fn tile_jobs_merge_to_the_one_runs_package_and_bad_tile_files_are_refused() {
     assert!(err.to_string().contains("another plan"), "{err}");
     let mut mixed = read(&files);
     mixed[0] = ("foreign".into(), foreign);
-    let err = merge(city.clone(), &plan, mixed, &NoProgress).expect_err("foreign");
+    let err =
+        merge(city.clone(), &plan, mixed, &NoProgress, SceneStore::Memory).expect_err("foreign");
     assert!(
         err.to_string().contains("foreign: made for another plan"),
         "{err}"

@@ -2,19 +2,21 @@
 //! the preprocessing pipeline (blocks, occluders, cluster tree, B-Quadtree) with a progress
 //! line per stage, writes the scene package and prints a summary.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use citywalk_bench::output::resident_mib;
 use citywalk_preprocess::pipeline::{
-    DEFAULT_TILE_BUILDINGS, PreprocessParams, ProgressSink, Stage, preprocess,
+    DEFAULT_TILE_BUILDINGS, PreprocessParams, ProgressSink, Stage, preprocess_with,
 };
 use citywalk_preprocess::tile_jobs::merge;
 use citywalk_runtime::gpu::GpuContext;
 use citywalk_runtime::texture_bake::{BakeStats, bake_cluster_textures};
 use citywalk_scenes::cluster_texture::bins::CHANG_BIN_SIDE_PX;
-use citywalk_scenes::package::{ScenePackage, StageTiming, WriteOptions, check_output_path};
+use citywalk_scenes::package::{
+    ScenePackage, SceneStore, StageTiming, WriteOptions, check_output_path,
+};
 use citywalk_scenes::{City, LoadOptions, load_cities};
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use serde::Serialize;
@@ -90,6 +92,12 @@ pub struct Args {
     /// them. A city of no more buildings, or without streets that bound blocks, is one tile.
     #[arg(long, default_value_t = DEFAULT_TILE_BUILDINGS as u64, value_parser = clap::value_parser!(u64).range(1..))]
     tile_buildings: u64,
+    /// The folder of the GPU scene's scratch file (default: the package's): the scene is laid
+    /// out there, through a memory map whose written pages leave the process's memory, and the
+    /// package is written from it; the file has no name and goes when the run ends. It needs
+    /// the GPU scene's size free (about 1.2 GB a million buildings).
+    #[arg(long, value_name = "DIR")]
+    scratch_dir: Option<PathBuf>,
 }
 
 /// One spinner per stage; the process's memory at the end of each.
@@ -204,12 +212,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     start_threads(args.threads)?;
+    let scratch_dir = scratch_dir(&args, &output);
+    let store = SceneStore::ScratchFileIn(&scratch_dir);
     let (mut package, bars, load_seconds) = if let Some(plan_path) = &args.merge {
         let plan = crate::tile_jobs::read_plan(plan_path)?;
         let (city, load_seconds) = crate::tile_jobs::load_plan_inputs(&args, &plan, start)?;
         let bars = Bars::after_load();
         let results = crate::tile_jobs::read_tiles(&args, plan_path, &plan)?;
-        let package = merge(city, &plan, results, &bars).context("cannot merge the tiles")?;
+        let package =
+            merge(city, &plan, results, &bars, store).context("cannot merge the tiles")?;
         (package, bars, load_seconds)
     } else {
         let load_options = args.input.load_options(&args.inputs)?;
@@ -219,7 +230,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             ..preprocess_params(&args)
         };
         let bars = Bars::after_load();
-        let package = preprocess(city, &params, &bars).context("preprocessing failed")?;
+        let package =
+            preprocess_with(city, &params, &bars, None, store).context("preprocessing failed")?;
         (package, bars, load_seconds)
     };
     let textures = if args.cluster_textures {
@@ -252,6 +264,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         print_summary(&summary);
     }
     Ok(())
+}
+
+/// `--scratch-dir`, or the folder `output` is written to.
+fn scratch_dir(args: &Args, output: &Path) -> PathBuf {
+    match (&args.scratch_dir, output.parent()) {
+        (Some(dir), _) => dir.clone(),
+        (None, Some(parent)) if !parent.as_os_str().is_empty() => parent.to_path_buf(),
+        (None, _) => PathBuf::from("."),
+    }
 }
 
 /// The rayon pool of `--threads` (0: one thread per core).
@@ -374,7 +395,7 @@ impl From<BakeStats> for TextureSummary {
 
 fn summarise(
     package: &ScenePackage,
-    output: &std::path::Path,
+    output: &Path,
     package_bytes: u64,
     load_seconds: f64,
     write_seconds: f64,

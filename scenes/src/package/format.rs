@@ -269,7 +269,7 @@ fn write_payload<W: Write>(
         K::Timings => encode_one(kind, &pkg.timings, out),
         K::GpuScene => {
             // A failed write is kept in the sink.
-            let _ = out.write_all(pkg.gpu_scene.bytes());
+            let _ = pkg.gpu_scene.write_payload(out);
             Ok(())
         }
         K::BuildingDetails => {

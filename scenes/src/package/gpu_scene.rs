@@ -31,11 +31,12 @@ use citywalk_shaders::constants::NO_PARENT;
 use citywalk_shaders::{BuildingRecord, CullPart, DrawIndexedIndirectArgs, SceneVertex};
 use glam::Vec3;
 
+use super::scratch::ScratchMap;
 use crate::City;
 use crate::cluster_tree::ClusterTree;
 use crate::occluder::OccluderSet;
 use crate::occluder_draws::{OccluderArrays, OccluderArraysView, OccluderRecord};
-use crate::scene_geometry::in_place::{SceneSlices, count_lod_layout, write_lod_layout};
+use crate::scene_geometry::in_place::{LodLayout, SceneSlices, count_lod_layout, write_lod_layout};
 use crate::scene_geometry::{ArrayCounts, SceneGeometry, cull_records, draw_id_parents};
 
 // The arrays are the GPU's little-endian layout, read in place.
@@ -225,12 +226,72 @@ impl PartialEq for MappedPages<'_> {
 impl GpuScene {
     /// Meshes the buildings of `city` and the cluster meshes of `tree` (built from `city`), with
     /// cull parts and records, and lays out the drawable `occluders`: what the runtime would
-    /// otherwise compute at load.
+    /// otherwise compute at load. The scene is held in memory ([`GpuScene::build_in`]).
     pub fn build(
         city: &City,
         tree: Option<&ClusterTree>,
         occluders: Option<&OccluderSet>,
     ) -> GpuScene {
+        let (header, layout, lod, occluders) = Self::count(city, tree, occluders);
+        let mut words = vec![0u32; layout.len / 4];
+        let parts = SceneParts {
+            city,
+            tree,
+            lod: &lod,
+            occluders: &occluders,
+        };
+        parts.write(
+            &header,
+            &layout,
+            bytemuck::cast_slice_mut(&mut words),
+            &|| {},
+        );
+        GpuScene {
+            storage: Storage::Owned(words),
+            layout,
+        }
+    }
+
+    /// [`GpuScene::build`] where `store` says: in memory, or in an unnamed scratch file whose
+    /// written pages leave the process's resident memory batch by batch (a million buildings'
+    /// scene is a gigabyte the process need not hold while it writes the package). Fails only
+    /// where the scratch file cannot be made or mapped.
+    pub fn build_in(
+        city: &City,
+        tree: Option<&ClusterTree>,
+        occluders: Option<&OccluderSet>,
+        store: SceneStore<'_>,
+    ) -> std::io::Result<GpuScene> {
+        let SceneStore::ScratchFileIn(dir) = store else {
+            return Ok(Self::build(city, tree, occluders));
+        };
+        let (header, layout, lod, occluders) = Self::count(city, tree, occluders);
+        let mut scratch = ScratchMap::new_in(dir, layout.len)?;
+        let parts = SceneParts {
+            city,
+            tree,
+            lod: &lod,
+            occluders: &occluders,
+        };
+        scratch.fill_with(|bytes, pages| {
+            parts.write(&header, &layout, bytes, &|| pages.release());
+        });
+        Ok(GpuScene {
+            storage: Storage::Mapped {
+                map: Arc::new(scratch.into_read_only()?),
+                offset: 0,
+            },
+            layout,
+        })
+    }
+
+    /// The first pass of a build: the occluders' arrays and the LOD scene's counts, and from
+    /// them the header and the payload's layout.
+    fn count(
+        city: &City,
+        tree: Option<&ClusterTree>,
+        occluders: Option<&OccluderSet>,
+    ) -> (Header, Layout, LodLayout, OccluderArrays) {
         let n = city.buildings.len() as u32;
         let occluders = occluders.map(OccluderArrays::of).unwrap_or_default();
         // Twice over the meshes: once to count the arrays, once to write them where the scene
@@ -239,50 +300,7 @@ impl GpuScene {
         let lod = count_lod_layout(city, tree);
         let header = Header::of(n, lod.counts, &occluders, lod.ground, lod.bounds);
         let layout = Layout::of(header).expect("a scene that fits in memory fits its layout");
-        let mut words = vec![0u32; layout.len / 4];
-        let bytes: &mut [u8] = bytemuck::cast_slice_mut(&mut words);
-        bytes[..HEADER_LEN].copy_from_slice(bytemuck::bytes_of(&header));
-        let [
-            vertices,
-            indices,
-            records,
-            parts,
-            cull_out,
-            parents_out,
-            occluder_vertices,
-            occluder_indices,
-            occluder_records,
-        ] = split_regions(bytes, layout.arrays());
-        let records: &mut [BuildingRecord] = bytemuck::cast_slice_mut(records);
-        write_lod_layout(
-            city,
-            tree,
-            &lod,
-            SceneSlices {
-                vertices: bytemuck::cast_slice_mut(vertices),
-                indices: bytemuck::cast_slice_mut(indices),
-                parts: bytemuck::cast_slice_mut(parts),
-                records: &mut *records,
-            },
-        );
-        let records: &[BuildingRecord] = records;
-        match tree {
-            Some(tree) => {
-                cull_out.copy_from_slice(bytemuck::cast_slice(&cull_records(records, n, tree)));
-                parents_out.copy_from_slice(bytemuck::cast_slice(&draw_id_parents(tree, n)));
-            }
-            None => {
-                cull_out.copy_from_slice(bytemuck::cast_slice(records));
-                bytemuck::cast_slice_mut::<u8, u32>(parents_out).fill(NO_PARENT);
-            }
-        }
-        occluder_vertices.copy_from_slice(bytemuck::cast_slice(&occluders.vertices));
-        occluder_indices.copy_from_slice(bytemuck::cast_slice(&occluders.indices));
-        occluder_records.copy_from_slice(bytemuck::cast_slice(&occluders.records));
-        GpuScene {
-            storage: Storage::Owned(words),
-            layout,
-        }
+        (header, layout, lod, occluders)
     }
 
     /// Lays out `geometry` (whose first `building_count` records are buildings) with its cull
@@ -404,7 +422,19 @@ impl GpuScene {
         }
     }
 
-    /// Whether the arrays are read in place from a package's memory map.
+    /// Writes the payload to `out` a few megabytes at a time; where the scene lies in a mapping
+    /// (a package's, or the scratch file of [`GpuScene::build_in`]) each piece's pages leave
+    /// resident memory once written.
+    pub fn write_payload(&self, out: &mut impl std::io::Write) -> std::io::Result<()> {
+        let view = self.view();
+        for piece in self.bytes().chunks(SETTLE_BYTES) {
+            out.write_all(piece)?;
+            view.release_resident(piece);
+        }
+        Ok(())
+    }
+
+    /// Whether the arrays are read in place from a memory map (a package's, or a scratch file's).
     pub fn is_mapped(&self) -> bool {
         matches!(self.storage, Storage::Mapped { .. })
     }
@@ -454,6 +484,95 @@ impl GpuScene {
             ground: v.ground,
             bounds: v.bounds,
         }
+    }
+}
+
+/// Where [`GpuScene::build_in`] lays a scene out.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SceneStore<'a> {
+    /// In the process's memory.
+    Memory,
+    /// In an unnamed scratch file of this folder, mapped ([`super::scratch`]).
+    ScratchFileIn(&'a std::path::Path),
+}
+
+/// What a built scene is made of, counted ([`GpuScene::count`]).
+struct SceneParts<'a> {
+    city: &'a City,
+    tree: Option<&'a ClusterTree>,
+    lod: &'a LodLayout,
+    occluders: &'a OccluderArrays,
+}
+
+/// Bytes copied between two calls of a build's `settle` (tens of megabytes resident at most).
+const SETTLE_BYTES: usize = 32 << 20;
+
+impl SceneParts<'_> {
+    /// The second pass: writes the payload of `layout` into `bytes` (zeroed, of its length),
+    /// calling `settle` whenever what was written may leave resident memory.
+    fn write(
+        &self,
+        header: &Header,
+        layout: &Layout,
+        bytes: &mut [u8],
+        settle: &(dyn Fn() + Sync),
+    ) {
+        let SceneParts {
+            city,
+            tree,
+            lod,
+            occluders,
+        } = *self;
+        let n = header.building_count;
+        bytes[..HEADER_LEN].copy_from_slice(bytemuck::bytes_of(header));
+        let [
+            vertices,
+            indices,
+            records,
+            parts,
+            cull_out,
+            parents_out,
+            occluder_vertices,
+            occluder_indices,
+            occluder_records,
+        ] = split_regions(bytes, layout.arrays());
+        let records: &mut [BuildingRecord] = bytemuck::cast_slice_mut(records);
+        write_lod_layout(
+            city,
+            tree,
+            lod,
+            SceneSlices {
+                vertices: bytemuck::cast_slice_mut(vertices),
+                indices: bytemuck::cast_slice_mut(indices),
+                parts: bytemuck::cast_slice_mut(parts),
+                records: &mut *records,
+            },
+            settle,
+        );
+        let records: &[BuildingRecord] = records;
+        let copy = |to: &mut [u8], from: &[u8]| {
+            for (to, from) in to.chunks_mut(SETTLE_BYTES).zip(from.chunks(SETTLE_BYTES)) {
+                to.copy_from_slice(from);
+                settle();
+            }
+        };
+        match tree {
+            Some(tree) => {
+                copy(
+                    cull_out,
+                    bytemuck::cast_slice(&cull_records(records, n, tree)),
+                );
+                copy(parents_out, bytemuck::cast_slice(&draw_id_parents(tree, n)));
+            }
+            None => {
+                copy(cull_out, bytemuck::cast_slice(records));
+                bytemuck::cast_slice_mut::<u8, u32>(parents_out).fill(NO_PARENT);
+            }
+        }
+        copy(occluder_vertices, bytemuck::cast_slice(&occluders.vertices));
+        copy(occluder_indices, bytemuck::cast_slice(&occluders.indices));
+        copy(occluder_records, bytemuck::cast_slice(&occluders.records));
+        settle();
     }
 }
 

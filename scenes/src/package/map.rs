@@ -114,8 +114,8 @@ pub(crate) fn release_resident(map: &memmap2::Mmap, bytes: &[u8]) {
     if start > map.len() || bytes.len() > map.len() - start {
         return;
     }
-    // SAFETY: `map` is a read-only shared mapping of a file nobody writes (see
-    // `map_read_only`); MADV_DONTNEED drops this process's pages of it, and the next read
+    // SAFETY: `map` is a read-only shared mapping of a file nobody writes (a package, see
+    // `map_read_only`, or a finished scratch file, see `super::scratch`); MADV_DONTNEED drops this process's pages of it, and the next read
     // maps the file's unchanged bytes again, so every `&[u8]` into the mapping keeps its value
     // (neighbouring bytes on the same pages included).
     #[cfg(unix)]

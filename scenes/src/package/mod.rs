@@ -28,11 +28,12 @@ mod error;
 pub mod format;
 pub mod gpu_scene;
 mod map;
+mod scratch;
 pub(crate) use map::map_read_only;
 
 pub use error::PackageError;
 pub use format::{BuildingDetails, Decode, FORMAT_VERSION, MAGIC, SectionKind};
-pub use gpu_scene::{GpuScene, GpuSceneView};
+pub use gpu_scene::{GpuScene, GpuSceneView, SceneStore};
 pub use map::PackageFile;
 
 /// One input file of the preprocessing.

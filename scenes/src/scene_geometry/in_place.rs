@@ -72,7 +72,9 @@ pub fn count_lod_layout(city: &City, tree: Option<&ClusterTree>) -> LodLayout {
     }
 }
 
-/// Writes the LOD scene `layout` counted into `slices`, each chunk on its own thread.
+/// Writes the LOD scene `layout` counted into `slices`, each chunk on its own thread, a batch
+/// of chunks at a time; `settle` runs after each batch (a scene written to a scratch file gives
+/// the batch's pages back there).
 ///
 /// Panics if `slices` are not of `layout`'s lengths (a bug in the caller).
 pub fn write_lod_layout(
@@ -80,6 +82,7 @@ pub fn write_lod_layout(
     tree: Option<&ClusterTree>,
     layout: &LodLayout,
     slices: SceneSlices<'_>,
+    settle: &(dyn Fn() + Sync),
 ) {
     let SceneSlices {
         vertices,
@@ -100,9 +103,15 @@ pub fn write_lod_layout(
         .iter()
         .map(|(range, counts)| (range.clone(), rest.split_front(*counts)))
         .collect();
-    writers.par_iter_mut().for_each(|(range, writer)| {
-        lay_out_range(city, tree, range.clone(), writer);
-    });
+    // Enough chunks a batch to keep every thread busy, few enough that a batch of a million
+    // buildings' scene is tens of megabytes.
+    let batch = (4 * rayon::current_num_threads()).max(16);
+    for writers in writers.chunks_mut(batch) {
+        writers.par_iter_mut().for_each(|(range, writer)| {
+            lay_out_range(city, tree, range.clone(), writer);
+        });
+        settle();
+    }
     for ((_, counts), (_, writer)) in layout.chunks.iter().zip(&writers) {
         assert_eq!(
             writer.lens, *counts,

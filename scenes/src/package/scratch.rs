@@ -1,0 +1,156 @@
+//! Scratch space on disk for a section too large to keep resident while it is built: the GPU
+//! scene, a gigabyte at a million buildings. Its bytes are written through a shared mapping of
+//! an unnamed file, and the written pages are handed to the page cache batch by batch, so the
+//! process holds only the batch being written; the package is later written from the mapping,
+//! a few megabytes at a time. The file disappears with the mapping (nothing is left behind, even
+//! when the process is killed).
+
+use std::io;
+use std::path::Path;
+
+/// A writable shared mapping of an unnamed scratch file.
+pub(super) struct ScratchMap {
+    map: memmap2::MmapMut,
+}
+
+/// Gives the pages written so far back to the page cache ([`ScratchMap::fill_with`]).
+pub(super) struct Releaser {
+    start: usize,
+    len: usize,
+}
+
+impl ScratchMap {
+    /// An unnamed file of `len` zero bytes in `dir`, its blocks reserved where the file system
+    /// can (a full disk is an error here, not a `SIGBUS` when a page is first written), mapped
+    /// for writing.
+    /// The error names `dir`.
+    pub(super) fn new_in(dir: &Path, len: usize) -> io::Result<ScratchMap> {
+        let made = tempfile::tempfile_in(dir).and_then(|file| {
+            reserve(&file, len as u64)?;
+            map_shared(&file)
+        });
+        match made {
+            Ok(map) => Ok(ScratchMap { map }),
+            Err(e) => Err(io::Error::new(
+                e.kind(),
+                format!("{} bytes in {}: {e}", len, dir.display()),
+            )),
+        }
+    }
+
+    /// Runs `fill` on the mapping's bytes; `fill` calls [`Releaser::release`] whenever what it
+    /// wrote may leave resident memory (between batches: what it writes next refaults from the
+    /// page cache if it shares a page with what was released).
+    pub(super) fn fill_with<R>(&mut self, fill: impl FnOnce(&mut [u8], &Releaser) -> R) -> R {
+        let releaser = Releaser {
+            start: self.map.as_ptr() as usize,
+            len: self.map.len(),
+        };
+        fill(&mut self.map[..], &releaser)
+    }
+
+    /// The mapping, read-only from now on.
+    pub(super) fn into_read_only(self) -> io::Result<memmap2::Mmap> {
+        self.map.make_read_only()
+    }
+}
+
+/// Reserves `len` bytes for `file` (`fallocate`), or sets its length where the file system
+/// cannot reserve (then a full disk shows when a page is written back).
+fn reserve(file: &std::fs::File, len: u64) -> io::Result<()> {
+    #[cfg(target_os = "linux")]
+    match rustix::fs::fallocate(file, rustix::fs::FallocateFlags::empty(), 0, len) {
+        Ok(()) => return Ok(()),
+        Err(e) if e == rustix::io::Errno::OPNOTSUPP => {}
+        Err(e) => return Err(e.into()),
+    }
+    file.set_len(len)
+}
+
+#[expect(
+    unsafe_code,
+    reason = "memmap2::MmapMut::map_mut is unsafe because another process could change or \
+              truncate the file while it is mapped"
+)]
+fn map_shared(file: &std::fs::File) -> io::Result<memmap2::MmapMut> {
+    // SAFETY: the file is unnamed (no other process can open it) and its length is never
+    // changed after this; the mapping is the only way its bytes are read or written.
+    unsafe { memmap2::MmapMut::map_mut(file) }
+}
+
+impl Releaser {
+    /// Drops the mapping's pages from this process's resident memory. Their bytes stay in the
+    /// page cache (a shared file mapping), written back to the scratch file in time, and a later
+    /// read or write maps them again.
+    #[expect(
+        unsafe_code,
+        reason = "madvise(MADV_DONTNEED) through a raw address: the mapping is borrowed mutably \
+                  by the writer meanwhile"
+    )]
+    pub(super) fn release(&self) {
+        #[cfg(target_os = "linux")]
+        // SAFETY: `start..start + len` is the whole of a live shared file mapping
+        // (`fill_with` lends `self` only while its `ScratchMap` is borrowed). MADV_DONTNEED on a
+        // shared file mapping does not discard data: dirty pages go to the page cache and every
+        // later access sees the file's current bytes, so the writer's slices keep their values.
+        if let Err(e) = unsafe {
+            rustix::mm::madvise(
+                self.start as *mut std::ffi::c_void,
+                self.len,
+                rustix::mm::Advice::LinuxDontNeed,
+            )
+        } {
+            tracing::debug!("madvise(DONTNEED) on a scratch mapping failed: {e}");
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Pages released while a writer still holds the mapping keep what was written: the next
+    /// write to a released page, and every read after, see the bytes written before.
+    #[test]
+    fn released_pages_keep_their_bytes() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let len = 3 << 20;
+        let mut scratch = ScratchMap::new_in(dir.path(), len).expect("scratch file");
+        let value = |i: usize| (i.wrapping_mul(2_654_435_761) >> 7) as u8;
+        scratch.fill_with(|bytes, pages| {
+            assert!(
+                bytes.iter().all(|&b| b == 0),
+                "a new scratch file is zeroed"
+            );
+            // Halves written with a release between, the second half's first byte on a page
+            // the first half also wrote.
+            let half = len / 2 + 123;
+            for (i, b) in bytes[..half].iter_mut().enumerate() {
+                *b = value(i);
+            }
+            pages.release();
+            for (i, b) in bytes.iter_mut().enumerate().skip(half) {
+                *b = value(i);
+            }
+            pages.release();
+            assert!(bytes.iter().enumerate().all(|(i, &b)| b == value(i)));
+        });
+        let map = scratch.into_read_only().expect("read-only");
+        assert!(map.iter().enumerate().all(|(i, &b)| b == value(i)));
+        let left: Vec<_> = std::fs::read_dir(dir.path()).expect("list").collect();
+        assert!(left.is_empty(), "the scratch file has no name: {left:?}");
+    }
+
+    #[test]
+    fn a_missing_folder_is_an_error_that_names_it() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let missing = dir.path().join("nowhere");
+        let err = ScratchMap::new_in(&missing, 4096)
+            .err()
+            .expect("no scratch file in a missing folder");
+        assert!(
+            err.to_string().contains(&missing.display().to_string()),
+            "{err}"
+        );
+    }
+}
