@@ -19,9 +19,10 @@ use citywalk_scenes::blocks::{UrbanBlock, UrbanBlocks};
 use citywalk_scenes::cluster_tree::{ClusterParams, ClusterTree};
 use citywalk_scenes::ground_surfaces::GroundSurfaces;
 use citywalk_scenes::occluder::OccluderSet;
+use citywalk_scenes::occluder_draws::OccluderArrays;
 use citywalk_scenes::package::{
-    GpuScene, InputFile, PackageError, Provenance, ScenePackage, SceneStore, StageTiming,
-    sha256_file,
+    GpuScene, InputFile, PackageError, Provenance, ScenePackage, SceneStore, SectionKind,
+    SpilledSection, StageTiming, sha256_file,
 };
 use citywalk_scenes::quadtree::BQuadtree;
 use citywalk_scenes::{BuildingId, City, LoadOptions};
@@ -225,18 +226,32 @@ pub fn preprocess_with(
         blocks_summary(&blocks, &block_report)
     });
 
+    // The occluder set stays in memory, or, preprocessing into a scratch folder, is encoded
+    // there as its section at once and only its drawable arrays (the GPU scene's) are kept:
+    // the set is twice their size, and the cluster tree's stage, the run's peak, comes next.
     let mut occluders = None;
+    let mut occluder_arrays = None;
+    let mut occluder_counts = None;
+    let mut spilled = Vec::new();
+    let mut spill_error = None;
     if params.build_occluders {
         run(Stage::Occluders, &mut || {
             let set = tile_occluders
                 .take()
                 .unwrap_or_else(|| build_occluders(&city, &params.occluders));
-            let s = format!(
-                "{} occluders, {} triangles",
-                set.occluders.len(),
-                set.triangle_count()
-            );
-            occluders = Some(set);
+            let counts = (set.occluders.len(), set.triangle_count());
+            occluder_counts = Some(counts);
+            let s = format!("{} occluders, {} triangles", counts.0, counts.1);
+            match store {
+                SceneStore::Memory => occluders = Some(set),
+                SceneStore::ScratchFileIn(dir) => {
+                    occluder_arrays = Some(OccluderArrays::of(&set));
+                    match SpilledSection::encode(SectionKind::Occluders, &set, dir) {
+                        Ok(section) => spilled.push(section),
+                        Err(e) => spill_error = Some(e),
+                    }
+                }
+            }
             s
         });
     } else {
@@ -306,6 +321,9 @@ pub fn preprocess_with(
             .skipped_stages
             .push("cluster tree: the city has no buildings".into());
     }
+    if let Some(e) = spill_error {
+        return Err(e.into());
+    }
     if let Some(e) = cluster_error {
         return Err(e.into());
     }
@@ -346,15 +364,19 @@ pub fn preprocess_with(
     let mut gpu_scene = None;
     let mut scratch_error = None;
     run(Stage::GpuScene, &mut || {
-        let scene =
-            match GpuScene::build_in(&city, cluster_tree.as_ref(), occluders.as_ref(), store) {
-                Ok(scene) => scene,
-                Err(e) => {
-                    let s = format!("failed: {e}");
-                    scratch_error = Some(e);
-                    return s;
-                }
-            };
+        let arrays = match (occluder_arrays.take(), &occluders) {
+            (Some(arrays), _) => arrays,
+            (None, Some(set)) => OccluderArrays::of(set),
+            (None, None) => OccluderArrays::default(),
+        };
+        let scene = match GpuScene::build_in(&city, cluster_tree.as_ref(), &arrays, store) {
+            Ok(scene) => scene,
+            Err(e) => {
+                let s = format!("failed: {e}");
+                scratch_error = Some(e);
+                return s;
+            }
+        };
         let view = scene.view();
         let s = format!(
             "{} records, {} vertices, {} triangles, {} cull parts, {} MB",
@@ -411,9 +433,9 @@ pub fn preprocess_with(
     count("quadtree_nodes", quadtree.nodes.len());
     count("quadtree_leaves", quadtree.leaf_count());
     count("quadtree_depth", quadtree.max_depth() as usize);
-    if let Some(set) = &occluders {
-        count("occluders", set.occluders.len());
-        count("occluder_triangles", set.triangle_count());
+    if let Some((occluders, triangles)) = occluder_counts {
+        count("occluders", occluders);
+        count("occluder_triangles", triangles);
     }
     if let Some(tree) = &cluster_tree {
         count("cluster_tree_nodes", tree.nodes.len());
@@ -445,6 +467,7 @@ pub fn preprocess_with(
         provenance,
         timings,
         gpu_scene,
+        spilled,
     })
 }
 

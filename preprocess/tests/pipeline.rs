@@ -127,6 +127,44 @@ fn preprocessing_round_trips_through_a_package_and_is_deterministic() {
     assert!(back == expected, "the package did not round trip");
 }
 
+/// Preprocessing into a scratch folder (as the command line does) spills the occluder set to
+/// its section and lays the GPU scene out in a scratch file: the same package bytes, and
+/// nothing left in the folder.
+#[test]
+fn preprocessing_into_a_scratch_folder_gives_the_same_package() {
+    use citywalk_preprocess::pipeline::preprocess_with;
+    use citywalk_scenes::package::{SceneStore, SectionKind};
+
+    let city = generated(1_500, 3);
+    let params = PreprocessParams::default();
+    let in_memory = preprocess(city.clone(), &params, &NoProgress).expect("preprocess");
+    let dir = tempfile::tempdir().expect("temp dir");
+    let scratch = preprocess_with(
+        city,
+        &params,
+        &NoProgress,
+        None,
+        SceneStore::ScratchFileIn(dir.path()),
+    )
+    .expect("preprocess into a scratch folder");
+    assert!(scratch.occluders.is_none(), "the set was spilled");
+    let kinds: Vec<_> = scratch.spilled.iter().map(|s| s.kind()).collect();
+    assert_eq!(kinds, [SectionKind::Occluders]);
+    assert!(scratch.gpu_scene.is_mapped());
+    assert_eq!(scratch.provenance.counts, in_memory.provenance.counts);
+    let options = WriteOptions::default();
+    assert!(
+        scratch.to_bytes(options).expect("encode") == in_memory.to_bytes(options).expect("encode"),
+        "the packages differ"
+    );
+    assert!(
+        std::fs::read_dir(dir.path())
+            .expect("list")
+            .next()
+            .is_none()
+    );
+}
+
 #[test]
 fn the_package_is_the_same_on_one_thread_and_on_four() {
     // Enough buildings for several chunks of the parallel occluder stage, and several tiles
@@ -198,7 +236,7 @@ fn the_gpu_scene_built_in_place_equals_the_arrays_copied() {
     let scratch = GpuScene::build_in(
         &city,
         Some(tree),
-        Some(occluders),
+        &OccluderArrays::of(occluders),
         SceneStore::ScratchFileIn(dir.path()),
     )
     .expect("a scratch file");

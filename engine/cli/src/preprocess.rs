@@ -213,6 +213,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     start_threads(args.threads)?;
     let scratch_dir = scratch_dir(&args, &output);
+    // A scratch file the folder cannot take fails here, not after minutes of work.
+    tempfile::tempfile_in(&scratch_dir)
+        .with_context(|| format!("cannot use {} for scratch files", scratch_dir.display()))?;
     let store = SceneStore::ScratchFileIn(&scratch_dir);
     let (mut package, bars, load_seconds) = if let Some(plan_path) = &args.merge {
         let plan = crate::tile_jobs::read_plan(plan_path)?;
@@ -403,6 +406,14 @@ fn summarise(
 ) -> Summary {
     let report = &package.provenance.load_report;
     let (rejected, load_warnings) = report_items::items(report);
+    // The provenance's counts: a set spilled to its section is not in memory to count.
+    let count = |name: &str| {
+        package
+            .provenance
+            .counts
+            .get(name)
+            .map(|&v| usize::try_from(v).unwrap_or(usize::MAX))
+    };
     Summary {
         output: output.display().to_string(),
         package_bytes,
@@ -414,8 +425,8 @@ fn summarise(
         rejected,
         load_warnings,
         streets: package.streets.len(),
-        occluders: package.occluders.as_ref().map(|o| o.occluders.len()),
-        occluder_triangles: package.occluders.as_ref().map(|o| o.triangle_count()),
+        occluders: count("occluders"),
+        occluder_triangles: count("occluder_triangles"),
         cluster_tree_nodes: package.cluster_tree.as_ref().map(|t| t.nodes.len()),
         cluster_tree_depth: package.cluster_tree.as_ref().map(|t| t.max_depth()),
         blocks: package.blocks.blocks.len(),

@@ -55,6 +55,29 @@ fn preprocess_to_a_device_or_pipe_fails_and_leaves_it() {
     assert!(kind.is_fifo(), "the pipe was replaced");
 }
 
+/// A scratch folder that cannot take the GPU scene's scratch file is refused before any work,
+/// naming it; no package is written.
+#[test]
+fn preprocess_refuses_a_missing_scratch_folder_first() {
+    let dir = temp_dir("hostile-scratch");
+    let city = small_city(&dir);
+    let missing = dir.join("no-such-folder");
+    let package = dir.join("x.cwk");
+    let out = citywalk(&[
+        "preprocess",
+        &city,
+        "-o",
+        path_str(&package),
+        "--scratch-dir",
+        path_str(&missing),
+    ]);
+    let all = text(&out);
+    assert_eq!(out.status.code(), Some(1), "{all}");
+    assert!(all.contains(path_str(&missing)), "{all}");
+    assert!(!all.contains("loading"), "{all}");
+    assert!(!package.exists());
+}
+
 /// A missing input names the file and says why once: the loader's message already holds the
 /// operating system's reason, which the printed error does not repeat.
 #[test]

@@ -240,6 +240,9 @@ fn sections_of(pkg: &ScenePackage, options: WriteOptions) -> Vec<SectionKind> {
     if pkg.cluster_textures.is_some() {
         kinds.push(K::ClusterTextures);
     }
+    kinds.extend(pkg.spilled.iter().map(|s| s.kind()));
+    kinds.sort();
+    kinds.dedup();
     kinds
 }
 
@@ -251,6 +254,11 @@ fn write_payload<W: Write>(
     out: &mut SectionSink<'_, W>,
 ) -> Result<(), PackageError> {
     use SectionKind as K;
+    if let Some(spilled) = pkg.spilled.iter().find(|s| s.kind() == kind) {
+        // A failed write is kept in the sink.
+        let _ = spilled.write_payload(out);
+        return Ok(());
+    }
     match kind {
         K::Frame => encode_one(kind, &pkg.frame, out),
         K::Buildings => encode_one(kind, &pkg.buildings, out),
@@ -935,6 +943,7 @@ fn decode_with(
         cluster_textures: decode_one(bytes, entries, K::ClusterTextures)?,
         timings: decode_one::<Vec<StageTiming>>(bytes, entries, K::Timings)?.unwrap_or_default(),
         gpu_scene,
+        spilled: Vec::new(),
     };
     if let Err(errors) = pkg.check_sections() {
         let mut sections: Vec<&str> = errors.iter().flat_map(|(s, _)| s.split(", ")).collect();

@@ -232,46 +232,31 @@ impl GpuScene {
         tree: Option<&ClusterTree>,
         occluders: Option<&OccluderSet>,
     ) -> GpuScene {
-        let (header, layout, lod, occluders) = Self::count(city, tree, occluders);
-        let mut words = vec![0u32; layout.len / 4];
-        let parts = SceneParts {
-            city,
-            tree,
-            lod: &lod,
-            occluders: &occluders,
-        };
-        parts.write(
-            &header,
-            &layout,
-            bytemuck::cast_slice_mut(&mut words),
-            &|| {},
-        );
-        GpuScene {
-            storage: Storage::Owned(words),
-            layout,
-        }
+        let occluders = occluders.map(OccluderArrays::of).unwrap_or_default();
+        Self::build_in_memory(city, tree, &occluders)
     }
 
-    /// [`GpuScene::build`] where `store` says: in memory, or in an unnamed scratch file whose
-    /// written pages leave the process's resident memory batch by batch (a million buildings'
-    /// scene is a gigabyte the process need not hold while it writes the package). Fails only
-    /// where the scratch file cannot be made or mapped.
+    /// [`GpuScene::build`] with the drawable occluders already laid out, where `store` says: in
+    /// memory, or in an unnamed scratch file whose written pages leave the process's resident
+    /// memory batch by batch (a million buildings' scene is a gigabyte the process need not
+    /// hold while it writes the package). Fails only where the scratch file cannot be made or
+    /// mapped.
     pub fn build_in(
         city: &City,
         tree: Option<&ClusterTree>,
-        occluders: Option<&OccluderSet>,
+        occluders: &OccluderArrays,
         store: SceneStore<'_>,
     ) -> std::io::Result<GpuScene> {
         let SceneStore::ScratchFileIn(dir) = store else {
-            return Ok(Self::build(city, tree, occluders));
+            return Ok(Self::build_in_memory(city, tree, occluders));
         };
-        let (header, layout, lod, occluders) = Self::count(city, tree, occluders);
+        let (header, layout, lod) = Self::count(city, tree, occluders);
         let mut scratch = ScratchMap::new_in(dir, layout.len)?;
         let parts = SceneParts {
             city,
             tree,
             lod: &lod,
-            occluders: &occluders,
+            occluders,
         };
         scratch.fill_with(|bytes, pages| {
             parts.write(&header, &layout, bytes, &|| pages.release());
@@ -285,22 +270,46 @@ impl GpuScene {
         })
     }
 
-    /// The first pass of a build: the occluders' arrays and the LOD scene's counts, and from
-    /// them the header and the payload's layout.
+    fn build_in_memory(
+        city: &City,
+        tree: Option<&ClusterTree>,
+        occluders: &OccluderArrays,
+    ) -> GpuScene {
+        let (header, layout, lod) = Self::count(city, tree, occluders);
+        let mut words = vec![0u32; layout.len / 4];
+        let parts = SceneParts {
+            city,
+            tree,
+            lod: &lod,
+            occluders,
+        };
+        parts.write(
+            &header,
+            &layout,
+            bytemuck::cast_slice_mut(&mut words),
+            &|| {},
+        );
+        GpuScene {
+            storage: Storage::Owned(words),
+            layout,
+        }
+    }
+
+    /// The first pass of a build: the LOD scene's counts, and from them and the occluders'
+    /// the header and the payload's layout.
     fn count(
         city: &City,
         tree: Option<&ClusterTree>,
-        occluders: Option<&OccluderSet>,
-    ) -> (Header, Layout, LodLayout, OccluderArrays) {
+        occluders: &OccluderArrays,
+    ) -> (Header, Layout, LodLayout) {
         let n = city.buildings.len() as u32;
-        let occluders = occluders.map(OccluderArrays::of).unwrap_or_default();
         // Twice over the meshes: once to count the arrays, once to write them where the scene
         // keeps them, so they are never held twice (a gigabyte at a million buildings, where
         // extruding the buildings again takes a few seconds).
         let lod = count_lod_layout(city, tree);
-        let header = Header::of(n, lod.counts, &occluders, lod.ground, lod.bounds);
+        let header = Header::of(n, lod.counts, occluders, lod.ground, lod.bounds);
         let layout = Layout::of(header).expect("a scene that fits in memory fits its layout");
-        (header, layout, lod, occluders)
+        (header, layout, lod)
     }
 
     /// Lays out `geometry` (whose first `building_count` records are buildings) with its cull

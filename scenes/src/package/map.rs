@@ -115,9 +115,10 @@ pub(crate) fn release_resident(map: &memmap2::Mmap, bytes: &[u8]) {
         return;
     }
     // SAFETY: `map` is a read-only shared mapping of a file nobody writes (a package, see
-    // `map_read_only`, or a finished scratch file, see `super::scratch`); MADV_DONTNEED drops this process's pages of it, and the next read
-    // maps the file's unchanged bytes again, so every `&[u8]` into the mapping keeps its value
-    // (neighbouring bytes on the same pages included).
+    // `map_read_only`, or a finished scratch file, see `super::scratch`); MADV_DONTNEED drops
+    // this process's pages of it, and the next read maps the file's unchanged bytes again, so
+    // every `&[u8]` into the mapping keeps its value (neighbouring bytes on the same pages
+    // included).
     #[cfg(unix)]
     if let Err(e) = unsafe {
         map.unchecked_advise_range(memmap2::UncheckedAdvice::DontNeed, start, bytes.len())

@@ -35,6 +35,7 @@ pub use error::PackageError;
 pub use format::{BuildingDetails, Decode, FORMAT_VERSION, MAGIC, SectionKind};
 pub use gpu_scene::{GpuScene, GpuSceneView, SceneStore};
 pub use map::PackageFile;
+pub use scratch::SpilledSection;
 
 /// One input file of the preprocessing.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
@@ -96,6 +97,11 @@ pub struct ScenePackage {
     /// The GPU-ready buildings and cluster meshes ([`GpuScene::build`] of the buildings and
     /// the tree), read in place from a mapped package.
     pub gpu_scene: GpuScene,
+    /// Sections encoded ahead of the write to keep their values out of memory while later
+    /// stages ran (preprocessing into a scratch folder spills the occluders); each is written
+    /// in place of its field, which whoever spilled it left empty (`None`). A decoded package
+    /// has none.
+    pub spilled: Vec<SpilledSection>,
 }
 
 /// A package's city and the structures drawing it uses ([`ScenePackage::into_parts`]).

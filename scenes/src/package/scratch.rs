@@ -3,10 +3,16 @@
 //! an unnamed file, and the written pages are handed to the page cache batch by batch, so the
 //! process holds only the batch being written; the package is later written from the mapping,
 //! a few megabytes at a time. The file disappears with the mapping (nothing is left behind, even
-//! when the process is killed).
+//! when the process is killed). Finished sections are spilled the same way
+//! ([`SpilledSection`]).
 
 use std::io;
 use std::path::Path;
+use std::sync::Arc;
+
+use serde::Serialize;
+
+use super::{PackageError, SectionKind};
 
 /// A writable shared mapping of an unnamed scratch file.
 pub(super) struct ScratchMap {
@@ -102,6 +108,86 @@ impl Releaser {
         } {
             tracing::debug!("madvise(DONTNEED) on a scratch mapping failed: {e}");
         }
+    }
+}
+
+/// A section encoded ahead of the package's write into an unnamed scratch file, so that its
+/// value need not stay in memory while later stages run; the package writer copies its bytes
+/// (the same bytes the value would have been encoded to) a few megabytes at a time.
+#[derive(Clone)]
+pub struct SpilledSection {
+    kind: SectionKind,
+    /// `None` for an empty payload (nothing to map).
+    map: Option<Arc<memmap2::Mmap>>,
+}
+
+impl SpilledSection {
+    /// Encodes `value` as section `kind` into a scratch file in `dir`. `value` must be of the
+    /// section's type (see [`SectionKind`]).
+    pub fn encode<T: Serialize>(
+        kind: SectionKind,
+        value: &T,
+        dir: &Path,
+    ) -> Result<SpilledSection, PackageError> {
+        let io = |e: io::Error| PackageError::Encode {
+            section: kind.name().into(),
+            reason: format!("scratch file in {}: {e}", dir.display()),
+        };
+        let mut file = tempfile::tempfile_in(dir).map_err(io)?;
+        let mut out = io::BufWriter::with_capacity(1 << 16, &mut file);
+        postcard::to_io(value, &mut out).map_err(|e| PackageError::Encode {
+            section: kind.name().into(),
+            reason: e.to_string(),
+        })?;
+        io::Write::flush(&mut out).map_err(io)?;
+        drop(out);
+        let len = file.metadata().map_err(io)?.len();
+        let map = if len == 0 {
+            None
+        } else {
+            Some(Arc::new(super::map::map_read_only(&file).map_err(io)?))
+        };
+        Ok(SpilledSection { kind, map })
+    }
+
+    pub fn kind(&self) -> SectionKind {
+        self.kind
+    }
+
+    /// The encoded payload.
+    pub fn bytes(&self) -> &[u8] {
+        self.map.as_deref().map_or(&[], |m| &m[..])
+    }
+
+    /// Writes the payload to `out` a piece at a time, each piece's pages leaving resident
+    /// memory once written.
+    pub(super) fn write_payload(&self, out: &mut impl io::Write) -> io::Result<()> {
+        let Some(map) = &self.map else {
+            return Ok(());
+        };
+        for piece in map.chunks(WRITE_PIECE) {
+            out.write_all(piece)?;
+            super::map::release_resident(map, piece);
+        }
+        Ok(())
+    }
+}
+
+/// Bytes a spilled payload is written in between releases of its pages.
+const WRITE_PIECE: usize = 32 << 20;
+
+impl PartialEq for SpilledSection {
+    fn eq(&self, other: &SpilledSection) -> bool {
+        self.kind == other.kind && self.bytes() == other.bytes()
+    }
+}
+
+impl std::fmt::Debug for SpilledSection {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SpilledSection")
+            .field("kind", &self.kind)
+            .field("bytes", &self.bytes().len())
+            .finish()
     }
 }
 

@@ -122,6 +122,7 @@ pub(crate) fn small_package() -> ScenePackage {
         },
         timings: vec![],
         gpu_scene,
+        spilled: Vec::new(),
     };
     package.ground_surfaces = GroundSurfaces::of(&package.streets, &package.ground_areas);
     assert!(!package.ground_surfaces.draws.is_empty());
@@ -189,6 +190,44 @@ fn encoding_is_deterministic_and_timings_stay_out_unless_asked() {
     assert_eq!(
         ScenePackage::from_bytes(&with).expect("decode").timings,
         a.timings
+    );
+}
+
+/// A section spilled to a scratch file ahead of the write is written as its value would
+/// have been: the same package bytes, whichever section, an optional one included.
+#[test]
+fn a_spilled_section_is_written_as_its_value() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let whole = small_package();
+    let bytes = whole.to_bytes(WriteOptions::default()).expect("encode");
+    let mut spilled = whole.clone();
+    let streets = SpilledSection::encode(SectionKind::Streets, &spilled.streets, dir.path())
+        .expect("spill the streets");
+    spilled.streets.clear();
+    spilled.spilled.push(streets);
+    assert!(spilled.to_bytes(WriteOptions::default()).expect("encode") == bytes);
+    // An optional section whose field is left empty.
+    let mut with_timings = whole.clone();
+    with_timings.timings = vec![StageTiming {
+        stage: "blocks".into(),
+        seconds: 0.5,
+    }];
+    let options = WriteOptions {
+        include_timings: true,
+    };
+    let expected = with_timings.to_bytes(options).expect("encode");
+    let timings = SpilledSection::encode(SectionKind::Timings, &with_timings.timings, dir.path())
+        .expect("spill the timings");
+    spilled.timings.clear();
+    spilled.spilled.push(timings);
+    assert!(spilled.to_bytes(options).expect("encode") == expected);
+    let path = dir.path().join("spilled.cwk");
+    spilled.write(&path, options).expect("write");
+    assert!(std::fs::read(&path).expect("read") == expected);
+    assert_eq!(
+        std::fs::read_dir(dir.path()).expect("list").count(),
+        1,
+        "the scratch files have no name"
     );
 }
 
