@@ -245,8 +245,16 @@ pub fn preprocess_with(
             match store {
                 SceneStore::Memory => occluders = Some(set),
                 SceneStore::ScratchFileIn(dir) => {
-                    occluder_arrays = Some(OccluderArrays::of(&set));
-                    match SpilledSection::encode(SectionKind::Occluders, &set, dir) {
+                    let spilt = OccluderArrays::spill(&set, dir)
+                        .map_err(|e| PackageError::Encode {
+                            section: "gpu scene (occluders)".into(),
+                            reason: format!("scratch file in {}: {e}", dir.display()),
+                        })
+                        .and_then(|arrays| {
+                            occluder_arrays = Some(arrays);
+                            SpilledSection::encode(SectionKind::Occluders, &set, dir)
+                        });
+                    match spilt {
                         Ok(section) => spilled.push(section),
                         Err(e) => spill_error = Some(e),
                     }
@@ -364,12 +372,14 @@ pub fn preprocess_with(
     let mut gpu_scene = None;
     let mut scratch_error = None;
     run(Stage::GpuScene, &mut || {
-        let arrays = match (occluder_arrays.take(), &occluders) {
-            (Some(arrays), _) => arrays,
+        // The spilled arrays' mappings go with them once the scene is laid out.
+        let spilt = occluder_arrays.take();
+        let in_memory = match (&spilt, &occluders) {
             (None, Some(set)) => OccluderArrays::of(set),
-            (None, None) => OccluderArrays::default(),
+            _ => OccluderArrays::default(),
         };
-        let scene = match GpuScene::build_in(&city, cluster_tree.as_ref(), &arrays, store) {
+        let arrays = spilt.as_ref().map_or(in_memory.view(), |a| a.view());
+        let scene = match GpuScene::build_in(&city, cluster_tree.as_ref(), arrays, store) {
             Ok(scene) => scene,
             Err(e) => {
                 let s = format!("failed: {e}");

@@ -8,13 +8,17 @@
 //! the fly, so both paths draw the same occluders.
 
 use std::collections::HashMap;
+use std::io::Write;
+use std::path::Path;
 
 use bytemuck::{Pod, Zeroable};
 use citywalk_shaders::SceneVertex;
 use glam::Vec3;
 
 use crate::TriangleMesh;
-use crate::occluder::OccluderSet;
+use crate::occluder::{Occluder, OccluderSet};
+use crate::package::scratch::{ScratchBytes, ScratchWriter};
+use rayon::prelude::*;
 
 /// One drawable occluder: indices `first_index .. first_index + index_count` of the index
 /// array, relative to `base_vertex`; the box of its mesh.
@@ -32,6 +36,16 @@ pub struct OccluderRecord {
 }
 
 impl OccluderRecord {
+    /// The record with its ranges moved `vertices` and `indices` on (its chunk placed after
+    /// that many of each).
+    fn moved(&self, vertices: u32, indices: u32) -> OccluderRecord {
+        OccluderRecord {
+            base_vertex: self.base_vertex + vertices,
+            first_index: self.first_index + indices,
+            ..*self
+        }
+    }
+
     pub fn bounds(&self) -> (Vec3, Vec3) {
         (
             Vec3::from_array(self.bounds_min_m),
@@ -61,8 +75,52 @@ impl OccluderArrays {
     /// exactly its corners.
     pub fn of(set: &OccluderSet) -> OccluderArrays {
         let mut out = OccluderArrays::default();
+        for_each_chunk(set, |chunk| {
+            let (vertices, indices) = (out.vertices.len() as u32, out.indices.len() as u32);
+            out.records
+                .extend(chunk.records.iter().map(|r| r.moved(vertices, indices)));
+            out.vertices.extend_from_slice(&chunk.vertices);
+            out.indices.extend_from_slice(&chunk.indices);
+        });
+        out
+    }
+
+    /// [`OccluderArrays::of`] written chunk by chunk to three scratch files in `dir` (each
+    /// array's bytes as the GPU scene holds them), never whole in memory.
+    pub fn spill(set: &OccluderSet, dir: &Path) -> std::io::Result<SpilledOccluderArrays> {
+        let mut vertices = ScratchWriter::new_in(dir)?;
+        let mut indices = ScratchWriter::new_in(dir)?;
+        let mut records = ScratchWriter::new_in(dir)?;
+        let (mut vertex_count, mut index_count) = (0u32, 0u32);
+        let mut written = Ok(());
+        for_each_chunk(set, |chunk| {
+            let moved: Vec<OccluderRecord> = chunk
+                .records
+                .iter()
+                .map(|r| r.moved(vertex_count, index_count))
+                .collect();
+            vertex_count += chunk.vertices.len() as u32;
+            index_count += chunk.indices.len() as u32;
+            if written.is_ok() {
+                written = vertices
+                    .write_all(bytemuck::cast_slice(&chunk.vertices))
+                    .and_then(|()| indices.write_all(bytemuck::cast_slice(&chunk.indices)))
+                    .and_then(|()| records.write_all(bytemuck::cast_slice(&moved)));
+            }
+        });
+        written?;
+        Ok(SpilledOccluderArrays {
+            vertices: vertices.finish()?,
+            indices: indices.finish()?,
+            records: records.finish()?,
+        })
+    }
+
+    /// The drawable occluders of `occluders` alone, numbered from 0 (see [`OccluderArrays::of`]).
+    fn of_occluders(occluders: &[Occluder]) -> OccluderArrays {
+        let mut out = OccluderArrays::default();
         let mut welded = Welder::default();
-        for o in &set.occluders {
+        for o in occluders {
             let Some((lo, hi)) = o.mesh.bounds() else {
                 continue;
             };
@@ -100,6 +158,54 @@ impl OccluderArrays {
             indices: &self.indices,
             records: &self.records,
         }
+    }
+}
+
+/// Occluders laid out by one task.
+const CHUNK: usize = 4096;
+
+/// Lays out the occluders of `set` chunk by chunk on every thread, a batch at a time, and hands
+/// each chunk's arrays (numbered from 0) to `take` in the set's order.
+fn for_each_chunk(set: &OccluderSet, mut take: impl FnMut(OccluderArrays)) {
+    let batch = CHUNK * (4 * rayon::current_num_threads()).max(16);
+    for occluders in set.occluders.chunks(batch) {
+        let chunks: Vec<OccluderArrays> = occluders
+            .par_chunks(CHUNK)
+            .map(OccluderArrays::of_occluders)
+            .collect();
+        chunks.into_iter().for_each(&mut take);
+    }
+}
+
+/// The drawable occluders' arrays in scratch files ([`OccluderArrays::spill`]).
+#[derive(Clone)]
+pub struct SpilledOccluderArrays {
+    vertices: ScratchBytes,
+    indices: ScratchBytes,
+    records: ScratchBytes,
+}
+
+impl SpilledOccluderArrays {
+    /// The arrays, read from the files' mappings (their pages leave resident memory when the
+    /// arrays are dropped).
+    pub fn view(&self) -> OccluderArraysView<'_> {
+        // Each mapping starts at a page boundary and holds whole elements (written as such).
+        OccluderArraysView {
+            vertices: bytemuck::cast_slice(self.vertices.bytes()),
+            indices: bytemuck::cast_slice(self.indices.bytes()),
+            records: bytemuck::cast_slice(self.records.bytes()),
+        }
+    }
+}
+
+impl std::fmt::Debug for SpilledOccluderArrays {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let v = self.view();
+        f.debug_struct("SpilledOccluderArrays")
+            .field("vertices", &v.vertices.len())
+            .field("indices", &v.indices.len())
+            .field("records", &v.records.len())
+            .finish()
     }
 }
 
@@ -216,6 +322,48 @@ mod tests {
             .chunks_exact(3)
             .map(|t| [0, 1, 2].map(|k| positions[t[k] as usize]))
             .collect()
+    }
+
+    /// Laid out chunk by chunk on every thread, in memory or in scratch files, the arrays are
+    /// those of one pass over the whole set; an occluder left out (no whole triangle) shifts
+    /// the later chunks' ranges.
+    #[test]
+    fn chunked_and_spilled_arrays_equal_one_pass() {
+        let set = OccluderSet {
+            occluders: (0..2 * CHUNK + 777)
+                .map(|i| {
+                    let x = (i % 97) as f32 * 20.0;
+                    let corners = [(x, 0.0), (x + 10.0, 0.0), (x + 5.0, 3.0 + (i % 5) as f32)];
+                    let mut mesh = open_facade(&corners[..3 - usize::from(i % 11 == 0)], 0.0, 9.0);
+                    if i % 13 == 0 {
+                        mesh.indices.clear();
+                    }
+                    Occluder {
+                        building: BuildingId(i as u32 / 2),
+                        level: i as u32 % 2,
+                        kind: FacadeKind::Open,
+                        z_m: 9.0,
+                        base_m: 0.0,
+                        footprint: MultiPolygon::new(Vec::new()),
+                        mesh,
+                    }
+                })
+                .collect(),
+            ..OccluderSet::default()
+        };
+        let one_pass = OccluderArrays::of_occluders(&set.occluders);
+        assert!(one_pass.records.len() < set.occluders.len());
+        let chunked = OccluderArrays::of(&set);
+        assert!(chunked == one_pass);
+        let dir = tempfile::tempdir().expect("temp dir");
+        let spilt = OccluderArrays::spill(&set, dir.path()).expect("scratch files");
+        assert!(spilt.view() == one_pass.view());
+        assert!(
+            std::fs::read_dir(dir.path())
+                .expect("list")
+                .next()
+                .is_none()
+        );
     }
 
     #[test]

@@ -71,7 +71,7 @@ impl Header {
     fn of(
         building_count: u32,
         counts: ArrayCounts,
-        occluders: &OccluderArrays,
+        occluders: OccluderArraysView<'_>,
         ground: DrawIndexedIndirectArgs,
         bounds: (Vec3, Vec3),
     ) -> Header {
@@ -233,7 +233,7 @@ impl GpuScene {
         occluders: Option<&OccluderSet>,
     ) -> GpuScene {
         let occluders = occluders.map(OccluderArrays::of).unwrap_or_default();
-        Self::build_in_memory(city, tree, &occluders)
+        Self::build_in_memory(city, tree, occluders.view())
     }
 
     /// [`GpuScene::build`] with the drawable occluders already laid out, where `store` says: in
@@ -244,7 +244,7 @@ impl GpuScene {
     pub fn build_in(
         city: &City,
         tree: Option<&ClusterTree>,
-        occluders: &OccluderArrays,
+        occluders: OccluderArraysView<'_>,
         store: SceneStore<'_>,
     ) -> std::io::Result<GpuScene> {
         let SceneStore::ScratchFileIn(dir) = store else {
@@ -273,7 +273,7 @@ impl GpuScene {
     fn build_in_memory(
         city: &City,
         tree: Option<&ClusterTree>,
-        occluders: &OccluderArrays,
+        occluders: OccluderArraysView<'_>,
     ) -> GpuScene {
         let (header, layout, lod) = Self::count(city, tree, occluders);
         let mut words = vec![0u32; layout.len / 4];
@@ -300,7 +300,7 @@ impl GpuScene {
     fn count(
         city: &City,
         tree: Option<&ClusterTree>,
-        occluders: &OccluderArrays,
+        occluders: OccluderArraysView<'_>,
     ) -> (Header, Layout, LodLayout) {
         let n = city.buildings.len() as u32;
         // Twice over the meshes: once to count the arrays, once to write them where the scene
@@ -334,7 +334,7 @@ impl GpuScene {
         let header = Header::of(
             building_count,
             counts,
-            &occluders,
+            occluders.view(),
             geometry.ground,
             geometry.bounds,
         );
@@ -510,7 +510,7 @@ struct SceneParts<'a> {
     city: &'a City,
     tree: Option<&'a ClusterTree>,
     lod: &'a LodLayout,
-    occluders: &'a OccluderArrays,
+    occluders: OccluderArraysView<'a>,
 }
 
 /// Bytes copied between two calls of a build's `settle` (tens of megabytes resident at most).
@@ -578,9 +578,9 @@ impl SceneParts<'_> {
                 bytemuck::cast_slice_mut::<u8, u32>(parents_out).fill(NO_PARENT);
             }
         }
-        copy(occluder_vertices, bytemuck::cast_slice(&occluders.vertices));
-        copy(occluder_indices, bytemuck::cast_slice(&occluders.indices));
-        copy(occluder_records, bytemuck::cast_slice(&occluders.records));
+        copy(occluder_vertices, bytemuck::cast_slice(occluders.vertices));
+        copy(occluder_indices, bytemuck::cast_slice(occluders.indices));
+        copy(occluder_records, bytemuck::cast_slice(occluders.records));
         settle();
     }
 }

@@ -28,7 +28,7 @@ mod error;
 pub mod format;
 pub mod gpu_scene;
 mod map;
-mod scratch;
+pub(crate) mod scratch;
 pub(crate) use map::map_read_only;
 
 pub use error::PackageError;

@@ -111,14 +111,77 @@ impl Releaser {
     }
 }
 
+/// A scratch file being appended to ([`ScratchBytes`] once finished).
+pub(crate) struct ScratchWriter {
+    out: io::BufWriter<std::fs::File>,
+}
+
+impl ScratchWriter {
+    /// An unnamed file in `dir`.
+    pub(crate) fn new_in(dir: &Path) -> io::Result<ScratchWriter> {
+        Ok(ScratchWriter {
+            out: io::BufWriter::with_capacity(1 << 16, tempfile::tempfile_in(dir)?),
+        })
+    }
+
+    /// The bytes written, mapped read-only.
+    pub(crate) fn finish(self) -> io::Result<ScratchBytes> {
+        let file = self.out.into_inner().map_err(|e| e.into_error())?;
+        let map = if file.metadata()?.len() == 0 {
+            None
+        } else {
+            Some(Arc::new(super::map::map_read_only(&file)?))
+        };
+        Ok(ScratchBytes { map })
+    }
+}
+
+impl io::Write for ScratchWriter {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        self.out.write(buf)
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        self.out.flush()
+    }
+}
+
+/// The bytes of a finished scratch file, mapped (none for an empty file: nothing to map).
+#[derive(Clone)]
+pub(crate) struct ScratchBytes {
+    map: Option<Arc<memmap2::Mmap>>,
+}
+
+impl ScratchBytes {
+    /// The bytes, from a page boundary (so any array type can be viewed in them).
+    pub(crate) fn bytes(&self) -> &[u8] {
+        self.map.as_deref().map_or(&[], |m| &m[..])
+    }
+
+    /// Writes the bytes to `out` a piece at a time, each piece's pages leaving resident memory
+    /// once written.
+    fn write_to(&self, out: &mut impl io::Write) -> io::Result<()> {
+        let Some(map) = &self.map else {
+            return Ok(());
+        };
+        for piece in map.chunks(WRITE_PIECE) {
+            out.write_all(piece)?;
+            super::map::release_resident(map, piece);
+        }
+        Ok(())
+    }
+}
+
+/// Bytes a scratch file is written out in between releases of its pages.
+const WRITE_PIECE: usize = 32 << 20;
+
 /// A section encoded ahead of the package's write into an unnamed scratch file, so that its
 /// value need not stay in memory while later stages run; the package writer copies its bytes
 /// (the same bytes the value would have been encoded to) a few megabytes at a time.
 #[derive(Clone)]
 pub struct SpilledSection {
     kind: SectionKind,
-    /// `None` for an empty payload (nothing to map).
-    map: Option<Arc<memmap2::Mmap>>,
+    payload: ScratchBytes,
 }
 
 impl SpilledSection {
@@ -133,21 +196,15 @@ impl SpilledSection {
             section: kind.name().into(),
             reason: format!("scratch file in {}: {e}", dir.display()),
         };
-        let mut file = tempfile::tempfile_in(dir).map_err(io)?;
-        let mut out = io::BufWriter::with_capacity(1 << 16, &mut file);
+        let mut out = ScratchWriter::new_in(dir).map_err(io)?;
         postcard::to_io(value, &mut out).map_err(|e| PackageError::Encode {
             section: kind.name().into(),
             reason: e.to_string(),
         })?;
-        io::Write::flush(&mut out).map_err(io)?;
-        drop(out);
-        let len = file.metadata().map_err(io)?.len();
-        let map = if len == 0 {
-            None
-        } else {
-            Some(Arc::new(super::map::map_read_only(&file).map_err(io)?))
-        };
-        Ok(SpilledSection { kind, map })
+        Ok(SpilledSection {
+            kind,
+            payload: out.finish().map_err(io)?,
+        })
     }
 
     pub fn kind(&self) -> SectionKind {
@@ -156,25 +213,14 @@ impl SpilledSection {
 
     /// The encoded payload.
     pub fn bytes(&self) -> &[u8] {
-        self.map.as_deref().map_or(&[], |m| &m[..])
+        self.payload.bytes()
     }
 
-    /// Writes the payload to `out` a piece at a time, each piece's pages leaving resident
-    /// memory once written.
+    /// Writes the payload to `out` ([`ScratchBytes`]: its pages released as written).
     pub(super) fn write_payload(&self, out: &mut impl io::Write) -> io::Result<()> {
-        let Some(map) = &self.map else {
-            return Ok(());
-        };
-        for piece in map.chunks(WRITE_PIECE) {
-            out.write_all(piece)?;
-            super::map::release_resident(map, piece);
-        }
-        Ok(())
+        self.payload.write_to(out)
     }
 }
-
-/// Bytes a spilled payload is written in between releases of its pages.
-const WRITE_PIECE: usize = 32 << 20;
 
 impl PartialEq for SpilledSection {
     fn eq(&self, other: &SpilledSection) -> bool {
