@@ -92,10 +92,11 @@ pub struct Args {
     /// them. A city of no more buildings, or without streets that bound blocks, is one tile.
     #[arg(long, default_value_t = DEFAULT_TILE_BUILDINGS as u64, value_parser = clap::value_parser!(u64).range(1..))]
     tile_buildings: u64,
-    /// The folder of the GPU scene's scratch file (default: the package's): the scene is laid
-    /// out there, through a memory map whose written pages leave the process's memory, and the
-    /// package is written from it; the file has no name and goes when the run ends. It needs
-    /// the GPU scene's size free (about 1.2 GB a million buildings).
+    /// The folder of the scratch files (default: the package's): the occluder set, encoded as
+    /// its section once made, the occluders' drawable arrays, and the GPU scene, laid out
+    /// through a memory map whose written pages leave the process's memory; the package is
+    /// written from them. The files have no name and go when the run ends. They need about
+    /// 2.1 GB free at a million buildings.
     #[arg(long, value_name = "DIR")]
     scratch_dir: Option<PathBuf>,
 }
