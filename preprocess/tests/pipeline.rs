@@ -236,7 +236,7 @@ fn the_gpu_scene_built_in_place_equals_the_arrays_copied() {
     let scratch = GpuScene::build_in(
         &city,
         Some(tree),
-        &OccluderArrays::of(occluders),
+        OccluderArrays::of(occluders).view(),
         SceneStore::ScratchFileIn(dir.path()),
     )
     .expect("a scratch file");

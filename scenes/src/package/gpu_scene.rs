@@ -31,6 +31,7 @@ use citywalk_shaders::constants::NO_PARENT;
 use citywalk_shaders::{BuildingRecord, CullPart, DrawIndexedIndirectArgs, SceneVertex};
 use glam::Vec3;
 
+use super::map::RELEASE_PIECE;
 use super::scratch::ScratchMap;
 use crate::City;
 use crate::cluster_tree::ClusterTree;
@@ -435,12 +436,7 @@ impl GpuScene {
     /// (a package's, or the scratch file of [`GpuScene::build_in`]) each piece's pages leave
     /// resident memory once written.
     pub fn write_payload(&self, out: &mut impl std::io::Write) -> std::io::Result<()> {
-        let view = self.view();
-        for piece in self.bytes().chunks(SETTLE_BYTES) {
-            out.write_all(piece)?;
-            view.release_resident(piece);
-        }
-        Ok(())
+        super::map::write_releasing(self.view().pages.0, self.bytes(), out)
     }
 
     /// Whether the arrays are read in place from a memory map (a package's, or a scratch file's).
@@ -513,9 +509,6 @@ struct SceneParts<'a> {
     occluders: OccluderArraysView<'a>,
 }
 
-/// Bytes copied between two calls of a build's `settle` (tens of megabytes resident at most).
-const SETTLE_BYTES: usize = 32 << 20;
-
 impl SceneParts<'_> {
     /// The second pass: writes the payload of `layout` into `bytes` (zeroed, of its length),
     /// calling `settle` whenever what was written may leave resident memory.
@@ -560,7 +553,7 @@ impl SceneParts<'_> {
         );
         let records: &[BuildingRecord] = records;
         let copy = |to: &mut [u8], from: &[u8]| {
-            for (to, from) in to.chunks_mut(SETTLE_BYTES).zip(from.chunks(SETTLE_BYTES)) {
+            for (to, from) in to.chunks_mut(RELEASE_PIECE).zip(from.chunks(RELEASE_PIECE)) {
                 to.copy_from_slice(from);
                 settle();
             }

@@ -127,6 +127,26 @@ pub(crate) fn release_resident(map: &memmap2::Mmap, bytes: &[u8]) {
     }
 }
 
+/// Bytes written out between two releases of their pages ([`write_releasing`]).
+pub(crate) const RELEASE_PIECE: usize = 32 << 20;
+
+/// Writes `bytes` to `out` [`RELEASE_PIECE`] bytes at a time; where they lie in `map`, each
+/// piece's pages leave resident memory once written (a gigabyte section read from a mapping
+/// to be written is never resident whole).
+pub(crate) fn write_releasing(
+    map: Option<&memmap2::Mmap>,
+    bytes: &[u8],
+    out: &mut impl std::io::Write,
+) -> std::io::Result<()> {
+    for piece in bytes.chunks(RELEASE_PIECE) {
+        out.write_all(piece)?;
+        if let Some(map) = map {
+            release_resident(map, piece);
+        }
+    }
+    Ok(())
+}
+
 /// Maps a file read-only.
 #[expect(
     unsafe_code,

@@ -161,19 +161,9 @@ impl ScratchBytes {
     /// Writes the bytes to `out` a piece at a time, each piece's pages leaving resident memory
     /// once written.
     fn write_to(&self, out: &mut impl io::Write) -> io::Result<()> {
-        let Some(map) = &self.map else {
-            return Ok(());
-        };
-        for piece in map.chunks(WRITE_PIECE) {
-            out.write_all(piece)?;
-            super::map::release_resident(map, piece);
-        }
-        Ok(())
+        super::map::write_releasing(self.map.as_deref(), self.bytes(), out)
     }
 }
-
-/// Bytes a scratch file is written out in between releases of its pages.
-const WRITE_PIECE: usize = 32 << 20;
 
 /// A section encoded ahead of the package's write into an unnamed scratch file, so that its
 /// value need not stay in memory while later stages run; the package writer copies its bytes
