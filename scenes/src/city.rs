@@ -419,6 +419,23 @@ pub struct City {
 }
 
 impl City {
+    /// Moves every building's heap data (ids, footprints, parts, tags) into fresh allocations,
+    /// one building after another, each original freed once copied. The loaders make buildings
+    /// on every thread amid their parsing's short-lived allocations, whose pages the survivors
+    /// would keep resident for the whole run: a generated city of a million buildings held
+    /// 1.6 GB after the blocks step as loaded, 0.93 GB compacted (BENCHMARKS.md).
+    pub fn compact_buildings(&mut self) {
+        let buildings = std::mem::take(&mut self.buildings);
+        self.buildings = buildings
+            .into_iter()
+            .map(|loaded| {
+                let fresh = loaded.clone();
+                drop(loaded);
+                fresh
+            })
+            .collect();
+    }
+
     /// Bounds of all buildings `(min, max)`, or `None` for an empty city.
     pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
         self.buildings
@@ -512,6 +529,32 @@ mod tests {
         assert_eq!(class(&[("landuse", "no")]), None);
         assert_eq!(class(&[("leisure", "sports_centre")]), None);
         assert_eq!(class(&[("name", "Hudson")]), None);
+    }
+
+    /// Compacting keeps every building as it was and leaves no spare capacity behind.
+    #[test]
+    fn compacted_buildings_are_the_same_without_slack() {
+        use crate::generate::{GenerateParams, generate_city};
+        let mut city = generate_city(&GenerateParams {
+            buildings: 300,
+            seed: 2,
+            ..GenerateParams::default()
+        })
+        .expect("generate");
+        for b in &mut city.buildings {
+            b.parts.reserve(7);
+            b.footprint.0[0].exterior_mut(|ring| ring.0.reserve(100));
+        }
+        let before = city.buildings.clone();
+        city.compact_buildings();
+        assert_eq!(city.buildings, before);
+        for b in &city.buildings {
+            assert_eq!(b.parts.capacity(), b.parts.len());
+            assert_eq!(
+                b.footprint.0[0].exterior().0.capacity(),
+                b.footprint.0[0].exterior().0.len()
+            );
+        }
     }
 
     #[test]

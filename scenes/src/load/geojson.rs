@@ -88,7 +88,8 @@ fn read(path: &Path, options: &LoadOptions) -> Result<RawCity, LoadError> {
     let top = match crate::package::map_read_only(&file) {
         Ok(map) => {
             let bytes = map.strip_prefix(super::UTF8_BOM).unwrap_or(&map);
-            match parallel::parse(bytes, options) {
+            let parsed = |piece: &[u8]| crate::package::release_resident(&map, piece);
+            match parallel::parse(bytes, options, &parsed) {
                 Some((top, parsed)) => {
                     sink = parsed;
                     top

@@ -241,6 +241,7 @@ pub fn load_cities(paths: &[PathBuf], options: &LoadOptions) -> Result<City, Loa
         mesh_building::rest_on_ground(&mut city);
     }
     city.renumber();
+    city.compact_buildings();
     Ok(city)
 }
 

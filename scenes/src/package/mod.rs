@@ -29,7 +29,7 @@ pub mod format;
 pub mod gpu_scene;
 mod map;
 pub(crate) mod scratch;
-pub(crate) use map::map_read_only;
+pub(crate) use map::{map_read_only, release_resident};
 
 pub use error::PackageError;
 pub use format::{BuildingDetails, Decode, FORMAT_VERSION, MAGIC, SectionKind};
