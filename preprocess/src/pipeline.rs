@@ -142,7 +142,7 @@ pub enum PreprocessError {
     Cluster(#[from] ClusterError),
     #[error("package: {0}")]
     Package(#[from] PackageError),
-    #[error("the GPU scene's scratch file: {0}")]
+    #[error("a scratch file: {0}")]
     Scratch(std::io::Error),
 }
 
@@ -246,13 +246,13 @@ pub fn preprocess_with(
                 SceneStore::Memory => occluders = Some(set),
                 SceneStore::ScratchFileIn(dir) => {
                     let spilt = OccluderArrays::spill(&set, dir)
-                        .map_err(|e| PackageError::Encode {
-                            section: "gpu scene (occluders)".into(),
-                            reason: format!("scratch file in {}: {e}", dir.display()),
+                        .map_err(|e| {
+                            let named = format!("{}: {e}", dir.display());
+                            PreprocessError::Scratch(std::io::Error::new(e.kind(), named))
                         })
                         .and_then(|arrays| {
                             occluder_arrays = Some(arrays);
-                            SpilledSection::encode(SectionKind::Occluders, &set, dir)
+                            Ok(SpilledSection::encode(SectionKind::Occluders, &set, dir)?)
                         });
                     match spilt {
                         Ok(section) => spilled.push(section),
@@ -330,7 +330,7 @@ pub fn preprocess_with(
             .push("cluster tree: the city has no buildings".into());
     }
     if let Some(e) = spill_error {
-        return Err(e.into());
+        return Err(e);
     }
     if let Some(e) = cluster_error {
         return Err(e.into());

@@ -14,11 +14,12 @@ use std::path::Path;
 use bytemuck::{Pod, Zeroable};
 use citywalk_shaders::SceneVertex;
 use glam::Vec3;
+use rayon::prelude::*;
 
 use crate::TriangleMesh;
 use crate::occluder::{Occluder, OccluderSet};
 use crate::package::scratch::{ScratchBytes, ScratchWriter};
-use rayon::prelude::*;
+use crate::scene_geometry::in_place::{CHUNK, chunks_per_batch};
 
 /// One drawable occluder: indices `first_index .. first_index + index_count` of the index
 /// array, relative to `base_vertex`; the box of its mesh.
@@ -161,13 +162,10 @@ impl OccluderArrays {
     }
 }
 
-/// Occluders laid out by one task.
-const CHUNK: usize = 4096;
-
 /// Lays out the occluders of `set` chunk by chunk on every thread, a batch at a time, and hands
 /// each chunk's arrays (numbered from 0) to `take` in the set's order.
 fn for_each_chunk(set: &OccluderSet, mut take: impl FnMut(OccluderArrays)) {
-    let batch = CHUNK * (4 * rayon::current_num_threads()).max(16);
+    let batch = CHUNK * chunks_per_batch();
     for occluders in set.occluders.chunks(batch) {
         let chunks: Vec<OccluderArrays> = occluders
             .par_chunks(CHUNK)
@@ -317,6 +315,19 @@ mod tests {
         mesh
     }
 
+    /// An open-facade occluder of `building` at Z-level `level`, its walls `mesh`.
+    fn occluder(building: u32, level: u32, z_m: f32, mesh: TriangleMesh) -> Occluder {
+        Occluder {
+            building: BuildingId(building),
+            level,
+            kind: FacadeKind::Open,
+            z_m,
+            base_m: 0.0,
+            footprint: MultiPolygon::new(Vec::new()),
+            mesh,
+        }
+    }
+
     fn corners_of(positions: &[Vec3], indices: &[u32]) -> Vec<[Vec3; 3]> {
         indices
             .chunks_exact(3)
@@ -338,15 +349,7 @@ mod tests {
                     if i % 13 == 0 {
                         mesh.indices.clear();
                     }
-                    Occluder {
-                        building: BuildingId(i as u32 / 2),
-                        level: i as u32 % 2,
-                        kind: FacadeKind::Open,
-                        z_m: 9.0,
-                        base_m: 0.0,
-                        footprint: MultiPolygon::new(Vec::new()),
-                        mesh,
-                    }
+                    occluder(i as u32 / 2, i as u32 % 2, 9.0, mesh)
                 })
                 .collect(),
             ..OccluderSet::default()
@@ -376,15 +379,7 @@ mod tests {
             occluders: [open_facade(&square, 0.0, 12.0), broken]
                 .into_iter()
                 .enumerate()
-                .map(|(i, mesh)| Occluder {
-                    building: BuildingId(i as u32 + 3),
-                    level: 0,
-                    kind: FacadeKind::Open,
-                    z_m: 12.0,
-                    base_m: 0.0,
-                    footprint: MultiPolygon::new(Vec::new()),
-                    mesh,
-                })
+                .map(|(i, mesh)| occluder(i as u32 + 3, 0, 12.0, mesh))
                 .collect(),
             ..OccluderSet::default()
         };

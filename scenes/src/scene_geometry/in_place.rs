@@ -16,8 +16,15 @@ use super::{
 use crate::City;
 use crate::cluster_tree::ClusterTree;
 
-/// Draw ids laid out by one task.
+/// Draw ids (or occluders) laid out by one task.
 pub const CHUNK: usize = 4096;
+
+/// Chunks laid out between two hand-overs of what was written (to a scratch file, to the
+/// caller): enough to keep every thread busy, few enough that a batch of a million buildings'
+/// scene is tens of megabytes.
+pub(crate) fn chunks_per_batch() -> usize {
+    (4 * rayon::current_num_threads()).max(16)
+}
 
 /// What the first pass found: the arrays' lengths (the ground's included), the scene's bounds,
 /// its ground draw, and each chunk's draw ids and lengths.
@@ -103,10 +110,7 @@ pub fn write_lod_layout(
         .iter()
         .map(|(range, counts)| (range.clone(), rest.split_front(*counts)))
         .collect();
-    // Enough chunks a batch to keep every thread busy, few enough that a batch of a million
-    // buildings' scene is tens of megabytes.
-    let batch = (4 * rayon::current_num_threads()).max(16);
-    for writers in writers.chunks_mut(batch) {
+    for writers in writers.chunks_mut(chunks_per_batch()) {
         writers.par_iter_mut().for_each(|(range, writer)| {
             lay_out_range(city, tree, range.clone(), writer);
         });
