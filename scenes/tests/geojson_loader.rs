@@ -133,12 +133,15 @@ fn porto_geojson_agrees_with_the_pbf() {
 
 #[test]
 fn parts_link_by_part_of_or_by_containment() {
-    // Building A (feature id "a") and B (id property "b"), side by side. Part p1 lies inside A
-    // but names B with part_of: the explicit link wins. Part p2 has no link and lies in A.
+    // Building A (feature id "a") and B (feature id "B", id property "b"), side by side. Part
+    // p1 lies inside A but names B by its id property with part_of: the explicit link wins
+    // (B's source id is its feature id, the link its other name). Part p2 has no link and
+    // lies in A.
     let a = json!({"type": "Feature", "id": "a",
         "geometry": {"type": "Polygon", "coordinates": [ring(0.0, 0.0, 0.0002)]},
         "properties": {"height": 20, "min_height": 0}});
-    let b = polygon(0.001, 0.0, 0.0002, json!({"id": "b", "height_m": 12.5}));
+    let mut b = polygon(0.001, 0.0, 0.0002, json!({"id": "b", "height_m": 12.5}));
+    b["id"] = json!("B");
     let p1 = polygon(
         0.00005,
         0.00005,
@@ -165,7 +168,7 @@ fn parts_link_by_part_of_or_by_containment() {
     );
     city.check_invariants().unwrap();
     let a = city.buildings.iter().find(|x| x.source_id == "a").unwrap();
-    let b = city.buildings.iter().find(|x| x.source_id == "b").unwrap();
+    let b = city.buildings.iter().find(|x| x.source_id == "B").unwrap();
     assert_eq!(a.parts.len(), 1);
     assert_eq!(a.parts[0].source_id, "feature/3");
     assert_eq!((a.parts[0].base_m, a.parts[0].top_m), (3.0, 15.0));

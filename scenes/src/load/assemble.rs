@@ -63,9 +63,12 @@ pub(crate) struct RawArea {
     pub kind: AreaKind,
     /// The geometry, or why it could not be read (missing nodes, unassembled rings).
     pub polygons: Result<RawPolygons, RejectReason>,
+    /// Its tags once its heights are read from them; a part's may be left empty (the model's
+    /// parts carry none).
     pub tags: Tags,
     pub heights: TaggedHeights,
-    /// Further names by which a part may link to this building (`part_of`).
+    /// Further names by which a part may link to this building (`part_of`), besides its
+    /// source id.
     pub link_ids: Vec<String>,
     /// The building this part names explicitly, if any.
     pub part_of: Option<String>,
@@ -183,8 +186,15 @@ pub(crate) fn assemble(
 
     // Validate every area; buildings and ground areas that fail are rejected, parts that fail
     // are dropped.
-    let mut buildings: Vec<Area2> = Vec::new();
-    let mut parts: Vec<Area2> = Vec::new();
+    // Sized once: grown by doubling, a million buildings' areas would be copied into buffers
+    // of up to twice their size while the raw areas are still held.
+    let building_count = areas
+        .iter()
+        .filter(|a| a.kind == AreaKind::Building)
+        .count();
+    let part_count = areas.iter().filter(|a| a.kind == AreaKind::Part).count();
+    let mut buildings: Vec<Area2> = Vec::with_capacity(building_count);
+    let mut parts: Vec<Area2> = Vec::with_capacity(part_count);
     let mut ground_areas: Vec<GroundArea> = Vec::new();
     let mut link: HashMap<String, usize> = HashMap::new();
     // Projecting and cleaning an area's polygons needs no other area and is most of this
@@ -198,7 +208,7 @@ pub(crate) fn assemble(
                 .and_then(|p| clean_polygons(p, &project)),
         })
         .collect();
-    for (area, cleaned) in areas.into_iter().zip(cleaned) {
+    for (mut area, cleaned) in areas.into_iter().zip(cleaned) {
         if let AreaKind::Ground(class) = area.kind {
             report.ground_areas_found += 1;
             match cleaned {
@@ -237,7 +247,7 @@ pub(crate) fn assemble(
                 message: format!("unparseable height value {bad} ignored"),
             });
         }
-        let ids = area.link_ids.clone();
+        let ids = std::mem::take(&mut area.link_ids);
         let validated = validate_area(area, cleaned, options);
         match validated {
             Ok((valid, repairs)) => {

@@ -657,7 +657,20 @@ impl<'a> Sink<'a> {
             _ => AreaKind::Building,
         };
         let part_of = properties.get("part_of").and_then(value_string);
-        let link_ids = feature_id.into_iter().chain(id_property).collect();
+        // Parts are never linked to and carry no tags in the model: a million-building city
+        // has one and a half million parts, whose tags and ids would be held through the
+        // load for nothing. A building is linked to by its source id already.
+        let (tags, link_ids) = match kind {
+            AreaKind::Part => (Tags::default(), Vec::new()),
+            _ => (
+                tags,
+                feature_id
+                    .into_iter()
+                    .chain(id_property)
+                    .filter(|id| *id != source_id)
+                    .collect(),
+            ),
+        };
         self.areas.push(RawArea {
             source_id,
             kind,

@@ -121,8 +121,8 @@ pub struct ResolvedHeights {
 /// Heights read from tags: `None` fields were not tagged (or not parseable).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct TaggedHeights {
-    /// Top from a height tag (metres), and the key it came from.
-    pub top_m: Option<(f64, String)>,
+    /// Top from a height tag (metres).
+    pub top_m: Option<f64>,
     /// Top from levels (metres).
     pub top_from_levels_m: Option<f64>,
     /// Base from `min_height` or `building:min_level` (metres).
@@ -144,7 +144,7 @@ impl TaggedHeights {
             for key in list {
                 if let Some(value) = get(key) {
                     match parse(value) {
-                        Some(v) => return Some((v, (*key).to_string())),
+                        Some(v) => return Some(v),
                         None => out.unparsed.push(format!("{key}={value}")),
                     }
                 }
@@ -152,15 +152,15 @@ impl TaggedHeights {
             None
         };
         out.top_m = first(&keys.top, parse_length_m, &mut out);
-        let levels = first(&keys.levels, parse_levels, &mut out).map(|(v, _)| v);
-        let roof_height = first(&keys.roof_height, parse_length_m, &mut out).map(|(v, _)| v);
-        let roof_levels = first(&keys.roof_levels, parse_levels, &mut out).map(|(v, _)| v);
+        let levels = first(&keys.levels, parse_levels, &mut out);
+        let roof_height = first(&keys.roof_height, parse_length_m, &mut out);
+        let roof_levels = first(&keys.roof_levels, parse_levels, &mut out);
         if let Some(levels) = levels {
             let roof = roof_height.unwrap_or(roof_levels.unwrap_or(0.0) * level_m);
             out.top_from_levels_m = Some(levels * level_m + roof);
         }
-        let base = first(&keys.base, parse_length_m, &mut out).map(|(v, _)| v);
-        let min_level = first(&keys.min_levels, parse_levels, &mut out).map(|(v, _)| v);
+        let base = first(&keys.base, parse_length_m, &mut out);
+        let min_level = first(&keys.min_levels, parse_levels, &mut out);
         out.base_m = base.or(min_level.map(|l| l * level_m));
         out
     }
@@ -175,7 +175,7 @@ impl TaggedHeights {
     pub fn resolve(&self, options: &LoadOptions) -> ResolvedHeights {
         let base_m = self.base_m.unwrap_or(0.0) as f32;
         let (top_m, source) = match (&self.top_m, self.top_from_levels_m) {
-            (Some((top, _)), _) => (*top as f32, HeightSource::Tagged),
+            (Some(top), _) => (*top as f32, HeightSource::Tagged),
             (None, Some(top)) => (top as f32, HeightSource::Levels),
             (None, None) => {
                 let top = options
