@@ -13,16 +13,17 @@
 //! ([`crate::tile_jobs`]) hand the pipeline their occluders and tiles' trees instead
 //! ([`preprocess_with`]).
 
+use std::path::Path;
 use std::time::Instant;
 
 use citywalk_scenes::blocks::{UrbanBlock, UrbanBlocks};
 use citywalk_scenes::cluster_tree::{ClusterParams, ClusterTree};
 use citywalk_scenes::ground_surfaces::GroundSurfaces;
-use citywalk_scenes::occluder::OccluderSet;
-use citywalk_scenes::occluder_draws::OccluderArrays;
+use citywalk_scenes::occluder::{Occluder, OccluderSet};
+use citywalk_scenes::occluder_draws::{OccluderArrays, OccluderArraysSpill, SpilledOccluderArrays};
 use citywalk_scenes::package::{
-    GpuScene, InputFile, PackageError, Provenance, ScenePackage, SceneStore, SectionKind,
-    SpilledSection, StageTiming, sha256_file,
+    GpuScene, InputFile, PackageError, Provenance, ScenePackage, SceneStore,
+    SpilledOccluderSection, SpilledSection, StageTiming, sha256_file,
 };
 use citywalk_scenes::quadtree::BQuadtree;
 use citywalk_scenes::{BuildingId, City, LoadOptions};
@@ -31,7 +32,7 @@ use serde::{Deserialize, Serialize};
 use crate::blocks::{BlockParams, BlockReport, build_blocks_with};
 use crate::cluster::tiled::tree_above_tiles;
 use crate::cluster::{ClusterError, build_cluster_tree, build_cluster_tree_tiled};
-use crate::occluders::{OccluderParams, build_occluders};
+use crate::occluders::{OccluderParams, build_occluders, build_occluders_into};
 use crate::quadtree::build_quadtree;
 use crate::tiles::plan_tiles;
 
@@ -226,9 +227,9 @@ pub fn preprocess_with(
         blocks_summary(&blocks, &block_report)
     });
 
-    // The occluder set stays in memory, or, preprocessing into a scratch folder, is encoded
-    // there as its section at once and only its drawable arrays (the GPU scene's) are kept:
-    // the set is twice their size, and the cluster tree's stage, the run's peak, comes next.
+    // The occluder set stays in memory, or, preprocessing into a scratch folder, is spilled
+    // there as it is built (its section and its drawable arrays, the GPU scene's): whole, the
+    // set is a gigabyte at a million buildings.
     let mut occluders = None;
     let mut occluder_arrays = None;
     let mut occluder_counts = None;
@@ -236,31 +237,35 @@ pub fn preprocess_with(
     let mut spill_error = None;
     if params.build_occluders {
         run(Stage::Occluders, &mut || {
-            let set = tile_occluders
-                .take()
-                .unwrap_or_else(|| build_occluders(&city, &params.occluders));
-            let counts = (set.occluders.len(), set.triangle_count());
-            occluder_counts = Some(counts);
-            let s = format!("{} occluders, {} triangles", counts.0, counts.1);
-            match store {
-                SceneStore::Memory => occluders = Some(set),
+            let given = tile_occluders.take();
+            let built = match store {
+                SceneStore::Memory => {
+                    let set = given.unwrap_or_else(|| build_occluders(&city, &params.occluders));
+                    let counts = (set.occluders.len(), set.triangle_count());
+                    occluders = Some(set);
+                    Ok(counts)
+                }
                 SceneStore::ScratchFileIn(dir) => {
-                    let spilt = OccluderArrays::spill(&set, dir)
-                        .map_err(|e| {
-                            let named = format!("{}: {e}", dir.display());
-                            PreprocessError::Scratch(std::io::Error::new(e.kind(), named))
-                        })
-                        .and_then(|arrays| {
+                    spill_occluders(&city, &params.occluders, given, dir).map(
+                        |(arrays, section, counts)| {
                             occluder_arrays = Some(arrays);
-                            Ok(SpilledSection::encode(SectionKind::Occluders, &set, dir)?)
-                        });
-                    match spilt {
-                        Ok(section) => spilled.push(section),
-                        Err(e) => spill_error = Some(e),
-                    }
+                            spilled.push(section);
+                            counts
+                        },
+                    )
+                }
+            };
+            match built {
+                Ok(counts) => {
+                    occluder_counts = Some(counts);
+                    format!("{} occluders, {} triangles", counts.0, counts.1)
+                }
+                Err(e) => {
+                    let s = format!("failed: {e}");
+                    spill_error = Some(e);
+                    s
                 }
             }
-            s
         });
     } else {
         provenance
@@ -479,6 +484,44 @@ pub fn preprocess_with(
         gpu_scene,
         spilled,
     })
+}
+
+/// The occluder set spilled to scratch files in `dir` as it is built (or, from tile jobs, as
+/// `given`): its drawable arrays and its section, with its numbers of occluders and triangles.
+fn spill_occluders(
+    city: &City,
+    params: &OccluderParams,
+    given: Option<OccluderSet>,
+    dir: &Path,
+) -> Result<(SpilledOccluderArrays, SpilledSection, (usize, usize)), PreprocessError> {
+    let scratch = |e: std::io::Error| {
+        let named = format!("{}: {e}", dir.display());
+        PreprocessError::Scratch(std::io::Error::new(e.kind(), named))
+    };
+    let mut arrays = OccluderArraysSpill::new_in(dir).map_err(scratch)?;
+    let mut section = SpilledOccluderSection::new_in(dir)?;
+    let (mut count, mut triangles) = (0, 0);
+    let mut take = |occluders: &[Occluder]| -> Result<(), PreprocessError> {
+        count += occluders.len();
+        triangles += occluders
+            .iter()
+            .map(|o| o.mesh.triangle_count())
+            .sum::<usize>();
+        arrays.push(occluders).map_err(scratch)?;
+        Ok(section.push(occluders)?)
+    };
+    let per_building = match given {
+        Some(set) => {
+            take(&set.occluders)?;
+            set.per_building
+        }
+        None => build_occluders_into(city, params, &mut take)?,
+    };
+    Ok((
+        arrays.finish().map_err(scratch)?,
+        section.finish(&per_building)?,
+        (count, triangles),
+    ))
 }
 
 fn blocks_summary(blocks: &UrbanBlocks, report: &BlockReport) -> String {

@@ -18,6 +18,7 @@ use rayon::prelude::*;
 
 use crate::TriangleMesh;
 use crate::occluder::{Occluder, OccluderSet};
+use crate::package::MappedPages;
 use crate::package::scratch::{ScratchBytes, ScratchWriter};
 use crate::scene_geometry::in_place::{CHUNK, chunks_per_batch};
 
@@ -76,7 +77,7 @@ impl OccluderArrays {
     /// exactly its corners.
     pub fn of(set: &OccluderSet) -> OccluderArrays {
         let mut out = OccluderArrays::default();
-        for_each_chunk(set, |chunk| {
+        for_each_chunk(&set.occluders, |chunk| {
             let (vertices, indices) = (out.vertices.len() as u32, out.indices.len() as u32);
             out.records
                 .extend(chunk.records.iter().map(|r| r.moved(vertices, indices)));
@@ -89,34 +90,10 @@ impl OccluderArrays {
     /// [`OccluderArrays::of`] written chunk by chunk to three scratch files in `dir` (each
     /// array's bytes as the GPU scene holds them), never whole in memory.
     pub fn spill(set: &OccluderSet, dir: &Path) -> std::io::Result<SpilledOccluderArrays> {
-        let mut vertices = ScratchWriter::new_in(dir)?;
-        let mut indices = ScratchWriter::new_in(dir)?;
-        let mut records = ScratchWriter::new_in(dir)?;
-        let (mut vertex_count, mut index_count) = (0u32, 0u32);
-        let mut written = Ok(());
-        for_each_chunk(set, |chunk| {
-            let moved: Vec<OccluderRecord> = chunk
-                .records
-                .iter()
-                .map(|r| r.moved(vertex_count, index_count))
-                .collect();
-            vertex_count += chunk.vertices.len() as u32;
-            index_count += chunk.indices.len() as u32;
-            if written.is_ok() {
-                written = vertices
-                    .write_all(bytemuck::cast_slice(&chunk.vertices))
-                    .and_then(|()| indices.write_all(bytemuck::cast_slice(&chunk.indices)))
-                    .and_then(|()| records.write_all(bytemuck::cast_slice(&moved)));
-            }
-        });
-        written?;
-        Ok(SpilledOccluderArrays {
-            vertices: vertices.finish()?,
-            indices: indices.finish()?,
-            records: records.finish()?,
-        })
+        let mut spill = OccluderArraysSpill::new_in(dir)?;
+        spill.push(&set.occluders)?;
+        spill.finish()
     }
-
     /// The drawable occluders of `occluders` alone, numbered from 0 (see [`OccluderArrays::of`]).
     fn of_occluders(occluders: &[Occluder]) -> OccluderArrays {
         let mut out = OccluderArrays::default();
@@ -158,20 +135,77 @@ impl OccluderArrays {
             vertices: &self.vertices,
             indices: &self.indices,
             records: &self.records,
+            pages: MappedPages::default(),
         }
     }
 }
 
 /// Lays out the occluders of `set` chunk by chunk on every thread, a batch at a time, and hands
 /// each chunk's arrays (numbered from 0) to `take` in the set's order.
-fn for_each_chunk(set: &OccluderSet, mut take: impl FnMut(OccluderArrays)) {
+fn for_each_chunk(occluders: &[Occluder], mut take: impl FnMut(OccluderArrays)) {
     let batch = CHUNK * chunks_per_batch();
-    for occluders in set.occluders.chunks(batch) {
+    for occluders in occluders.chunks(batch) {
         let chunks: Vec<OccluderArrays> = occluders
             .par_chunks(CHUNK)
             .map(OccluderArrays::of_occluders)
             .collect();
         chunks.into_iter().for_each(&mut take);
+    }
+}
+
+/// [`OccluderArrays`] written to three scratch files as a set's occluders come, in order and
+/// a piece at a time ([`OccluderArraysSpill::push`]): the arrays of the whole set, which is
+/// never whole in memory when its occluders are spilled as they are built.
+#[derive(Debug)]
+pub struct OccluderArraysSpill {
+    vertices: ScratchWriter,
+    indices: ScratchWriter,
+    records: ScratchWriter,
+    vertex_count: u32,
+    index_count: u32,
+}
+
+impl OccluderArraysSpill {
+    /// Three unnamed files in `dir`.
+    pub fn new_in(dir: &Path) -> std::io::Result<OccluderArraysSpill> {
+        Ok(OccluderArraysSpill {
+            vertices: ScratchWriter::new_in(dir)?,
+            indices: ScratchWriter::new_in(dir)?,
+            records: ScratchWriter::new_in(dir)?,
+            vertex_count: 0,
+            index_count: 0,
+        })
+    }
+
+    /// Appends the drawable occluders of `occluders`, the set's next ones.
+    pub fn push(&mut self, occluders: &[Occluder]) -> std::io::Result<()> {
+        let mut written = Ok(());
+        for_each_chunk(occluders, |chunk| {
+            let moved: Vec<OccluderRecord> = chunk
+                .records
+                .iter()
+                .map(|r| r.moved(self.vertex_count, self.index_count))
+                .collect();
+            self.vertex_count += chunk.vertices.len() as u32;
+            self.index_count += chunk.indices.len() as u32;
+            if written.is_ok() {
+                written = self
+                    .vertices
+                    .write_all(bytemuck::cast_slice(&chunk.vertices))
+                    .and_then(|()| self.indices.write_all(bytemuck::cast_slice(&chunk.indices)))
+                    .and_then(|()| self.records.write_all(bytemuck::cast_slice(&moved)));
+            }
+        });
+        written
+    }
+
+    /// The arrays written, mapped.
+    pub fn finish(self) -> std::io::Result<SpilledOccluderArrays> {
+        Ok(SpilledOccluderArrays {
+            vertices: self.vertices.finish()?,
+            indices: self.indices.finish()?,
+            records: self.records.finish()?,
+        })
     }
 }
 
@@ -192,6 +226,7 @@ impl SpilledOccluderArrays {
             vertices: bytemuck::cast_slice(self.vertices.bytes()),
             indices: bytemuck::cast_slice(self.indices.bytes()),
             records: bytemuck::cast_slice(self.records.bytes()),
+            pages: MappedPages::of([self.vertices.map(), self.indices.map(), self.records.map()]),
         }
     }
 }
@@ -247,9 +282,18 @@ pub struct OccluderArraysView<'a> {
     pub vertices: &'a [SceneVertex],
     pub indices: &'a [u32],
     pub records: &'a [OccluderRecord],
+    /// The mappings the arrays lie in, if any ([`OccluderArraysView::release_resident`]).
+    pub(crate) pages: MappedPages<'a>,
 }
 
 impl OccluderArraysView<'_> {
+    /// Tells the system that `bytes` (part of one of the arrays, already copied) will not be
+    /// read again soon: where the arrays lie in a mapping (a package's, or scratch files'),
+    /// their pages leave the process's resident memory; arrays in memory are left as they are.
+    pub fn release_resident(&self, bytes: &[u8]) {
+        self.pages.release_resident(bytes);
+    }
+
     /// Checks that every record's ranges lie in the arrays, its indices in its vertex range,
     /// its vertices carry its building, below `building_count`, and its box is finite and
     /// holds its vertices. O(indices): run by the package's `--check`, not on every open.
@@ -295,7 +339,8 @@ mod tests {
 
     use super::*;
     use crate::BuildingId;
-    use crate::occluder::{FacadeKind, Occluder};
+    use crate::occluder::{FacadeKind, Occluder, OccluderOutcome};
+    use crate::package::{SectionKind, SpilledOccluderSection, SpilledSection};
 
     /// An open facade as the occluder stage builds it: one quad of its own per footprint edge.
     fn open_facade(corners: &[(f32, f32)], base_m: f32, top_m: f32) -> TriangleMesh {
@@ -361,12 +406,71 @@ mod tests {
         let dir = tempfile::tempdir().expect("temp dir");
         let spilt = OccluderArrays::spill(&set, dir.path()).expect("scratch files");
         assert!(spilt.view() == one_pass.view());
+        // Pushed in uneven pieces as they are built, an empty one among them.
+        let mut pieces = OccluderArraysSpill::new_in(dir.path()).expect("scratch files");
+        for piece in pieces_of(&set.occluders) {
+            pieces.push(piece).expect("written");
+        }
+        let pushed = pieces.finish().expect("mapped");
+        assert!(pushed.view() == one_pass.view());
+        drop((spilt, pushed));
         assert!(
             std::fs::read_dir(dir.path())
                 .expect("list")
                 .next()
                 .is_none()
         );
+    }
+
+    /// `occluders` cut into pieces of uneven sizes (one empty).
+    fn pieces_of(occluders: &[Occluder]) -> Vec<&[Occluder]> {
+        let cuts = [0, 0, 1, CHUNK + 5, occluders.len() - 3, occluders.len()];
+        cuts.windows(2).map(|w| &occluders[w[0]..w[1]]).collect()
+    }
+
+    #[test]
+    fn the_section_spilled_in_pieces_is_the_sets_encoding() {
+        let occluders: Vec<Occluder> = (0..CHUNK + 40)
+            .map(|i| {
+                let x = (i % 31) as f32 * 15.0;
+                let corners = [(x, 0.0), (x + 10.0, 0.0), (x + 5.0, 4.0)];
+                occluder(
+                    i as u32 / 2,
+                    i as u32 % 2,
+                    7.5,
+                    open_facade(&corners, 0.0, 7.5),
+                )
+            })
+            .collect();
+        let buildings = occluders.len() as u32 / 2;
+        let per_building = (0..buildings + 1)
+            .map(|b| OccluderOutcome {
+                building: BuildingId(b),
+                occluder_range: if b < buildings {
+                    2 * b..2 * b + 2
+                } else {
+                    2 * b..2 * b
+                },
+                source_polygons: 3 + b % 4,
+                occluder_polygons: 2,
+                reason_if_none: (b == buildings).then(|| "no level".to_string()),
+            })
+            .collect();
+        let set = OccluderSet {
+            occluders,
+            per_building,
+        };
+        let dir = tempfile::tempdir().expect("temp dir");
+        let whole =
+            SpilledSection::encode(SectionKind::Occluders, &set, dir.path()).expect("encoded");
+        let mut pieces = SpilledOccluderSection::new_in(dir.path()).expect("scratch file");
+        for piece in pieces_of(&set.occluders) {
+            pieces.push(piece).expect("encoded");
+        }
+        let pushed = pieces.finish(&set.per_building).expect("encoded");
+        assert_eq!(pushed, whole);
+        let decoded: OccluderSet = postcard::from_bytes(pushed.bytes()).expect("decoded");
+        assert_eq!(decoded, set);
     }
 
     #[test]

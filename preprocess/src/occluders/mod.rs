@@ -206,6 +206,51 @@ pub fn build_occluders_of(buildings: &[&Building], params: &OccluderParams) -> O
     set
 }
 
+/// [`build_occluders`] handing the occluders to `take` as they are built, a chunk at a time in
+/// building order, so that the set is never whole in memory (a gigabyte at a million
+/// buildings, spilled to scratch files as it comes); returns the outcomes, whose occluder
+/// ranges are those of the whole set. Stops at the first error of `take`.
+pub fn build_occluders_into<E>(
+    city: &City,
+    params: &OccluderParams,
+    take: &mut dyn FnMut(&[Occluder]) -> Result<(), E>,
+) -> Result<Vec<OccluderOutcome>, E> {
+    build_occluders_taking(city, params, OCCLUDERS_PER_TAKE, take)
+}
+
+/// [`build_occluders_into`], handing on the occluders once at least `per_take` are built.
+fn build_occluders_taking<E>(
+    city: &City,
+    params: &OccluderParams,
+    per_take: usize,
+    take: &mut dyn FnMut(&[Occluder]) -> Result<(), E>,
+) -> Result<Vec<OccluderOutcome>, E> {
+    let mut set = OccluderSet::default();
+    let mut taken = 0u32;
+    for chunk in city.buildings.chunks(BUILDINGS_PER_CHUNK) {
+        let built: Vec<BuildingOccluders> = chunk
+            .par_iter()
+            .map(|building| occluders_or_reason(building, params))
+            .collect();
+        let first_outcome = set.per_building.len();
+        for (building, built) in chunk.iter().zip(built) {
+            append_building(&mut set, building, built);
+        }
+        for outcome in &mut set.per_building[first_outcome..] {
+            // Numbered in the whole set.
+            let range = &mut outcome.occluder_range;
+            *range = range.start + taken..range.end + taken;
+        }
+        if set.occluders.len() >= per_take {
+            take(&set.occluders)?;
+            taken += set.occluders.len() as u32;
+            set.occluders.clear();
+        }
+    }
+    take(&set.occluders)?;
+    Ok(set.per_building)
+}
+
 /// The occluder set of a city of `buildings` buildings from the sets of its tiles
 /// ([`build_occluders_of`]), outcomes and occluders in building order; `None` when a building
 /// is in no set or in two.
@@ -250,6 +295,9 @@ pub fn merge_occluder_sets(buildings: usize, sets: Vec<OccluderSet>) -> Option<O
 
 /// Buildings built in parallel before their occluders are appended to the set.
 const BUILDINGS_PER_CHUNK: usize = 4096;
+/// Occluders [`build_occluders_into`] gathers before handing them on (about 40 MB): enough
+/// for the taker's own chunks to keep every thread busy.
+const OCCLUDERS_PER_TAKE: usize = 1 << 16;
 
 /// [`occluders_for_building`], or, should a geometry kernel underneath (boolean operations,
 /// relate: third-party code) panic on some degenerate input, no occluder and the reason, instead

@@ -635,3 +635,36 @@ fn sloped_roofs_get_sampled_levels_only_when_asked() {
     );
     assert!(q_sampled.leak_fraction() < 0.01, "{q_sampled:?}");
 }
+
+#[test]
+fn occluders_handed_on_as_built_make_the_set() {
+    // Several chunks of buildings, handed on a few at a time, with an error from the taker at
+    // the end of a second run.
+    let city =
+        citywalk_scenes::generate::generate_city(&citywalk_scenes::generate::GenerateParams {
+            buildings: super::BUILDINGS_PER_CHUNK * 2 + 300,
+            seed: 3,
+            ..Default::default()
+        })
+        .expect("a generated city");
+    let params = OccluderParams::default();
+    let set = build_occluders(&city, &params);
+    let mut occluders = Vec::new();
+    let mut takes = 0;
+    let per_building = super::build_occluders_taking(&city, &params, 1000, &mut |o| {
+        takes += 1;
+        occluders.extend_from_slice(o);
+        Ok::<(), ()>(())
+    })
+    .expect("no error");
+    assert!(takes > 2, "{takes} takes");
+    assert_eq!(per_building, set.per_building);
+    assert!(occluders == set.occluders);
+    let mut calls = 0;
+    let failed = super::build_occluders_taking(&city, &params, 1000, &mut |_| {
+        calls += 1;
+        if calls == 2 { Err("full disk") } else { Ok(()) }
+    });
+    assert_eq!(failed, Err("full disk"));
+    assert_eq!(calls, 2, "stops at the first error");
+}

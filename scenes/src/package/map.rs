@@ -127,6 +127,51 @@ pub(crate) fn release_resident(map: &memmap2::Mmap, bytes: &[u8]) {
     }
 }
 
+/// The memory maps a borrowed view's arrays lie in (none for arrays in memory), so that the
+/// view can give back the pages of bytes it is done with ([`release_resident`]).
+#[derive(Clone, Copy, Default)]
+pub(crate) struct MappedPages<'a>([Option<&'a memmap2::Mmap>; 3]);
+
+impl<'a> MappedPages<'a> {
+    pub(crate) fn one(map: &'a memmap2::Mmap) -> MappedPages<'a> {
+        MappedPages([Some(map), None, None])
+    }
+
+    pub(crate) fn of(maps: [Option<&'a memmap2::Mmap>; 3]) -> MappedPages<'a> {
+        MappedPages(maps)
+    }
+
+    /// The first map, if any.
+    pub(crate) fn first(&self) -> Option<&'a memmap2::Mmap> {
+        self.0.iter().flatten().next().copied()
+    }
+
+    /// Releases the pages of `bytes` ([`release_resident`]) where they lie in one of the maps;
+    /// bytes in memory are left as they are.
+    pub(crate) fn release_resident(&self, bytes: &[u8]) {
+        for map in self.0.iter().flatten() {
+            release_resident(map, bytes);
+        }
+    }
+}
+
+impl std::fmt::Debug for MappedPages<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(if self.first().is_some() {
+            "mapped"
+        } else {
+            "owned"
+        })
+    }
+}
+
+/// Views of the same arrays are equal wherever their bytes live.
+impl PartialEq for MappedPages<'_> {
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
+}
+
 /// Bytes written out between two releases of their pages ([`write_releasing`]).
 pub(crate) const RELEASE_PIECE: usize = 32 << 20;
 

@@ -29,13 +29,13 @@ pub mod format;
 pub mod gpu_scene;
 mod map;
 pub(crate) mod scratch;
-pub(crate) use map::{map_read_only, release_resident};
+pub(crate) use map::{MappedPages, map_read_only, release_resident};
 
 pub use error::PackageError;
 pub use format::{BuildingDetails, Decode, FORMAT_VERSION, MAGIC, SectionKind};
 pub use gpu_scene::{GpuScene, GpuSceneView, SceneStore};
 pub use map::PackageFile;
-pub use scratch::SpilledSection;
+pub use scratch::{SpilledOccluderSection, SpilledSection};
 
 /// One input file of the preprocessing.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]

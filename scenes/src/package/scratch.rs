@@ -7,12 +7,13 @@
 //! ([`SpilledSection`]).
 
 use std::io;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use serde::Serialize;
 
 use super::{PackageError, SectionKind};
+use crate::occluder::{Occluder, OccluderOutcome};
 
 /// A writable shared mapping of an unnamed scratch file.
 pub(super) struct ScratchMap {
@@ -112,6 +113,7 @@ impl Releaser {
 }
 
 /// A scratch file being appended to ([`ScratchBytes`] once finished).
+#[derive(Debug)]
 pub(crate) struct ScratchWriter {
     out: io::BufWriter<std::fs::File>,
 }
@@ -156,6 +158,11 @@ impl ScratchBytes {
     /// The bytes, from a page boundary (so any array type can be viewed in them).
     pub(crate) fn bytes(&self) -> &[u8] {
         self.map.as_deref().map_or(&[], |m| &m[..])
+    }
+
+    /// The mapping the bytes lie in (none when empty).
+    pub(crate) fn map(&self) -> Option<&memmap2::Mmap> {
+        self.map.as_deref()
     }
 
     /// Writes the bytes to `out` a piece at a time, each piece's pages leaving resident memory
@@ -209,6 +216,70 @@ impl SpilledSection {
     /// Writes the payload to `out` ([`ScratchBytes`]: its pages released as written).
     pub(super) fn write_payload(&self, out: &mut impl io::Write) -> io::Result<()> {
         self.payload.write_to(out)
+    }
+}
+
+/// The occluder set's section encoded as the set's occluders are built, the set never whole
+/// in memory (a gigabyte at a million buildings): the occluders go to one scratch file chunk
+/// by chunk ([`SpilledOccluderSection::push`]); once their number is known the section's bytes
+/// — the number, the occluders, the outcomes, as [`SpilledSection::encode`] writes the set —
+/// are copied to another.
+#[derive(Debug)]
+pub struct SpilledOccluderSection {
+    dir: PathBuf,
+    occluders: ScratchWriter,
+    count: usize,
+}
+
+impl SpilledOccluderSection {
+    /// An unnamed file in `dir`.
+    pub fn new_in(dir: &Path) -> Result<SpilledOccluderSection, PackageError> {
+        Ok(SpilledOccluderSection {
+            dir: dir.to_path_buf(),
+            occluders: ScratchWriter::new_in(dir).map_err(|e| occluder_error(dir, e))?,
+            count: 0,
+        })
+    }
+
+    /// Encodes `occluders`, the set's next ones.
+    pub fn push(&mut self, occluders: &[Occluder]) -> Result<(), PackageError> {
+        for o in occluders {
+            postcard::to_io(o, &mut self.occluders).map_err(|e| PackageError::Encode {
+                section: SectionKind::Occluders.name().into(),
+                reason: e.to_string(),
+            })?;
+        }
+        self.count += occluders.len();
+        Ok(())
+    }
+
+    /// The section of the set whose occluders were pushed and whose outcomes are
+    /// `per_building`.
+    pub fn finish(self, per_building: &[OccluderOutcome]) -> Result<SpilledSection, PackageError> {
+        let dir = &self.dir;
+        let io = |e: io::Error| occluder_error(dir, e);
+        let encode = |e: postcard::Error| PackageError::Encode {
+            section: SectionKind::Occluders.name().into(),
+            reason: e.to_string(),
+        };
+        let occluders = self.occluders.finish().map_err(io)?;
+        let mut out = ScratchWriter::new_in(dir).map_err(io)?;
+        // A sequence's length is the varint of a `usize`, as postcard writes one.
+        postcard::to_io(&self.count, &mut out).map_err(encode)?;
+        occluders.write_to(&mut out).map_err(io)?;
+        drop(occluders);
+        postcard::to_io(per_building, &mut out).map_err(encode)?;
+        Ok(SpilledSection {
+            kind: SectionKind::Occluders,
+            payload: out.finish().map_err(io)?,
+        })
+    }
+}
+
+fn occluder_error(dir: &Path, e: io::Error) -> PackageError {
+    PackageError::Encode {
+        section: SectionKind::Occluders.name().into(),
+        reason: format!("scratch file in {}: {e}", dir.display()),
     }
 }
 
