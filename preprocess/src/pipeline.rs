@@ -30,7 +30,7 @@ use citywalk_scenes::{BuildingId, City, LoadOptions};
 use serde::{Deserialize, Serialize};
 
 use crate::blocks::{BlockParams, BlockReport, build_blocks_with};
-use crate::cluster::tiled::tree_above_tiles;
+use crate::cluster::tiled::{self, tree_above_tiles};
 use crate::cluster::{ClusterError, build_cluster_tree, build_cluster_tree_tiled};
 use crate::occluders::{OccluderParams, build_occluders, build_occluders_into};
 use crate::quadtree::build_quadtree;
@@ -78,6 +78,12 @@ impl Stage {
 pub trait ProgressSink {
     fn stage_started(&self, stage: Stage);
     fn stage_finished(&self, stage: Stage, seconds: f64, summary: &str);
+
+    /// The parallel work so far has freed its working memory and what follows may run on
+    /// other threads (or on one): where the process's allocator keeps freed memory per
+    /// thread, this is the moment to have it given back. Called after every stage, and
+    /// between the cluster tree's tiles and the tree above them.
+    fn settle(&self) {}
 }
 
 /// A sink that ignores progress.
@@ -209,6 +215,7 @@ pub fn preprocess_with(
         progress.stage_started(stage);
         let start = Instant::now();
         let summary = f();
+        progress.settle();
         let seconds = start.elapsed().as_secs_f64();
         tracing::info!(stage = stage.name(), seconds, "{summary}");
         progress.stage_finished(stage, seconds, &summary);
@@ -288,7 +295,17 @@ pub fn preprocess_with(
                 let tiles = tiling.as_ref().map_or(&[][..], |(_, tiles)| &tiles[..]);
                 match tile_trees.take() {
                     Some(mut trees) if trees.len() == 1 => Ok(trees.remove(0)),
-                    Some(trees) => tree_above_tiles(&city, trees, &params.cluster),
+                    Some(trees) => {
+                        tree_above_tiles(&city, trees, &params.cluster, &|| progress.settle())
+                    }
+                    None if tiles.len() > 1 => {
+                        tiled::tile_trees(&city, &blocks.block_of_building, tiles, &params.cluster)
+                            .and_then(|trees| {
+                                progress.settle();
+                                let settle = || progress.settle();
+                                tree_above_tiles(&city, trees, &params.cluster, &settle)
+                            })
+                    }
                     None => build_cluster_tree_tiled(
                         &city,
                         &blocks.block_of_building,

@@ -127,26 +127,46 @@ fn preprocessing_round_trips_through_a_package_and_is_deterministic() {
     assert!(back == expected, "the package did not round trip");
 }
 
+/// Counts the pipeline's calls to [`ProgressSink::settle`].
+#[derive(Default)]
+struct Settles(std::cell::Cell<usize>);
+
+impl citywalk_preprocess::pipeline::ProgressSink for Settles {
+    fn stage_started(&self, _: citywalk_preprocess::pipeline::Stage) {}
+    fn stage_finished(&self, _: citywalk_preprocess::pipeline::Stage, _: f64, _: &str) {}
+    fn settle(&self) {
+        self.0.set(self.0.get() + 1);
+    }
+}
+
 /// Preprocessing into a scratch folder (as the command line does) spills the occluder set to
-/// its section and lays the GPU scene out in a scratch file: the same package bytes, and
-/// nothing left in the folder.
+/// its section as it is built and lays the GPU scene out in a scratch file: the same package
+/// bytes, and nothing left in the folder. The progress sink is asked to settle after every
+/// stage and every tile of the cluster tree joined.
 #[test]
 fn preprocessing_into_a_scratch_folder_gives_the_same_package() {
-    use citywalk_preprocess::pipeline::preprocess_with;
+    use citywalk_preprocess::pipeline::{Stage, preprocess_with};
     use citywalk_scenes::package::{SceneStore, SectionKind};
 
     let city = generated(1_500, 3);
-    let params = PreprocessParams::default();
+    let params = PreprocessParams {
+        tile_buildings: 400,
+        ..PreprocessParams::default()
+    };
     let in_memory = preprocess(city.clone(), &params, &NoProgress).expect("preprocess");
     let dir = tempfile::tempdir().expect("temp dir");
+    let settles = Settles::default();
     let scratch = preprocess_with(
         city,
         &params,
-        &NoProgress,
+        &settles,
         None,
         SceneStore::ScratchFileIn(dir.path()),
     )
     .expect("preprocess into a scratch folder");
+    let tiles = citywalk_preprocess::tiles::plan_tiles(&scratch.quadtree, &scratch.blocks, 400);
+    assert!(tiles.len() >= 3, "{} tiles", tiles.len());
+    assert_eq!(settles.0.get(), Stage::ALL.len() + 1 + tiles.len());
     assert!(scratch.occluders.is_none(), "the set was spilled");
     let kinds: Vec<_> = scratch.spilled.iter().map(|s| s.kind()).collect();
     assert_eq!(kinds, [SectionKind::Occluders]);

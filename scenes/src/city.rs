@@ -118,8 +118,9 @@ pub struct Building {
     /// Highest top over all parts (metres).
     pub top_m: f32,
     pub height_source: HeightSource,
-    /// The source's own geometry when it has true 3D geometry (CityJSON, glTF).
-    pub mesh: Option<TriangleMesh>,
+    /// The source's own geometry when it has true 3D geometry (CityJSON, glTF). Boxed: most
+    /// buildings have none, and a million of them would each carry an empty mesh's 48 bytes.
+    pub mesh: Option<Box<TriangleMesh>>,
     /// Source attributes / tags, as strings (in the package's section with the parts).
     #[serde(skip)]
     pub tags: Tags,
@@ -158,7 +159,7 @@ impl Building {
             ),
             None => (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
         };
-        if let Some((mlo, mhi)) = self.mesh.as_ref().and_then(TriangleMesh::bounds) {
+        if let Some((mlo, mhi)) = self.mesh.as_deref().and_then(TriangleMesh::bounds) {
             lo = lo.min(mlo);
             hi = hi.max(mhi);
         }

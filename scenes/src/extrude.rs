@@ -143,7 +143,7 @@ pub fn building_mesh(b: &Building) -> TriangleMesh {
     if let Some(mesh) = &b.mesh
         && !mesh.indices.is_empty()
     {
-        return mesh.clone();
+        return TriangleMesh::clone(mesh);
     }
     let mut mesh = TriangleMesh::default();
     for part in &b.parts {

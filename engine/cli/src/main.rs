@@ -3,6 +3,7 @@
 
 use clap::{Parser, Subcommand};
 
+mod allocator;
 mod bench;
 mod cli_args;
 mod demo;
@@ -19,13 +20,6 @@ mod scene_input;
 mod texture_args;
 mod tile_jobs;
 mod view;
-
-/// mimalloc instead of glibc's allocator: preprocessing allocates and frees millions of small
-/// rings, vectors and strings, and a sixth of its time was in glibc's malloc and free; with
-/// mimalloc the generated 1M city preprocesses in 104 s instead of 143 s, for 3 % more peak
-/// memory (BENCHMARKS.md "The allocator").
-#[global_allocator]
-static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 /// citywalk: an occlusion-aware urban walkthrough engine.
 #[derive(Debug, Parser)]

@@ -135,6 +135,10 @@ impl std::fmt::Debug for Bars {
 }
 
 impl ProgressSink for Bars {
+    fn settle(&self) {
+        crate::allocator::give_back_freed_memory();
+    }
+
     fn stage_started(&self, stage: Stage) {
         let bar = self.multi.add(ProgressBar::new_spinner());
         if let Ok(style) = ProgressStyle::with_template("{spinner} {msg} {elapsed}") {

@@ -34,6 +34,21 @@ pub fn build_cluster_tree_tiled(
     if tiles.len() <= 1 {
         return build_cluster_tree(city, blocks, params);
     }
+    tree_above_tiles(
+        city,
+        tile_trees(city, blocks, tiles, params)?,
+        params,
+        &|| {},
+    )
+}
+
+/// Each tile's tree ([`tile_tree`]), in tile order, built on every thread.
+pub fn tile_trees(
+    city: &City,
+    blocks: &[u32],
+    tiles: &[Vec<u32>],
+    params: &ClusterParams,
+) -> Result<Vec<ClusterTree>, ClusterError> {
     let n = city.buildings.len();
     if blocks.len() != n {
         return Err(ClusterError::BlockCount {
@@ -51,24 +66,23 @@ pub fn build_cluster_tree_tiled(
         tiles = tiles.len(),
         "cluster tree: the tiles' trees"
     );
-    let tree = tree_above_tiles(city, subtrees, params)?;
-    tracing::debug!(
-        seconds = start.elapsed().as_secs_f64(),
-        "cluster tree: the tiles' trees, the tree above them and its data"
-    );
-    Ok(tree)
+    Ok(subtrees)
 }
 
 /// The city's tree from its tiles' trees ([`tile_tree`], in tile order): the tiles' roots
-/// clustered as a city of their own, whose leaves are replaced by the tiles' trees.
+/// clustered as a city of their own, whose leaves are replaced by the tiles' trees. `settle`
+/// is called after each tile's nodes are moved into the city's
+/// ([`crate::pipeline::ProgressSink::settle`]: the tiles' buffers, freed here, were allocated
+/// on the worker threads).
 pub fn tree_above_tiles(
     city: &City,
     subtrees: Vec<ClusterTree>,
     params: &ClusterParams,
+    settle: &dyn Fn(),
 ) -> Result<ClusterTree, ClusterError> {
     let roots = city_of_tile_roots(city, &subtrees);
     let top = build_cluster_tree(&roots, &vec![0; subtrees.len()], params)?;
-    Ok(graft(city, top, subtrees, params))
+    Ok(graft(city, top, subtrees, params, settle))
 }
 
 /// The tree of one tile's buildings (`members`, ascending), its building ids those of `city`:
@@ -182,6 +196,7 @@ fn graft(
     top: ClusterTree,
     subtrees: Vec<ClusterTree>,
     params: &ClusterParams,
+    settle: &dyn Fn(),
 ) -> ClusterTree {
     let ClusterTree {
         mut vertices,
@@ -232,6 +247,7 @@ fn graft(
         }
         building_order.extend(tree.building_order);
         add_stats(&mut stats, tree.stats);
+        settle();
     }
     add_stats(
         &mut stats,

@@ -139,7 +139,7 @@ impl HeightField {
             base_m: 0.0,
             top_m,
             height_source: HeightSource::Geometry,
-            mesh: Some(self.mesh()),
+            mesh: Some(Box::new(self.mesh())),
             tags: Default::default(),
         }
     }
@@ -591,7 +591,7 @@ fn gabled_house() -> Building {
         heights: vec![vec![10.0]],
     }
     .building(0);
-    b.mesh = Some(mesh);
+    b.mesh = Some(Box::new(mesh));
     b
 }
 

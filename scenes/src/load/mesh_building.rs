@@ -69,7 +69,7 @@ pub(crate) fn assemble(
                         base_m,
                         top_m,
                         height_source: HeightSource::Geometry,
-                        mesh: Some(mesh),
+                        mesh: Some(Box::new(mesh)),
                         tags: raw.tags.into(),
                     });
                 }

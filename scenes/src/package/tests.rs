@@ -31,14 +31,14 @@ fn building(i: u32, x: f64) -> Building {
         base_m: 0.0,
         top_m: 12.5,
         height_source: HeightSource::Tagged,
-        mesh: Some(TriangleMesh {
+        mesh: Some(Box::new(TriangleMesh {
             positions: vec![
                 Vec3::new(x as f32, 0.0, 0.0),
                 Vec3::new(x as f32 + 8.0, 0.0, 0.0),
                 Vec3::new(x as f32 + 8.0, 0.0, 12.5),
             ],
             indices: vec![0, 1, 2],
-        }),
+        })),
         tags: tags.into(),
     }
 }
