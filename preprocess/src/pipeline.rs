@@ -30,7 +30,7 @@ use citywalk_scenes::{BuildingId, City, LoadOptions};
 use serde::{Deserialize, Serialize};
 
 use crate::blocks::{BlockParams, BlockReport, build_blocks_with};
-use crate::cluster::tiled::{self, tree_above_tiles};
+use crate::cluster::tiled::tree_above_tiles;
 use crate::cluster::{ClusterError, build_cluster_tree, build_cluster_tree_tiled};
 use crate::occluders::{OccluderParams, build_occluders, build_occluders_into};
 use crate::quadtree::build_quadtree;
@@ -284,6 +284,7 @@ pub fn preprocess_with(
     let mut cluster_error = None;
     if params.build_cluster_tree && !city.buildings.is_empty() {
         let no_street_faces = block_report.street_blocks == 0;
+        let settle = || progress.settle();
         run(Stage::ClusterTree, &mut || {
             let result = if no_street_faces {
                 let one_block = vec![0u32; city.buildings.len()];
@@ -295,22 +296,13 @@ pub fn preprocess_with(
                 let tiles = tiling.as_ref().map_or(&[][..], |(_, tiles)| &tiles[..]);
                 match tile_trees.take() {
                     Some(mut trees) if trees.len() == 1 => Ok(trees.remove(0)),
-                    Some(trees) => {
-                        tree_above_tiles(&city, trees, &params.cluster, &|| progress.settle())
-                    }
-                    None if tiles.len() > 1 => {
-                        tiled::tile_trees(&city, &blocks.block_of_building, tiles, &params.cluster)
-                            .and_then(|trees| {
-                                progress.settle();
-                                let settle = || progress.settle();
-                                tree_above_tiles(&city, trees, &params.cluster, &settle)
-                            })
-                    }
+                    Some(trees) => tree_above_tiles(&city, trees, &params.cluster, &settle),
                     None => build_cluster_tree_tiled(
                         &city,
                         &blocks.block_of_building,
                         tiles,
                         &params.cluster,
+                        &settle,
                     ),
                 }
             };

@@ -87,13 +87,6 @@ impl OccluderArrays {
         out
     }
 
-    /// [`OccluderArrays::of`] written chunk by chunk to three scratch files in `dir` (each
-    /// array's bytes as the GPU scene holds them), never whole in memory.
-    pub fn spill(set: &OccluderSet, dir: &Path) -> std::io::Result<SpilledOccluderArrays> {
-        let mut spill = OccluderArraysSpill::new_in(dir)?;
-        spill.push(&set.occluders)?;
-        spill.finish()
-    }
     /// The drawable occluders of `occluders` alone, numbered from 0 (see [`OccluderArrays::of`]).
     fn of_occluders(occluders: &[Occluder]) -> OccluderArrays {
         let mut out = OccluderArrays::default();
@@ -209,7 +202,7 @@ impl OccluderArraysSpill {
     }
 }
 
-/// The drawable occluders' arrays in scratch files ([`OccluderArrays::spill`]).
+/// The drawable occluders' arrays in scratch files ([`OccluderArraysSpill`]).
 #[derive(Clone)]
 pub struct SpilledOccluderArrays {
     vertices: ScratchBytes,
@@ -404,16 +397,19 @@ mod tests {
         let chunked = OccluderArrays::of(&set);
         assert!(chunked == one_pass);
         let dir = tempfile::tempdir().expect("temp dir");
-        let spilt = OccluderArrays::spill(&set, dir.path()).expect("scratch files");
-        assert!(spilt.view() == one_pass.view());
-        // Pushed in uneven pieces as they are built, an empty one among them.
-        let mut pieces = OccluderArraysSpill::new_in(dir.path()).expect("scratch files");
-        for piece in pieces_of(&set.occluders) {
-            pieces.push(piece).expect("written");
-        }
-        let pushed = pieces.finish().expect("mapped");
+        // Spilled whole, and in uneven pieces as they are built (an empty one among them).
+        let spill = |pieces: Vec<&[Occluder]>| {
+            let mut spill = OccluderArraysSpill::new_in(dir.path()).expect("scratch files");
+            for piece in pieces {
+                spill.push(piece).expect("written");
+            }
+            spill.finish().expect("mapped")
+        };
+        let whole = spill(vec![&set.occluders]);
+        assert!(whole.view() == one_pass.view());
+        let pushed = spill(pieces_of(&set.occluders));
         assert!(pushed.view() == one_pass.view());
-        drop((spilt, pushed));
+        drop((whole, pushed));
         assert!(
             std::fs::read_dir(dir.path())
                 .expect("list")

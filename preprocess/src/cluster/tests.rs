@@ -1099,7 +1099,8 @@ fn tiled_trees_keep_their_tiles_whole() {
             .build()
             .expect("pool")
             .install(|| {
-                build_cluster_tree_tiled(&c, &blocks.block_of_building, &tiles, p).expect("tree")
+                build_cluster_tree_tiled(&c, &blocks.block_of_building, &tiles, p, &|| {})
+                    .expect("tree")
             })
     };
     for p in [ClusterParams::default(), chang] {
@@ -1132,7 +1133,8 @@ fn tiled_trees_keep_their_tiles_whole() {
         assert_eq!(on(4, &p), tree, "the same tree on 4 threads");
         let all: Vec<u32> = (0..c.buildings.len() as u32).collect();
         assert_eq!(
-            build_cluster_tree_tiled(&c, &blocks.block_of_building, &[all], &p).expect("tree"),
+            build_cluster_tree_tiled(&c, &blocks.block_of_building, &[all], &p, &|| {})
+                .expect("tree"),
             build_cluster_tree(&c, &blocks.block_of_building, &p).expect("tree"),
         );
     }

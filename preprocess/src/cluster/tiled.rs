@@ -24,26 +24,25 @@ use super::{
 /// Builds the cluster tree of `city` tile by tile: `tiles` lists each tile's buildings (by
 /// index, every building in exactly one tile), `blocks` is as for [`build_cluster_tree`],
 /// which one tile (or none) amounts to. Every tile's root is a node of the tree, and no node
-/// below it holds buildings of two tiles.
+/// below it holds buildings of two tiles. `settle` is called once the tiles' trees are built
+/// and as they are joined ([`tree_above_tiles`]).
 pub fn build_cluster_tree_tiled(
     city: &City,
     blocks: &[u32],
     tiles: &[Vec<u32>],
     params: &ClusterParams,
+    settle: &dyn Fn(),
 ) -> Result<ClusterTree, ClusterError> {
     if tiles.len() <= 1 {
         return build_cluster_tree(city, blocks, params);
     }
-    tree_above_tiles(
-        city,
-        tile_trees(city, blocks, tiles, params)?,
-        params,
-        &|| {},
-    )
+    let subtrees = tile_trees(city, blocks, tiles, params)?;
+    settle();
+    tree_above_tiles(city, subtrees, params, settle)
 }
 
 /// Each tile's tree ([`tile_tree`]), in tile order, built on every thread.
-pub fn tile_trees(
+fn tile_trees(
     city: &City,
     blocks: &[u32],
     tiles: &[Vec<u32>],

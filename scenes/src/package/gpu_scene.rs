@@ -537,37 +537,45 @@ impl SceneParts<'_> {
             settle,
         );
         let records: &[BuildingRecord] = records;
-        let copy = |to: &mut [u8], from: &[u8]| {
+        // Copied a piece at a time, each piece's source handed to `copied` (the occluders'
+        // arrays may lie in scratch files' mappings, whose pages then leave resident memory
+        // too: 0.4 GB at a million buildings) and the written pages settled.
+        let copy = |to: &mut [u8], from: &[u8], copied: &dyn Fn(&[u8])| {
             for (to, from) in to.chunks_mut(RELEASE_PIECE).zip(from.chunks(RELEASE_PIECE)) {
                 to.copy_from_slice(from);
+                copied(from);
                 settle();
             }
         };
+        let in_memory = |_: &[u8]| {};
         match tree {
             Some(tree) => {
-                copy(
-                    cull_out,
-                    bytemuck::cast_slice(&cull_records(records, n, tree)),
-                );
-                copy(parents_out, bytemuck::cast_slice(&draw_id_parents(tree, n)));
+                let cull = cull_records(records, n, tree);
+                copy(cull_out, bytemuck::cast_slice(&cull), &in_memory);
+                let parents = draw_id_parents(tree, n);
+                copy(parents_out, bytemuck::cast_slice(&parents), &in_memory);
             }
             None => {
-                copy(cull_out, bytemuck::cast_slice(records));
+                copy(cull_out, bytemuck::cast_slice(records), &in_memory);
                 bytemuck::cast_slice_mut::<u8, u32>(parents_out).fill(NO_PARENT);
             }
         }
-        // The occluders' arrays may lie in scratch files' mappings: the pages of what is
-        // copied leave resident memory too (0.4 GB at a million buildings).
-        let copy_occluders = |to: &mut [u8], from: &[u8]| {
-            for (to, from) in to.chunks_mut(RELEASE_PIECE).zip(from.chunks(RELEASE_PIECE)) {
-                to.copy_from_slice(from);
-                occluders.release_resident(from);
-                settle();
-            }
-        };
-        copy_occluders(occluder_vertices, bytemuck::cast_slice(occluders.vertices));
-        copy_occluders(occluder_indices, bytemuck::cast_slice(occluders.indices));
-        copy_occluders(occluder_records, bytemuck::cast_slice(occluders.records));
+        let mapped = |bytes: &[u8]| occluders.release_resident(bytes);
+        copy(
+            occluder_vertices,
+            bytemuck::cast_slice(occluders.vertices),
+            &mapped,
+        );
+        copy(
+            occluder_indices,
+            bytemuck::cast_slice(occluders.indices),
+            &mapped,
+        );
+        copy(
+            occluder_records,
+            bytemuck::cast_slice(occluders.records),
+            &mapped,
+        );
         settle();
     }
 }

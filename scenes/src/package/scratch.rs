@@ -189,15 +189,9 @@ impl SpilledSection {
         value: &T,
         dir: &Path,
     ) -> Result<SpilledSection, PackageError> {
-        let io = |e: io::Error| PackageError::Encode {
-            section: kind.name().into(),
-            reason: format!("scratch file in {}: {e}", dir.display()),
-        };
+        let io = |e| scratch_error(kind, dir, e);
         let mut out = ScratchWriter::new_in(dir).map_err(io)?;
-        postcard::to_io(value, &mut out).map_err(|e| PackageError::Encode {
-            section: kind.name().into(),
-            reason: e.to_string(),
-        })?;
+        postcard::to_io(value, &mut out).map_err(|e| encode_error(kind, e))?;
         Ok(SpilledSection {
             kind,
             payload: out.finish().map_err(io)?,
@@ -236,7 +230,8 @@ impl SpilledOccluderSection {
     pub fn new_in(dir: &Path) -> Result<SpilledOccluderSection, PackageError> {
         Ok(SpilledOccluderSection {
             dir: dir.to_path_buf(),
-            occluders: ScratchWriter::new_in(dir).map_err(|e| occluder_error(dir, e))?,
+            occluders: ScratchWriter::new_in(dir)
+                .map_err(|e| scratch_error(SectionKind::Occluders, dir, e))?,
             count: 0,
         })
     }
@@ -244,10 +239,8 @@ impl SpilledOccluderSection {
     /// Encodes `occluders`, the set's next ones.
     pub fn push(&mut self, occluders: &[Occluder]) -> Result<(), PackageError> {
         for o in occluders {
-            postcard::to_io(o, &mut self.occluders).map_err(|e| PackageError::Encode {
-                section: SectionKind::Occluders.name().into(),
-                reason: e.to_string(),
-            })?;
+            postcard::to_io(o, &mut self.occluders)
+                .map_err(|e| encode_error(SectionKind::Occluders, e))?;
         }
         self.count += occluders.len();
         Ok(())
@@ -257,11 +250,8 @@ impl SpilledOccluderSection {
     /// `per_building`.
     pub fn finish(self, per_building: &[OccluderOutcome]) -> Result<SpilledSection, PackageError> {
         let dir = &self.dir;
-        let io = |e: io::Error| occluder_error(dir, e);
-        let encode = |e: postcard::Error| PackageError::Encode {
-            section: SectionKind::Occluders.name().into(),
-            reason: e.to_string(),
-        };
+        let io = |e| scratch_error(SectionKind::Occluders, dir, e);
+        let encode = |e| encode_error(SectionKind::Occluders, e);
         let occluders = self.occluders.finish().map_err(io)?;
         let mut out = ScratchWriter::new_in(dir).map_err(io)?;
         // A sequence's length is the varint of a `usize`, as postcard writes one.
@@ -276,10 +266,19 @@ impl SpilledOccluderSection {
     }
 }
 
-fn occluder_error(dir: &Path, e: io::Error) -> PackageError {
+/// Section `kind` could not be written to a scratch file in `dir`.
+fn scratch_error(kind: SectionKind, dir: &Path, e: io::Error) -> PackageError {
     PackageError::Encode {
-        section: SectionKind::Occluders.name().into(),
+        section: kind.name().into(),
         reason: format!("scratch file in {}: {e}", dir.display()),
+    }
+}
+
+/// Section `kind` could not be encoded.
+fn encode_error(kind: SectionKind, e: postcard::Error) -> PackageError {
+    PackageError::Encode {
+        section: kind.name().into(),
+        reason: e.to_string(),
     }
 }
 
