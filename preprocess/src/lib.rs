@@ -4,6 +4,7 @@
 
 pub mod blocks;
 pub mod cluster;
+pub mod memory_budget;
 pub mod occluders;
 pub mod pipeline;
 pub mod quadtree;

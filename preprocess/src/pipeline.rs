@@ -32,6 +32,7 @@ use serde::{Deserialize, Serialize};
 use crate::blocks::{BlockParams, BlockReport, build_blocks_with};
 use crate::cluster::tiled::tree_above_tiles;
 use crate::cluster::{ClusterError, build_cluster_tree, build_cluster_tree_tiled};
+use crate::memory_budget::MemoryBudget;
 use crate::occluders::{OccluderParams, build_occluders, build_occluders_into};
 use crate::quadtree::build_quadtree;
 use crate::tiles::plan_tiles;
@@ -84,6 +85,12 @@ pub trait ProgressSink {
     /// thread, this is the moment to have it given back. Called after every stage, and
     /// between the cluster tree's tiles and the tree above them.
     fn settle(&self) {}
+
+    /// The resident-memory budget the cluster tree's tile jobs are admitted under
+    /// ([`MemoryBudget`]); `None`: every tile is started at once, one per thread.
+    fn memory_budget(&self) -> Option<&MemoryBudget> {
+        None
+    }
 }
 
 /// A sink that ignores progress.
@@ -285,6 +292,8 @@ pub fn preprocess_with(
     if params.build_cluster_tree && !city.buildings.is_empty() {
         let no_street_faces = block_report.street_blocks == 0;
         let settle = || progress.settle();
+        let unlimited = MemoryBudget::unlimited();
+        let budget = progress.memory_budget().unwrap_or(&unlimited);
         run(Stage::ClusterTree, &mut || {
             let result = if no_street_faces {
                 let one_block = vec![0u32; city.buildings.len()];
@@ -302,6 +311,7 @@ pub fn preprocess_with(
                         &blocks.block_of_building,
                         tiles,
                         &params.cluster,
+                        budget,
                         &settle,
                     ),
                 }

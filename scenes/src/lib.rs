@@ -24,6 +24,7 @@ pub mod occluder_draws;
 mod overlay_guard;
 pub use overlay_guard::panic_message;
 pub mod package;
+pub mod process_memory;
 pub mod quadtree;
 pub mod report;
 pub mod scene_geometry;

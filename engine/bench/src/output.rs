@@ -157,16 +157,12 @@ pub struct BenchReport {
     pub entries: Vec<ModeSummary>,
 }
 
-/// The process's resident memory now and its peak so far (MiB), from `/proc/self/status`
-/// (`VmRSS`, `VmHWM`); `None` off Linux.
+/// The process's resident memory now and its peak so far (MiB;
+/// [`citywalk_scenes::process_memory::resident_bytes`]); `None` off Linux.
 pub fn resident_mib() -> (Option<f64>, Option<f64>) {
-    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
-    let field = |name: &str| {
-        let line = status.lines().find(|l| l.starts_with(name))?;
-        let kib: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
-        Some(kib / 1024.0)
-    };
-    (field("VmRSS:"), field("VmHWM:"))
+    let mib = |bytes: Option<u64>| bytes.map(|b| b as f64 / 1_048_576.0);
+    let (now, peak) = citywalk_scenes::process_memory::resident_bytes();
+    (mib(now), mib(peak))
 }
 
 impl BenchReport {

@@ -7,6 +7,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use citywalk_bench::output::resident_mib;
+use citywalk_preprocess::memory_budget::{BudgetReport, MemoryBudget};
 use citywalk_preprocess::pipeline::{
     DEFAULT_TILE_BUILDINGS, PreprocessParams, ProgressSink, Stage, preprocess_with,
 };
@@ -83,8 +84,8 @@ pub struct Args {
     #[arg(long, default_value_t = CHANG_BIN_SIDE_PX, value_parser = clap::value_parser!(u32).range(16..=8192))]
     texture_bin_px: u32,
     /// Threads for the work that runs in parallel (occluders; the cluster tree's clustering,
-    /// hulls, errors and meshes block by block or node by node; 0: one per core). The package
-    /// is the same for every count.
+    /// hulls, errors and meshes block by block or node by node; 0: one per core); fewer under
+    /// `--memory-budget-gib`. The package is the same for every count.
     #[arg(long, default_value_t = 0)]
     threads: usize,
     /// The most buildings of a tile: the cluster tree is built tile by tile (whole blocks
@@ -99,13 +100,28 @@ pub struct Args {
     /// 2.1 GB free at a million buildings.
     #[arg(long, value_name = "DIR")]
     scratch_dir: Option<PathBuf>,
+    /// A ceiling on the run's resident memory, in GiB: the cluster tree's tiles are started
+    /// only while what is resident and their estimated working memory fit it, down to one
+    /// tile at a time (the package is the same). The largest sets are spilled to the scratch
+    /// files whatever the budget. The summary says whether the peak kept to it and, if not,
+    /// after which step it went over (the load alone may).
+    #[arg(long, value_name = "GIB", value_parser = positive_gib, conflicts_with_all = ["plan_tiles", "tiles_of", "merge"])]
+    memory_budget_gib: Option<f64>,
 }
 
-/// One spinner per stage; the process's memory at the end of each.
+fn positive_gib(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(gib) if gib.is_finite() && gib > 0.0 && gib < 1e6 => Ok(gib),
+        _ => Err(format!("{text} is not a positive number of GiB")),
+    }
+}
+
+/// One spinner per stage; the process's memory at the end of each; the memory budget.
 struct Bars {
     multi: MultiProgress,
     bars: std::cell::RefCell<Vec<(Stage, ProgressBar)>>,
     memory: std::cell::RefCell<Vec<StepMemory>>,
+    budget: Option<MemoryBudget>,
 }
 
 /// The process's resident memory at the end of a step of the run, and its peak so far (MiB;
@@ -137,6 +153,10 @@ impl std::fmt::Debug for Bars {
 impl ProgressSink for Bars {
     fn settle(&self) {
         crate::allocator::give_back_freed_memory();
+    }
+
+    fn memory_budget(&self) -> Option<&MemoryBudget> {
+        self.budget.as_ref()
     }
 
     fn stage_started(&self, stage: Stage) {
@@ -194,6 +214,35 @@ struct Summary {
     skipped_stages: Vec<String>,
     /// `None` without `--cluster-textures`.
     cluster_textures: Option<TextureSummary>,
+    /// `None` without `--memory-budget-gib`.
+    memory_budget: Option<BudgetSummary>,
+}
+
+/// What `--memory-budget-gib` did.
+#[derive(Debug, Serialize)]
+struct BudgetSummary {
+    budget_mib: f64,
+    /// Whether the run's resident peak kept to the budget.
+    kept: bool,
+    /// The first step after which the peak was over the budget (`load`: the input alone).
+    first_step_over: Option<String>,
+    /// The cluster tree's tile jobs under the budget.
+    tile_jobs: BudgetReport,
+}
+
+impl BudgetSummary {
+    fn of(budget: &MemoryBudget, steps: &[StepMemory]) -> Option<BudgetSummary> {
+        let limit = budget.limit_bytes()?;
+        let budget_mib = limit as f64 / 1_048_576.0;
+        let over = |m: &&StepMemory| m.peak_mib.is_some_and(|peak| peak > budget_mib);
+        let first_step_over = steps.iter().find(over).map(|m| m.step.clone());
+        Some(BudgetSummary {
+            budget_mib,
+            kept: first_step_over.is_none(),
+            first_step_over,
+            tile_jobs: budget.report(),
+        })
+    }
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -216,28 +265,51 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "--cluster-textures needs the cluster tree (drop --no-cluster-tree): the textures are the cluster meshes'"
         );
     }
-    start_threads(args.threads)?;
     let scratch_dir = scratch_dir(&args, &output);
     // A scratch file the folder cannot take fails here, not after minutes of work.
     tempfile::tempfile_in(&scratch_dir)
         .with_context(|| format!("cannot use {} for scratch files", scratch_dir.display()))?;
     let store = SceneStore::ScratchFileIn(&scratch_dir);
     let (mut package, bars, load_seconds) = if let Some(plan_path) = &args.merge {
+        start_threads(args.threads)?;
         let plan = crate::tile_jobs::read_plan(plan_path)?;
         let (city, load_seconds) = crate::tile_jobs::load_plan_inputs(&args, &plan, start)?;
-        let bars = Bars::after_load();
+        let bars = Bars::after_load(None);
         let results = crate::tile_jobs::read_tiles(&args, plan_path, &plan)?;
         let package =
             merge(city, &plan, results, &bars, store).context("cannot merge the tiles")?;
         (package, bars, load_seconds)
     } else {
         let load_options = args.input.load_options(&args.inputs)?;
-        let (city, load_seconds) = load_with_spinner(&args.inputs, &load_options, start)?;
+        // The load on threads of its own, so that the stages' threads can be as many as the
+        // memory budget leaves room for beside the city. Under a budget the load runs on one:
+        // its parallel part (projecting and cleaning the polygons) has every thread hold the
+        // cleaned copies while the raw ones, freed into the parsing thread's heap, wait for
+        // that thread to reuse them (at 100k, 8 threads peaked 60 MiB above one).
+        let load_threads = if args.memory_budget_gib.is_some() {
+            1
+        } else {
+            args.threads
+        };
+        let (city, load_seconds) = rayon::ThreadPoolBuilder::new()
+            .num_threads(load_threads)
+            .build()
+            .context("cannot start the load's threads")?
+            .install(|| {
+                let loaded = load_with_spinner(&args.inputs, &load_options, start);
+                // The raw areas freed on these threads, given back before they end.
+                crate::allocator::give_back_freed_memory();
+                loaded
+            })?;
         let params = PreprocessParams {
             load: load_options,
             ..preprocess_params(&args)
         };
-        let bars = Bars::after_load();
+        let bars = Bars::after_load(budget_of(&args));
+        if let Some(warning) = bars.load_over_budget() {
+            eprintln!("warning: {warning}");
+        }
+        start_threads(bars.threads_within(&args, city.buildings.len()))?;
         let package =
             preprocess_with(city, &params, &bars, None, store).context("preprocessing failed")?;
         (package, bars, load_seconds)
@@ -266,6 +338,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut summary = summarise(&package, &output, bytes, load_seconds, write_seconds, start);
     summary.cluster_textures = textures.map(TextureSummary::from);
     summary.step_memory = bars.memory.take();
+    if let Some(budget) = &bars.budget {
+        summary.memory_budget = BudgetSummary::of(budget, &summary.step_memory);
+    }
     if args.json {
         println!("{}", serde_json::to_string_pretty(&summary)?);
     } else {
@@ -325,13 +400,43 @@ pub(crate) fn load_with_spinner(
 
 impl Bars {
     /// The stages' spinners, the memory after the load recorded first.
-    fn after_load() -> Bars {
+    fn after_load(budget: Option<MemoryBudget>) -> Bars {
         Bars {
             multi: MultiProgress::new(),
             bars: Default::default(),
             memory: std::cell::RefCell::new(vec![StepMemory::now("load")]),
+            budget,
         }
     }
+
+    /// The threads of the stages: `--threads` (0: one per core), fewer if the memory budget
+    /// has no room for them beside a city of `buildings`.
+    fn threads_within(&self, args: &Args, buildings: usize) -> usize {
+        let requested = match args.threads {
+            0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
+            n => n,
+        };
+        self.budget.as_ref().map_or(requested, |b| {
+            b.threads_within(requested, buildings, tile_buildings(args))
+        })
+    }
+
+    /// Why the budget cannot be kept, when the load alone went over it.
+    fn load_over_budget(&self) -> Option<String> {
+        let budget_mib = self.budget.as_ref()?.limit_bytes()? as f64 / 1_048_576.0;
+        let peak_mib = self.memory.borrow().first()?.peak_mib?;
+        (peak_mib > budget_mib).then(|| {
+            format!(
+                "the load alone peaked at {peak_mib:.0} MiB, over the memory budget of {budget_mib:.0} MiB: the cluster tree's tiles are built one at a time, and the run's peak will be over the budget"
+            )
+        })
+    }
+}
+
+/// The budget of `--memory-budget-gib`.
+fn budget_of(args: &Args) -> Option<MemoryBudget> {
+    let gib = args.memory_budget_gib?;
+    Some(MemoryBudget::new((gib * 1_073_741_824.0) as u64))
 }
 
 /// Bakes the cluster textures of `package` on a headless GPU and stores them in it.
@@ -453,6 +558,7 @@ fn summarise(
         warnings: package.provenance.warnings.clone(),
         skipped_stages: package.provenance.skipped_stages.clone(),
         cluster_textures: None,
+        memory_budget: None,
     }
 }
 
@@ -529,6 +635,16 @@ fn print_summary(s: &Summary) {
         println!(
             "memory (MiB resident / peak so far, after each step): {}",
             steps.join(", ")
+        );
+    }
+    if let Some(b) = &s.memory_budget {
+        let verdict = match &b.first_step_over {
+            None => "kept".to_string(),
+            Some(step) => format!("over it after {step}"),
+        };
+        println!(
+            "memory budget: {:.0} MiB, {verdict}; tile jobs at most {} at once, {} held back",
+            b.budget_mib, b.tile_jobs.most_jobs_at_once, b.tile_jobs.jobs_held_back
         );
     }
     for w in &s.warnings {

@@ -12,6 +12,7 @@ use proptest::prelude::*;
 use proptest::test_runner::{Config, RngAlgorithm, TestRng, TestRunner};
 
 use super::*;
+use crate::memory_budget::MemoryBudget;
 
 fn building(i: usize, ring: Vec<(f64, f64)>, top_m: f32) -> Building {
     let fp = MultiPolygon(vec![Polygon::new(LineString::from(ring), Vec::new())]);
@@ -1099,8 +1100,15 @@ fn tiled_trees_keep_their_tiles_whole() {
             .build()
             .expect("pool")
             .install(|| {
-                build_cluster_tree_tiled(&c, &blocks.block_of_building, &tiles, p, &|| {})
-                    .expect("tree")
+                build_cluster_tree_tiled(
+                    &c,
+                    &blocks.block_of_building,
+                    &tiles,
+                    p,
+                    &MemoryBudget::unlimited(),
+                    &|| {},
+                )
+                .expect("tree")
             })
     };
     for p in [ClusterParams::default(), chang] {
@@ -1133,8 +1141,15 @@ fn tiled_trees_keep_their_tiles_whole() {
         assert_eq!(on(4, &p), tree, "the same tree on 4 threads");
         let all: Vec<u32> = (0..c.buildings.len() as u32).collect();
         assert_eq!(
-            build_cluster_tree_tiled(&c, &blocks.block_of_building, &[all], &p, &|| {})
-                .expect("tree"),
+            build_cluster_tree_tiled(
+                &c,
+                &blocks.block_of_building,
+                &[all],
+                &p,
+                &MemoryBudget::unlimited(),
+                &|| {}
+            )
+            .expect("tree"),
             build_cluster_tree(&c, &blocks.block_of_building, &p).expect("tree"),
         );
     }

@@ -11,11 +11,15 @@
 //! distance from their hull to the tiles' hulls plus the tiles' own error, so they need no
 //! footprint of a building.
 
+use std::sync::{Mutex, PoisonError};
+
 use citywalk_scenes::city::{Building, BuildingPart, HeightSource};
 use citywalk_scenes::cluster_tree::{ClusterNode, ClusterParams, ClusterStats, ClusterTree};
 use citywalk_scenes::{BuildingId, City};
 use geo::{Area, Coord, LineString, MultiPolygon, Polygon};
 use rayon::prelude::*;
+
+use crate::memory_budget::{MemoryBudget, tile_job_bytes};
 
 use super::{
     ClusterError, NodeSums, build_cluster_tree, cluster_mesh, error, fill_inner_node, simplify,
@@ -24,29 +28,33 @@ use super::{
 /// Builds the cluster tree of `city` tile by tile: `tiles` lists each tile's buildings (by
 /// index, every building in exactly one tile), `blocks` is as for [`build_cluster_tree`],
 /// which one tile (or none) amounts to. Every tile's root is a node of the tree, and no node
-/// below it holds buildings of two tiles. `settle` is called once the tiles' trees are built
-/// and as they are joined ([`tree_above_tiles`]).
+/// below it holds buildings of two tiles. The tiles are built on every thread as `budget`
+/// admits them; `settle` is called once the tiles' trees are built and as they are joined
+/// ([`tree_above_tiles`]).
 pub fn build_cluster_tree_tiled(
     city: &City,
     blocks: &[u32],
     tiles: &[Vec<u32>],
     params: &ClusterParams,
+    budget: &MemoryBudget,
     settle: &dyn Fn(),
 ) -> Result<ClusterTree, ClusterError> {
     if tiles.len() <= 1 {
         return build_cluster_tree(city, blocks, params);
     }
-    let subtrees = tile_trees(city, blocks, tiles, params)?;
+    let subtrees = tile_trees(city, blocks, tiles, params, budget)?;
     settle();
     tree_above_tiles(city, subtrees, params, settle)
 }
 
-/// Each tile's tree ([`tile_tree`]), in tile order, built on every thread.
+/// Each tile's tree ([`tile_tree`]), in tile order, built on every thread as `budget` admits
+/// them ([`TileJobs`]).
 fn tile_trees(
     city: &City,
     blocks: &[u32],
     tiles: &[Vec<u32>],
     params: &ClusterParams,
+    budget: &MemoryBudget,
 ) -> Result<Vec<ClusterTree>, ClusterError> {
     let n = city.buildings.len();
     if blocks.len() != n {
@@ -56,9 +64,24 @@ fn tile_trees(
         });
     }
     let start = std::time::Instant::now();
-    let subtrees = tiles
-        .par_iter()
-        .map(|members| tile_tree(city, blocks, members, params))
+    let jobs = TileJobs {
+        city,
+        blocks,
+        tiles,
+        params,
+        budget,
+        workers: rayon::current_num_threads(),
+        next: Mutex::new(0),
+        trees: Mutex::new((0..tiles.len()).map(|_| None).collect()),
+    };
+    rayon::scope(|scope| jobs.start_next(scope));
+    let trees = jobs
+        .trees
+        .into_inner()
+        .unwrap_or_else(PoisonError::into_inner);
+    let subtrees = trees
+        .into_iter()
+        .map(|tree| tree.expect("every tile's job ran"))
         .collect::<Result<Vec<_>, _>>()?;
     tracing::debug!(
         seconds = start.elapsed().as_secs_f64(),
@@ -66,6 +89,46 @@ fn tile_trees(
         "cluster tree: the tiles' trees"
     );
     Ok(subtrees)
+}
+
+/// The tiles' tree jobs, handed out in tile order. No thread waits for memory: the tiles
+/// that fit are started, and each job, once done and its memory released, starts the next
+/// that fit, so the last job to finish always starts one (a job is admitted when none runs).
+struct TileJobs<'a> {
+    city: &'a City,
+    blocks: &'a [u32],
+    tiles: &'a [Vec<u32>],
+    params: &'a ClusterParams,
+    budget: &'a MemoryBudget,
+    workers: usize,
+    /// The next tile to start.
+    next: Mutex<usize>,
+    trees: Mutex<Vec<Option<Result<ClusterTree, ClusterError>>>>,
+}
+
+impl<'a> TileJobs<'a> {
+    /// Starts the next tiles on `scope` while the budget admits them.
+    fn start_next(&'a self, scope: &rayon::Scope<'a>) {
+        loop {
+            let mut next = self.next.lock().unwrap_or_else(PoisonError::into_inner);
+            let i = *next;
+            let Some(members) = self.tiles.get(i) else {
+                return;
+            };
+            let bytes = tile_job_bytes(members.len());
+            let Some(admission) = self.budget.try_admit(i, bytes, self.workers) else {
+                return;
+            };
+            *next += 1;
+            drop(next);
+            scope.spawn(move |scope| {
+                let tree = tile_tree(self.city, self.blocks, members, self.params);
+                drop(admission);
+                self.trees.lock().unwrap_or_else(PoisonError::into_inner)[i] = Some(tree);
+                self.start_next(scope);
+            });
+        }
+    }
 }
 
 /// The city's tree from its tiles' trees ([`tile_tree`], in tile order): the tiles' roots
