@@ -100,11 +100,12 @@ pub struct Args {
     /// 2.1 GB free at a million buildings.
     #[arg(long, value_name = "DIR")]
     scratch_dir: Option<PathBuf>,
-    /// A ceiling on the run's resident memory, in GiB: the cluster tree's tiles are started
-    /// only while what is resident and their estimated working memory fit it, down to one
-    /// tile at a time (the package is the same). The largest sets are spilled to the scratch
-    /// files whatever the budget. The summary says whether the peak kept to it and, if not,
-    /// after which step it went over (the load alone may).
+    /// A ceiling on the run's resident memory, in GiB: the load runs on one thread, the
+    /// stages on as many of `--threads` as fit beside the loaded city, and the cluster tree's
+    /// tiles are started only while what is resident and their estimated working memory fit
+    /// it, down to one thread and one tile at a time (the package is the same). The largest
+    /// sets are spilled to the scratch files whatever the budget. The summary says whether
+    /// the peak kept to it and, if not, after which step it went over (the load alone may).
     #[arg(long, value_name = "GIB", value_parser = positive_gib, conflicts_with_all = ["plan_tiles", "tiles_of", "merge"])]
     memory_budget_gib: Option<f64>,
 }
