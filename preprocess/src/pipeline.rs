@@ -87,7 +87,7 @@ pub trait ProgressSink {
     fn settle(&self) {}
 
     /// The resident-memory budget the cluster tree's tile jobs are admitted under
-    /// ([`MemoryBudget`]); `None`: every tile is started at once, one per thread.
+    /// ([`MemoryBudget`]); `None`: as many tiles at once as there are threads.
     fn memory_budget(&self) -> Option<&MemoryBudget> {
         None
     }

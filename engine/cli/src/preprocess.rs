@@ -410,16 +410,17 @@ impl Bars {
         }
     }
 
-    /// The threads of the stages: `--threads` (0: one per core), fewer if the memory budget
-    /// has no room for them beside a city of `buildings`.
+    /// The threads of the stages: `--threads` (0: rayon's default, one per core), fewer if
+    /// the memory budget has no room for them beside a city of `buildings`.
     fn threads_within(&self, args: &Args, buildings: usize) -> usize {
+        let Some(budget) = &self.budget else {
+            return args.threads;
+        };
         let requested = match args.threads {
             0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
             n => n,
         };
-        self.budget.as_ref().map_or(requested, |b| {
-            b.threads_within(requested, buildings, tile_buildings(args))
-        })
+        budget.threads_within(requested, buildings, tile_buildings(args))
     }
 
     /// Why the budget cannot be kept, when the load alone went over it.
@@ -428,7 +429,7 @@ impl Bars {
         let peak_mib = self.memory.borrow().first()?.peak_mib?;
         (peak_mib > budget_mib).then(|| {
             format!(
-                "the load alone peaked at {peak_mib:.0} MiB, over the memory budget of {budget_mib:.0} MiB: the cluster tree's tiles are built one at a time, and the run's peak will be over the budget"
+                "the load alone peaked at {peak_mib:.0} MiB, over the memory budget of {budget_mib:.0} MiB: the run's peak is over it whatever the stages do (the budget does not bound the load's parse)"
             )
         })
     }

@@ -4,37 +4,41 @@
 //! Linux only: the peak is read from `/proc/self/status`. CPU only.
 #![cfg(target_os = "linux")]
 
-use std::ffi::OsStr;
 use std::path::Path;
-use std::process::Command;
 
+#[path = "support/run_cli.rs"]
+mod run_cli;
+use run_cli::{citywalk, path_str, text};
 #[path = "support/scratch.rs"]
 mod scratch;
 use scratch::temp_dir;
 
-/// Runs the binary in `dir`; panics with its output unless it succeeds; returns its stdout.
-fn citywalk<S: AsRef<OsStr>>(dir: &Path, args: &[S]) -> String {
-    let out = Command::new(env!("CARGO_BIN_EXE_citywalk"))
-        .current_dir(dir)
-        .args(args)
-        .output()
-        .expect("run citywalk");
-    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+/// Runs the binary; panics with its output unless it succeeds; returns its stdout.
+fn succeeds(args: &[&str]) -> String {
+    let out = citywalk(args);
     assert!(
         out.status.success(),
-        "citywalk failed:\n{stdout}\n{}",
-        String::from_utf8_lossy(&out.stderr)
+        "citywalk {args:?} failed:\n{}",
+        text(&out)
     );
-    stdout
+    String::from_utf8_lossy(&out.stdout).into_owned()
 }
 
-/// `preprocess city.geojson -o PACKAGE --threads 8 --json` and `extra`: its summary.
+/// `citywalk generate --buildings N --seed 3 -o dir/city.geojson`.
+fn generate(dir: &Path, buildings: &str) {
+    let city = dir.join("city.geojson");
+    let args = ["generate", "--buildings", buildings, "--seed", "3", "-o"];
+    succeeds(&[&args[..], &[path_str(&city)]].concat());
+}
+
+/// `preprocess dir/city.geojson -o dir/PACKAGE --threads 8 --json` and `extra`: its summary.
 fn preprocess(dir: &Path, package: &str, extra: &[&str]) -> serde_json::Value {
+    let (city, package) = (dir.join("city.geojson"), dir.join(package));
     let mut args = vec![
         "preprocess",
-        "city.geojson",
+        path_str(&city),
         "-o",
-        package,
+        path_str(&package),
         "--threads",
         "8",
         "--tile-buildings",
@@ -42,7 +46,7 @@ fn preprocess(dir: &Path, package: &str, extra: &[&str]) -> serde_json::Value {
         "--json",
     ];
     args.extend_from_slice(extra);
-    serde_json::from_str(&citywalk(dir, &args)).expect("the summary is JSON")
+    serde_json::from_str(&succeeds(&args)).expect("the summary is JSON")
 }
 
 fn peak_mib(summary: &serde_json::Value) -> f64 {
@@ -53,16 +57,7 @@ fn peak_mib(summary: &serde_json::Value) -> f64 {
 fn a_budget_below_the_free_runs_peak_is_kept_with_the_same_package() {
     let dir = temp_dir("memory-budget-cli");
     let dir = dir.as_path();
-    let generate = [
-        "generate",
-        "--buildings",
-        "30000",
-        "--seed",
-        "3",
-        "-o",
-        "city.geojson",
-    ];
-    citywalk(dir, &generate);
+    generate(dir, "30000");
     // Measured on the 2-core CI machine: about 210 MiB free on eight threads, 130 on one.
     let budget_gib = 0.16;
     let budget_mib = budget_gib * 1024.0;
@@ -105,18 +100,7 @@ fn a_budget_below_the_free_runs_peak_is_kept_with_the_same_package() {
 fn a_budget_the_load_alone_exceeds_is_reported_not_a_failure() {
     let dir = temp_dir("memory-budget-cli-tight");
     let dir = dir.as_path();
-    citywalk(
-        dir,
-        &[
-            "generate",
-            "--buildings",
-            "2000",
-            "--seed",
-            "3",
-            "-o",
-            "city.geojson",
-        ],
-    );
+    generate(dir, "2000");
     let summary = preprocess(dir, "tight.cwk", &["--memory-budget-gib", "0.001"]);
     assert_eq!(summary["threads"], 1);
     let report = &summary["memory_budget"];
