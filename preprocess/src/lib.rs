@@ -9,4 +9,5 @@ pub mod occluders;
 pub mod pipeline;
 pub mod quadtree;
 pub mod tile_jobs;
+pub mod tile_occluders;
 pub mod tiles;

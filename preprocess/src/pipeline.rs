@@ -19,7 +19,7 @@ use std::time::Instant;
 use citywalk_scenes::blocks::{UrbanBlock, UrbanBlocks};
 use citywalk_scenes::cluster_tree::{ClusterParams, ClusterTree};
 use citywalk_scenes::ground_surfaces::GroundSurfaces;
-use citywalk_scenes::occluder::{Occluder, OccluderSet};
+use citywalk_scenes::occluder::Occluder;
 use citywalk_scenes::occluder_draws::{OccluderArrays, OccluderArraysSpill, SpilledOccluderArrays};
 use citywalk_scenes::package::{
     GpuScene, InputFile, PackageError, Provenance, ScenePackage, SceneStore,
@@ -35,6 +35,7 @@ use crate::cluster::{ClusterError, build_cluster_tree, build_cluster_tree_tiled}
 use crate::memory_budget::MemoryBudget;
 use crate::occluders::{OccluderParams, build_occluders, build_occluders_into};
 use crate::quadtree::build_quadtree;
+use crate::tile_occluders::TileOccluders;
 use crate::tiles::plan_tiles;
 
 /// The stages, in order.
@@ -161,11 +162,11 @@ pub enum PreprocessError {
 }
 
 /// What tile jobs ([`crate::tile_jobs`]) made, which the pipeline takes instead of making
-/// it: the city's occluders and each tile's tree ([`crate::cluster::tiled::tile_tree`]), in
+/// it: the tiles' occluders and each tile's tree ([`crate::cluster::tiled::tile_tree`]), in
 /// the order of [`city_tiles`].
 #[derive(Debug)]
 pub struct FromTiles {
-    pub occluders: Option<OccluderSet>,
+    pub occluders: Option<TileOccluders>,
     pub trees: Vec<ClusterTree>,
 }
 
@@ -253,12 +254,16 @@ pub fn preprocess_with(
         run(Stage::Occluders, &mut || {
             let given = tile_occluders.take();
             let built = match store {
-                SceneStore::Memory => {
-                    let set = given.unwrap_or_else(|| build_occluders(&city, &params.occluders));
-                    let counts = (set.occluders.len(), set.triangle_count());
-                    occluders = Some(set);
-                    Ok(counts)
-                }
+                SceneStore::Memory => given
+                    .map_or_else(
+                        || Ok(build_occluders(&city, &params.occluders)),
+                        TileOccluders::into_set,
+                    )
+                    .map(|set| {
+                        let counts = (set.occluders.len(), set.triangle_count());
+                        occluders = Some(set);
+                        counts
+                    }),
                 SceneStore::ScratchFileIn(dir) => {
                     spill_occluders(&city, &params.occluders, given, dir).map(
                         |(arrays, section, counts)| {
@@ -510,7 +515,7 @@ pub fn preprocess_with(
 fn spill_occluders(
     city: &City,
     params: &OccluderParams,
-    given: Option<OccluderSet>,
+    given: Option<TileOccluders>,
     dir: &Path,
 ) -> Result<(SpilledOccluderArrays, SpilledSection, (usize, usize)), PreprocessError> {
     let scratch = |e: std::io::Error| {
@@ -530,10 +535,7 @@ fn spill_occluders(
         Ok(section.push(occluders)?)
     };
     let per_building = match given {
-        Some(set) => {
-            take(&set.occluders)?;
-            set.per_building
-        }
+        Some(tiles) => tiles.drain(&mut take)?,
         None => build_occluders_into(city, params, &mut take)?,
     };
     Ok((

@@ -8,12 +8,14 @@
 //!    ([`crate::cluster::tiled::tree_of_tile`]) from its shard alone, written as a checksummed
 //!    tile file ([`TileResult::write`]). Jobs need nothing of each other nor the input: they
 //!    may run on other machines, each holding one tile.
-//! 3. **Merge** ([`merge`]): every tile file checked (checksum, plan, tile index, buildings)
-//!    and the pipeline run with their occluders and trees instead of making them
+//! 3. **Merge** ([`merge`]): every tile file read in turn and checked (checksum, plan, tile
+//!    index, buildings), its occluders put aside in a scratch file ([`TileOccluders`]), and
+//!    the pipeline run with their occluders and trees instead of making them
 //!    ([`crate::pipeline::preprocess_with`]); the tree above the tiles, the GPU scene and the
 //!    rest as in one run, which builds the same tiles' trees itself.
 //!
-//! The plan and the merge still hold the whole city; a job holds one tile.
+//! The plan and the merge still hold the whole city and the merge every tile's tree; a job
+//! holds one tile.
 
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
@@ -27,10 +29,11 @@ use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
 use crate::cluster::tiled::{tile_city, tree_of_tile};
-use crate::occluders::{build_occluders_of, merge_occluder_sets};
+use crate::occluders::build_occluders_of;
 use crate::pipeline::{
     FromTiles, PreprocessError, PreprocessParams, ProgressSink, city_tiles, preprocess_with,
 };
+use crate::tile_occluders::TileOccluders;
 
 /// The plan file's format name, checked on reading.
 pub const PLAN_FORMAT: &str = "citywalk tile plan 1";
@@ -268,19 +271,35 @@ pub fn run_tile(shard: TileShard, plan: &TilePlan) -> Result<TileResult, TileJob
     })
 }
 
-/// The package of `city` from its tiles' results (any order), as one run of `plan`'s
-/// parameters makes it, its GPU scene laid out where `store` says.
+/// The package of `city` from its tiles' results (any order, each read when the merge comes
+/// to it: only one tile's occluders are held at a time, [`TileOccluders`]), as one run of
+/// `plan`'s parameters makes it, its GPU scene laid out where `store` says.
 pub fn merge(
     city: City,
     plan: &TilePlan,
-    results: Vec<(String, TileResult)>,
+    results: impl IntoIterator<Item = Result<(String, TileResult), TileJobError>>,
     progress: &dyn ProgressSink,
     store: SceneStore<'_>,
 ) -> Result<ScenePackage, TileJobError> {
     let (_, tiles) = planned_tiles(&city, plan)?;
     let digest = plan.digest();
-    let mut by_tile: Vec<Option<TileResult>> = vec![None; tiles.len()];
-    for (path, result) in results {
+    let scratch_dir = match store {
+        SceneStore::ScratchFileIn(dir) => dir.to_path_buf(),
+        SceneStore::Memory => std::env::temp_dir(),
+    };
+    let mut occluders = if plan.params.build_occluders {
+        let scratch = |e: std::io::Error| TileJobError::Io {
+            path: scratch_dir.display().to_string(),
+            reason: format!("cannot hold the tiles' occluders there: {e}"),
+        };
+        Some(TileOccluders::new_in(&scratch_dir, city.buildings.len()).map_err(scratch)?)
+    } else {
+        None
+    };
+    let mut trees: Vec<Option<ClusterTree>> = vec![None; tiles.len()];
+    let mut given = vec![false; tiles.len()];
+    for read in results {
+        let (path, result) = read?;
         let t = result.tile as usize;
         let fail = |reason: String| Err(TileJobError::Mismatch(format!("{path}: {reason}")));
         if result.plan != digest {
@@ -289,13 +308,30 @@ pub fn merge(
         if t >= tiles.len() || result.buildings != tiles[t] {
             return fail(format!("tile {t} is not tile {t} of the plan"));
         }
-        if by_tile[t].is_some() {
+        if std::mem::replace(&mut given[t], true) {
             return fail(format!("tile {t} given twice"));
         }
-        by_tile[t] = Some(result);
+        if let (Some(gathered), Some(set)) = (occluders.as_mut(), result.occluders) {
+            if let Err(e) = gathered.add(set) {
+                return fail(format!("tile {t}: {e}"));
+            }
+        }
+        if let Some(mut tree) = result.tree {
+            if tree.nodes.len() != result.meshes.len() {
+                return fail(format!(
+                    "tile {t}: {} meshes for {} nodes",
+                    result.meshes.len(),
+                    tree.nodes.len()
+                ));
+            }
+            for (node, mesh) in tree.nodes.iter_mut().zip(result.meshes) {
+                node.mesh = mesh;
+            }
+            trees[t] = Some(tree);
+        }
     }
     let missing: Vec<String> = (0..tiles.len())
-        .filter(|&t| by_tile[t].is_none())
+        .filter(|&t| !given[t])
         .map(|t| t.to_string())
         .collect();
     if !missing.is_empty() {
@@ -304,34 +340,15 @@ pub fn merge(
             missing.join(", ")
         )));
     }
-    let results: Vec<TileResult> = by_tile.into_iter().flatten().collect();
-    let n = city.buildings.len();
-    let mut sets = Vec::new();
-    let mut trees = Vec::new();
-    for result in results {
-        sets.extend(result.occluders);
-        if let Some(mut tree) = result.tree {
-            if tree.nodes.len() != result.meshes.len() {
-                return Err(TileJobError::Mismatch(format!(
-                    "tile {}: {} meshes for {} nodes",
-                    result.tile,
-                    result.meshes.len(),
-                    tree.nodes.len()
-                )));
-            }
-            for (node, mesh) in tree.nodes.iter_mut().zip(result.meshes) {
-                node.mesh = mesh;
-            }
-            trees.push(tree);
-        }
+    if occluders
+        .as_ref()
+        .is_some_and(|o| !o.covers_every_building())
+    {
+        return Err(TileJobError::Mismatch(
+            "the tiles' occluders do not cover every building once".into(),
+        ));
     }
-    let occluders = if plan.params.build_occluders {
-        Some(merge_occluder_sets(n, sets).ok_or_else(|| {
-            TileJobError::Mismatch("the tiles' occluders do not cover every building once".into())
-        })?)
-    } else {
-        None
-    };
+    let trees: Vec<ClusterTree> = trees.into_iter().flatten().collect();
     if plan.params.build_cluster_tree && trees.len() != tiles.len() {
         return Err(TileJobError::Mismatch(
             "a tile file has no cluster tree".into(),

@@ -60,7 +60,7 @@ fn tile_jobs_merge_to_the_one_runs_package_and_bad_tile_files_are_refused() {
     let merged = merge(
         city.clone(),
         &plan,
-        read(&files),
+        given(read(&files)),
         &NoProgress,
         SceneStore::ScratchFileIn(dir.path()),
     )
@@ -71,13 +71,28 @@ fn tile_jobs_merge_to_the_one_runs_package_and_bad_tile_files_are_refused() {
         merged == one_run,
         "the merged package differs from the one run's"
     );
+    // In memory too (the tiles' occluders put together whole rather than spilled).
+    let merged = merge(
+        city.clone(),
+        &plan,
+        given(read(&files)),
+        &NoProgress,
+        SceneStore::Memory,
+    )
+    .expect("merge in memory")
+    .to_bytes(WriteOptions::default())
+    .expect("encode");
+    assert!(
+        merged == one_run,
+        "the package merged in memory differs from the one run's"
+    );
 
     // A missing tile and a tile given twice.
     let mut short = read(&files[1..]);
     let err = merge(
         city.clone(),
         &plan,
-        short.clone(),
+        given(short.clone()),
         &NoProgress,
         SceneStore::Memory,
     )
@@ -87,8 +102,14 @@ fn tile_jobs_merge_to_the_one_runs_package_and_bad_tile_files_are_refused() {
         "{err}"
     );
     short.push(short[0].clone());
-    let err =
-        merge(city.clone(), &plan, short, &NoProgress, SceneStore::Memory).expect_err("repeated");
+    let err = merge(
+        city.clone(),
+        &plan,
+        given(short),
+        &NoProgress,
+        SceneStore::Memory,
+    )
+    .expect_err("repeated");
     assert!(err.to_string().contains("given twice"), "{err}");
 
     // A tile of another plan.
@@ -105,10 +126,40 @@ fn tile_jobs_merge_to_the_one_runs_package_and_bad_tile_files_are_refused() {
     assert!(err.to_string().contains("another plan"), "{err}");
     let mut mixed = read(&files);
     mixed[0] = ("foreign".into(), foreign);
-    let err =
-        merge(city.clone(), &plan, mixed, &NoProgress, SceneStore::Memory).expect_err("foreign");
+    let err = merge(
+        city.clone(),
+        &plan,
+        given(mixed),
+        &NoProgress,
+        SceneStore::Memory,
+    )
+    .expect_err("foreign");
     assert!(
         err.to_string().contains("foreign: made for another plan"),
+        "{err}"
+    );
+
+    // A tile whose occluders claim a building of another tile.
+    let mut stolen = read(&files);
+    let theirs = stolen[1].1.buildings[0];
+    let outcomes = &mut stolen[0]
+        .1
+        .occluders
+        .as_mut()
+        .expect("occluders")
+        .per_building;
+    outcomes[0].building = citywalk_scenes::BuildingId(theirs);
+    let err = merge(
+        city.clone(),
+        &plan,
+        given(stolen),
+        &NoProgress,
+        SceneStore::Memory,
+    )
+    .expect_err("a building's occluders in two tiles");
+    assert!(
+        err.to_string()
+            .contains(&format!("building {theirs}'s occluders are in two tiles")),
         "{err}"
     );
 
@@ -127,6 +178,23 @@ fn tile_jobs_merge_to_the_one_runs_package_and_bad_tile_files_are_refused() {
     std::fs::write(&damaged, &bytes[..bytes.len() - 9]).expect("write");
     let err = TileResult::read(&damaged).expect_err("truncated");
     assert!(matches!(err, TileJobError::Damaged { .. }), "{err}");
+    // The merge stops at a tile file that cannot be read, naming it.
+    let mut reads: Vec<Result<(String, TileResult), TileJobError>> =
+        read(&files).into_iter().map(Ok).collect();
+    reads[2] = TileResult::read(&damaged).map(|r| ("damaged.tile".into(), r));
+    let err = merge(city.clone(), &plan, reads, &NoProgress, SceneStore::Memory)
+        .expect_err("a damaged tile file");
+    assert!(
+        matches!(err, TileJobError::Damaged { ref path, .. } if path.ends_with("damaged.tile")),
+        "{err}"
+    );
+}
+
+/// Tile results as the merge reads them, one at a time.
+fn given(
+    results: Vec<(String, TileResult)>,
+) -> impl Iterator<Item = Result<(String, TileResult), TileJobError>> {
+    results.into_iter().map(Ok)
 }
 
 /// The plan of `city`, its shards written to `dir`.

@@ -276,7 +276,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let plan = crate::tile_jobs::read_plan(plan_path)?;
         let (city, load_seconds) = crate::tile_jobs::load_plan_inputs(&args, &plan, start)?;
         let bars = Bars::after_load(None);
-        let results = crate::tile_jobs::read_tiles(&args, plan_path, &plan)?;
+        let results = crate::tile_jobs::read_tiles(&args, plan_path, &plan);
         let package =
             merge(city, &plan, results, &bars, store).context("cannot merge the tiles")?;
         (package, bars, load_seconds)

@@ -9,7 +9,9 @@ use std::time::Instant;
 
 use anyhow::Context;
 use citywalk_preprocess::pipeline::PreprocessParams;
-use citywalk_preprocess::tile_jobs::{TilePlan, TileResult, TileShard, plan_and_shard, run_tile};
+use citywalk_preprocess::tile_jobs::{
+    TileJobError, TilePlan, TileResult, TileShard, plan_and_shard, run_tile,
+};
 use citywalk_scenes::City;
 use citywalk_scenes::package::{InputFile, sha256_file};
 
@@ -159,17 +161,16 @@ pub fn load_plan_inputs(
     load_with_spinner(&paths, &plan.params.load, start)
 }
 
-/// Every tile file of the plan (`--tile-dir` or beside the plan), read and checked.
-pub fn read_tiles(
-    args: &Args,
-    plan_path: &Path,
+/// Every tile file of the plan (`--tile-dir` or beside the plan), each read and checked as
+/// the merge comes to it (so that one tile's occluders are held at a time).
+pub fn read_tiles<'a>(
+    args: &'a Args,
+    plan_path: &'a Path,
     plan: &TilePlan,
-) -> anyhow::Result<Vec<(String, TileResult)>> {
-    (0..plan.tiles.len())
-        .map(|t| {
-            let path = sibling(plan_path, args.tile_dir.as_deref(), "tile", t);
-            let result = TileResult::read(&path)?;
-            Ok((path.display().to_string(), result))
-        })
-        .collect()
+) -> impl Iterator<Item = Result<(String, TileResult), TileJobError>> + 'a {
+    (0..plan.tiles.len()).map(move |t| {
+        let path = sibling(plan_path, args.tile_dir.as_deref(), "tile", t);
+        let result = TileResult::read(&path)?;
+        Ok((path.display().to_string(), result))
+    })
 }

@@ -183,7 +183,8 @@ pub fn build_occluders(city: &City, params: &OccluderParams) -> OccluderSet {
 }
 
 /// [`build_occluders`] for some of a city's buildings (a tile's), their outcomes in the order
-/// given and their ids kept: [`merge_occluder_sets`] of the sets of all tiles is the city's.
+/// given and their ids kept: the sets of all tiles, put in building order
+/// ([`crate::tile_occluders::TileOccluders`]), are the city's.
 pub fn build_occluders_of(buildings: &[&Building], params: &OccluderParams) -> OccluderSet {
     let mut set = OccluderSet::default();
     // Buildings are independent: each chunk is built on rayon's threads, then appended in
@@ -249,48 +250,6 @@ fn build_occluders_taking<E>(
     }
     take(&set.occluders)?;
     Ok(set.per_building)
-}
-
-/// The occluder set of a city of `buildings` buildings from the sets of its tiles
-/// ([`build_occluders_of`]), outcomes and occluders in building order; `None` when a building
-/// is in no set or in two.
-pub fn merge_occluder_sets(buildings: usize, sets: Vec<OccluderSet>) -> Option<OccluderSet> {
-    // Where each building's outcome is: (set, position in it).
-    let mut at = vec![None; buildings];
-    for (s, set) in sets.iter().enumerate() {
-        for (k, outcome) in set.per_building.iter().enumerate() {
-            let slot = at.get_mut(outcome.building.index())?;
-            if slot.replace((s, k)).is_some() {
-                return None;
-            }
-        }
-    }
-    let mut merged = OccluderSet {
-        occluders: Vec::with_capacity(sets.iter().map(|s| s.occluders.len()).sum()),
-        per_building: Vec::with_capacity(buildings),
-    };
-    // Each set's buildings are ascending, so its occluders are taken in their order.
-    let mut outcomes: Vec<Vec<OccluderOutcome>> = Vec::with_capacity(sets.len());
-    let mut occluders: Vec<(u32, std::vec::IntoIter<Occluder>)> = Vec::with_capacity(sets.len());
-    for set in sets {
-        outcomes.push(set.per_building);
-        occluders.push((0, set.occluders.into_iter()));
-    }
-    for slot in at {
-        let (s, k) = slot?;
-        let mut outcome = outcomes[s][k].clone();
-        let (taken, rest) = &mut occluders[s];
-        if outcome.occluder_range.start != *taken || outcome.occluder_range.end < *taken {
-            return None;
-        }
-        let count = (outcome.occluder_range.end - *taken) as usize;
-        *taken = outcome.occluder_range.end;
-        let start = merged.occluders.len() as u32;
-        merged.occluders.extend(rest.by_ref().take(count));
-        outcome.occluder_range = start..merged.occluders.len() as u32;
-        merged.per_building.push(outcome);
-    }
-    Some(merged)
 }
 
 /// Buildings built in parallel before their occluders are appended to the set.
