@@ -243,8 +243,8 @@ pub fn preprocess_with(
     });
 
     // The occluder set stays in memory, or, preprocessing into a scratch folder, is spilled
-    // there as it is built (its section and its drawable arrays, the GPU scene's): whole, the
-    // set is a gigabyte at a million buildings.
+    // there as it is built or, from tile jobs, read back (its section and its drawable
+    // arrays, the GPU scene's): whole, the set is a gigabyte at a million buildings.
     let mut occluders = None;
     let mut occluder_arrays = None;
     let mut occluder_counts = None;

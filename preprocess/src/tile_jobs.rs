@@ -33,7 +33,7 @@ use crate::occluders::build_occluders_of;
 use crate::pipeline::{
     FromTiles, PreprocessError, PreprocessParams, ProgressSink, city_tiles, preprocess_with,
 };
-use crate::tile_occluders::TileOccluders;
+use crate::tile_occluders::{TileOccluderError, TileOccluders};
 
 /// The plan file's format name, checked on reading.
 pub const PLAN_FORMAT: &str = "citywalk tile plan 1";
@@ -311,9 +311,28 @@ pub fn merge(
         if std::mem::replace(&mut given[t], true) {
             return fail(format!("tile {t} given twice"));
         }
-        if let (Some(gathered), Some(set)) = (occluders.as_mut(), result.occluders) {
-            if let Err(e) = gathered.add(set) {
-                return fail(format!("tile {t}: {e}"));
+        if let Some(gathered) = occluders.as_mut() {
+            let Some(set) = &result.occluders else {
+                return fail(format!("tile {t} has no occluders"));
+            };
+            // Its outcomes for its buildings, in their order (the order they are read back).
+            if !set
+                .per_building
+                .iter()
+                .map(|o| o.building.0)
+                .eq(result.buildings.iter().copied())
+            {
+                return fail(format!("tile {t}'s occluders are not its buildings'"));
+            }
+            match gathered.add(set) {
+                Err(TileOccluderError::Scratch(dir, e)) => {
+                    return Err(TileJobError::Io {
+                        path: dir,
+                        reason: format!("cannot hold the tiles' occluders there: {e}"),
+                    });
+                }
+                Err(e) => return fail(format!("tile {t}: {e}")),
+                Ok(()) => {}
             }
         }
         if let Some(mut tree) = result.tree {

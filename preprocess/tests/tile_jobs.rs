@@ -139,7 +139,7 @@ fn tile_jobs_merge_to_the_one_runs_package_and_bad_tile_files_are_refused() {
         "{err}"
     );
 
-    // A tile whose occluders claim a building of another tile.
+    // A tile whose occluders claim a building of another tile, and one without occluders.
     let mut stolen = read(&files);
     let theirs = stolen[1].1.buildings[0];
     let outcomes = &mut stolen[0]
@@ -149,6 +149,7 @@ fn tile_jobs_merge_to_the_one_runs_package_and_bad_tile_files_are_refused() {
         .expect("occluders")
         .per_building;
     outcomes[0].building = citywalk_scenes::BuildingId(theirs);
+    let path = stolen[0].0.clone();
     let err = merge(
         city.clone(),
         &plan,
@@ -156,12 +157,23 @@ fn tile_jobs_merge_to_the_one_runs_package_and_bad_tile_files_are_refused() {
         &NoProgress,
         SceneStore::Memory,
     )
-    .expect_err("a building's occluders in two tiles");
+    .expect_err("a building's occluders in another tile");
     assert!(
-        err.to_string()
-            .contains(&format!("building {theirs}'s occluders are in two tiles")),
+        err.to_string().starts_with(&path)
+            && err.to_string().contains("occluders are not its buildings'"),
         "{err}"
     );
+    let mut without = read(&files);
+    without[3].1.occluders = None;
+    let err = merge(
+        city.clone(),
+        &plan,
+        given(without),
+        &NoProgress,
+        SceneStore::Memory,
+    )
+    .expect_err("a tile without occluders");
+    assert!(err.to_string().contains("has no occluders"), "{err}");
 
     // A damaged file (one byte flipped in the payload) and a truncated one.
     let bytes = std::fs::read(&files[0]).expect("read");

@@ -256,7 +256,7 @@ fn build_occluders_taking<E>(
 const BUILDINGS_PER_CHUNK: usize = 4096;
 /// Occluders [`build_occluders_into`] gathers before handing them on (about 40 MB): enough
 /// for the taker's own chunks to keep every thread busy.
-const OCCLUDERS_PER_TAKE: usize = 1 << 16;
+pub(crate) const OCCLUDERS_PER_TAKE: usize = 1 << 16;
 
 /// [`occluders_for_building`], or, should a geometry kernel underneath (boolean operations,
 /// relate: third-party code) panic on some degenerate input, no occluder and the reason, instead
