@@ -96,8 +96,9 @@ pub struct Args {
     /// The folder of the scratch files (default: the package's): the occluder set, encoded as
     /// its section once made, the occluders' drawable arrays, and the GPU scene, laid out
     /// through a memory map whose written pages leave the process's memory; the package is
-    /// written from them. The files have no name and go when the run ends. They need about
-    /// 2.1 GB free at a million buildings.
+    /// written from them; with `--merge`, also the tiles' occluders, put aside as each tile file
+    /// is read. The files have no name and go when the run ends. They need about 2.1 GB free
+    /// at a million buildings (a merge's and its package together took 3.9 GB).
     #[arg(long, value_name = "DIR")]
     scratch_dir: Option<PathBuf>,
     /// A ceiling on the run's resident memory, in GiB: the load runs on one thread, the
