@@ -273,7 +273,9 @@ pub fn run_tile(shard: TileShard, plan: &TilePlan) -> Result<TileResult, TileJob
 
 /// The package of `city` from its tiles' results (any order, each read when the merge comes
 /// to it: only one tile's occluders are held at a time, [`TileOccluders`]), as one run of
-/// `plan`'s parameters makes it, its GPU scene laid out where `store` says.
+/// `plan`'s parameters makes it, its GPU scene laid out where `store` says. The tiles'
+/// occluders wait in a scratch file in the store's folder (the system's temporary folder for
+/// [`SceneStore::Memory`]).
 pub fn merge(
     city: City,
     plan: &TilePlan,

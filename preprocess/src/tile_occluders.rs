@@ -53,6 +53,8 @@ pub enum TileOccluderError {
     GivenTwice(u32),
     #[error("building {0}'s occluder range {1:?} is not where its set holds its occluders")]
     BadRange(u32, Range<u32>),
+    #[error("building {0}'s outcome comes after a later building's")]
+    OutOfOrder(u32),
     #[error("its set holds {0} occluders that no building's range names")]
     Unclaimed(usize),
     #[error("the scratch file of the tiles' occluders in {0}: {1}")]
@@ -74,16 +76,21 @@ impl TileOccluders {
         })
     }
 
-    /// Adds one tile's set (outcomes in the order its occluders are, each naming its own;
-    /// [`crate::occluders::build_occluders_of`] makes it so). Its records are read back in
-    /// the order given, so the caller gives them ascending by building.
+    /// Adds one tile's set (outcomes ascending by building and in the order of their
+    /// occluders, each naming its own; [`crate::occluders::build_occluders_of`] makes it so:
+    /// a tile's records are read back in building order from where they were written).
     pub fn add(&mut self, set: &OccluderSet) -> Result<(), TileOccluderError> {
         let tile = self.tile_starts.len() as u32;
         self.tile_starts.push(self.written);
         let mut taken = 0u32;
         let mut encoded = Vec::new();
+        let mut previous = None;
         for outcome in &set.per_building {
             let b = outcome.building.0;
+            if previous.is_some_and(|p| p >= b) {
+                return Err(TileOccluderError::OutOfOrder(b));
+            }
+            previous = Some(b);
             let range = outcome.occluder_range.clone();
             let own = (range.start == taken)
                 .then(|| set.occluders.get(range.start as usize..range.end as usize))
@@ -99,7 +106,7 @@ impl TileOccluders {
                 return Err(TileOccluderError::GivenTwice(b));
             }
             encoded.clear();
-            let scratch = |e: std::io::Error| self_scratch(&self.dir, e);
+            let scratch = |e: std::io::Error| scratch_error(&self.dir, e);
             encoded = postcard::to_extend(own, encoded)
                 .map_err(|e| scratch(std::io::Error::other(format!("cannot encode: {e}"))))?;
             let length = u32::try_from(encoded.len())
@@ -145,7 +152,7 @@ impl TileOccluders {
         let scratch = |e: std::io::Error| {
             PreprocessError::Scratch(std::io::Error::new(
                 e.kind(),
-                self_scratch(&dir, e).to_string(),
+                scratch_error(&dir, e).to_string(),
             ))
         };
         let mut file = self
@@ -209,7 +216,8 @@ impl TileOccluders {
     }
 }
 
-fn self_scratch(dir: &Path, e: std::io::Error) -> TileOccluderError {
+/// A scratch-file failure, naming the folder.
+fn scratch_error(dir: &Path, e: std::io::Error) -> TileOccluderError {
     TileOccluderError::Scratch(dir.display().to_string(), e)
 }
 
@@ -348,6 +356,18 @@ mod tests {
             matches!(err, TileOccluderError::UnknownBuilding(_)),
             "{err}"
         );
+
+        // Buildings 1 then 0, each with its own occluders in that order.
+        let mut swapped = part_of(&set, |b| b == 1);
+        let zero = part_of(&set, |b| b == 0);
+        let shift = swapped.occluders.len() as u32;
+        let mut outcome = zero.per_building[0].clone();
+        outcome.occluder_range =
+            outcome.occluder_range.start + shift..outcome.occluder_range.end + shift;
+        swapped.per_building.push(outcome);
+        swapped.occluders.extend(zero.occluders);
+        let err = new().add(&swapped).expect_err("out of building order");
+        assert!(matches!(err, TileOccluderError::OutOfOrder(0)), "{err}");
 
         let mut tiles = new();
         tiles.add(&part_of(&set, |b| b < 10)).expect("add");

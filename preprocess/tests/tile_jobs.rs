@@ -56,36 +56,18 @@ fn tile_jobs_merge_to_the_one_runs_package_and_bad_tile_files_are_refused() {
             })
             .collect()
     };
-    // The merge lays its GPU scene out in a scratch file, as the command line's does.
-    let merged = merge(
-        city.clone(),
-        &plan,
-        given(read(&files)),
-        &NoProgress,
-        SceneStore::ScratchFileIn(dir.path()),
-    )
-    .expect("merge")
-    .to_bytes(WriteOptions::default())
-    .expect("encode");
-    assert!(
-        merged == one_run,
-        "the merged package differs from the one run's"
-    );
-    // In memory too (the tiles' occluders put together whole rather than spilled).
-    let merged = merge(
-        city.clone(),
-        &plan,
-        given(read(&files)),
-        &NoProgress,
-        SceneStore::Memory,
-    )
-    .expect("merge in memory")
-    .to_bytes(WriteOptions::default())
-    .expect("encode");
-    assert!(
-        merged == one_run,
-        "the package merged in memory differs from the one run's"
-    );
+    // The merge lays its GPU scene out in a scratch file, as the command line's does; in
+    // memory, the tiles' occluders are put together whole rather than spilled.
+    for store in [SceneStore::ScratchFileIn(dir.path()), SceneStore::Memory] {
+        let merged = merge(city.clone(), &plan, given(read(&files)), &NoProgress, store)
+            .expect("merge")
+            .to_bytes(WriteOptions::default())
+            .expect("encode");
+        assert!(
+            merged == one_run,
+            "the package merged with {store:?} differs from the one run's"
+        );
+    }
 
     // A missing tile and a tile given twice.
     let mut short = read(&files[1..]);
