@@ -35,6 +35,7 @@ use rstar::{AABB, RTree};
 
 use super::LoadOptions;
 use super::heights::{ResolvedHeights, TaggedHeights, parse_length_m};
+use super::raw_areas::RawAreas;
 use crate::city::{
     Building, BuildingId, BuildingPart, City, GroundArea, GroundClass, HeightSource, Street,
     StreetClass,
@@ -120,7 +121,7 @@ pub(crate) enum SourceCrs {
 #[derive(Debug)]
 pub(crate) struct RawCity {
     pub crs: SourceCrs,
-    pub areas: Vec<RawArea>,
+    pub areas: RawAreas,
     pub streets: Vec<RawStreet>,
     pub warnings: Vec<LoadWarning>,
 }
@@ -135,6 +136,15 @@ struct Area2 {
     part_of: Option<String>,
 }
 
+/// A validated part waiting for its building.
+struct ValidPart {
+    source_id: String,
+    footprint: MultiPolygon<f64>,
+    heights: ResolvedHeights,
+    has_own_heights: bool,
+    part_of: Option<String>,
+}
+
 /// Builds the city from what a reader found in `path`.
 pub(crate) fn assemble(
     path: &Path,
@@ -143,7 +153,7 @@ pub(crate) fn assemble(
 ) -> Result<City, LoadError> {
     let RawCity {
         crs,
-        mut areas,
+        areas,
         streets,
         warnings,
     } = raw;
@@ -193,95 +203,104 @@ pub(crate) fn assemble(
         .filter(|a| a.kind == AreaKind::Building)
         .count();
     let part_count = areas.iter().filter(|a| a.kind == AreaKind::Part).count();
-    let mut buildings: Vec<Area2> = Vec::with_capacity(building_count);
-    let mut parts: Vec<Area2> = Vec::with_capacity(part_count);
+    // Buildings are made in their final form as they are validated (their parts attached
+    // below), so that no second array of every building is made from a first.
+    let mut buildings: Vec<Building> = Vec::with_capacity(building_count);
+    let mut own_heights: Vec<ResolvedHeights> = Vec::with_capacity(building_count);
+    let mut parts: Vec<ValidPart> = Vec::with_capacity(part_count);
     let mut ground_areas: Vec<GroundArea> = Vec::new();
     let mut link: HashMap<String, usize> = HashMap::new();
-    // Projecting and cleaning an area's polygons needs no other area and is most of this
-    // assembly's work: done on every thread, in input order (the same city on any number).
-    let cleaned: Vec<Result<CleanFootprint, RejectReason>> = areas
-        .par_iter_mut()
-        .zip(outliers)
-        .map(|(area, outlier)| match outlier {
-            Some(reason) => Err(reason),
-            None => std::mem::replace(&mut area.polygons, Ok(Vec::new()))
-                .and_then(|p| clean_polygons(p, &project)),
-        })
-        .collect();
-    for (mut area, cleaned) in areas.into_iter().zip(cleaned) {
-        if let AreaKind::Ground(class) = area.kind {
-            report.ground_areas_found += 1;
-            match cleaned {
-                Ok(clean) => {
-                    for message in clean.repairs {
-                        report.warnings.push(LoadWarning {
-                            file: path.to_path_buf(),
-                            source_id: area.source_id.clone(),
-                            message,
+    let mut outliers = outliers.into_iter();
+    // Chunk by chunk, so that a chunk's raw areas are freed as its areas are validated.
+    for mut chunk in areas.into_chunks() {
+        // Projecting and cleaning an area's polygons needs no other area and is most of this
+        // assembly's work: done on every thread, in input order (the same city on any number).
+        let chunk_outliers: Vec<_> = outliers.by_ref().take(chunk.len()).collect();
+        let cleaned: Vec<Result<CleanFootprint, RejectReason>> = chunk
+            .par_iter_mut()
+            .zip(chunk_outliers)
+            .map(|(area, outlier)| match outlier {
+                Some(reason) => Err(reason),
+                None => std::mem::replace(&mut area.polygons, Ok(Vec::new()))
+                    .and_then(|p| clean_polygons(p, &project)),
+            })
+            .collect();
+        for (mut area, cleaned) in chunk.into_iter().zip(cleaned) {
+            if let AreaKind::Ground(class) = area.kind {
+                report.ground_areas_found += 1;
+                match cleaned {
+                    Ok(clean) => {
+                        for message in clean.repairs {
+                            report.warnings.push(LoadWarning {
+                                file: path.to_path_buf(),
+                                source_id: area.source_id.clone(),
+                                message,
+                            });
+                        }
+                        ground_areas.push(GroundArea {
+                            source_id: area.source_id,
+                            class,
+                            polygon: clean.footprint,
                         });
                     }
-                    ground_areas.push(GroundArea {
+                    Err(reason) => report.ground_areas_rejected.push(Rejection {
+                        file: path.to_path_buf(),
                         source_id: area.source_id,
-                        class,
-                        polygon: clean.footprint,
-                    });
-                }
-                Err(reason) => report.ground_areas_rejected.push(Rejection {
-                    file: path.to_path_buf(),
-                    source_id: area.source_id,
-                    reason,
-                }),
-            }
-            continue;
-        }
-        let is_building = area.kind == AreaKind::Building;
-        if is_building {
-            report.buildings_found += 1;
-        } else {
-            report.parts_found += 1;
-        }
-        for bad in &area.heights.unparsed {
-            report.warnings.push(LoadWarning {
-                file: path.to_path_buf(),
-                source_id: area.source_id.clone(),
-                message: format!("unparseable height value {bad} ignored"),
-            });
-        }
-        let ids = std::mem::take(&mut area.link_ids);
-        let validated = validate_area(area, cleaned, options);
-        match validated {
-            Ok((valid, repairs)) => {
-                for r in repairs {
-                    report.warnings.push(LoadWarning {
-                        file: path.to_path_buf(),
-                        source_id: valid.source_id.clone(),
-                        message: r,
-                    });
-                }
-                if is_building {
-                    let index = buildings.len();
-                    link.entry(valid.source_id.clone()).or_insert(index);
-                    for id in ids {
-                        link.entry(id).or_insert(index);
-                    }
-                    buildings.push(valid);
-                } else {
-                    parts.push(valid);
-                }
-            }
-            Err((source_id, reason)) => {
-                if is_building {
-                    report.rejected.push(Rejection {
-                        file: path.to_path_buf(),
-                        source_id,
                         reason,
-                    });
-                } else {
-                    report.warnings.push(LoadWarning {
-                        file: path.to_path_buf(),
-                        source_id,
-                        message: format!("building:part dropped: {reason}"),
-                    });
+                    }),
+                }
+                continue;
+            }
+            let is_building = area.kind == AreaKind::Building;
+            if is_building {
+                report.buildings_found += 1;
+            } else {
+                report.parts_found += 1;
+            }
+            for bad in &area.heights.unparsed {
+                report.warnings.push(LoadWarning {
+                    file: path.to_path_buf(),
+                    source_id: area.source_id.clone(),
+                    message: format!("unparseable height value {bad} ignored"),
+                });
+            }
+            let ids = std::mem::take(&mut area.link_ids);
+            let validated = validate_area(area, cleaned, options);
+            match validated {
+                Ok((valid, repairs)) => {
+                    for r in repairs {
+                        report.warnings.push(LoadWarning {
+                            file: path.to_path_buf(),
+                            source_id: valid.source_id.clone(),
+                            message: r,
+                        });
+                    }
+                    if is_building {
+                        let index = buildings.len();
+                        link.entry(valid.source_id.clone()).or_insert(index);
+                        for id in ids {
+                            link.entry(id).or_insert(index);
+                        }
+                        own_heights.push(valid.heights);
+                        buildings.push(valid.into_building());
+                    } else {
+                        parts.push(valid.into_part());
+                    }
+                }
+                Err((source_id, reason)) => {
+                    if is_building {
+                        report.rejected.push(Rejection {
+                            file: path.to_path_buf(),
+                            source_id,
+                            reason,
+                        });
+                    } else {
+                        report.warnings.push(LoadWarning {
+                            file: path.to_path_buf(),
+                            source_id,
+                            message: format!("building:part dropped: {reason}"),
+                        });
+                    }
                 }
             }
         }
@@ -305,47 +324,58 @@ pub(crate) fn assemble(
         .iter()
         .map(|b| b.footprint.unsigned_area())
         .collect();
-    let mut attached: Vec<Vec<Area2>> = (0..buildings.len()).map(|_| Vec::new()).collect();
-    let mut orphans: Vec<Area2> = Vec::new();
-    for part in parts {
-        let explicit = match &part.part_of {
-            Some(name) => match link.get(name) {
-                Some(&i) => Some(i),
-                None => {
-                    report.warnings.push(LoadWarning {
-                        file: path.to_path_buf(),
-                        source_id: part.source_id.clone(),
-                        message: format!(
-                            "part_of names {name:?}, which is not a loaded building; attached \
-                             by containment instead"
-                        ),
-                    });
-                    None
-                }
-            },
-            None => None,
-        };
-        let owner = explicit.or_else(|| {
-            let p = part.footprint.interior_point()?;
-            tree.locate_in_envelope_intersecting(AABB::from_point([p.x(), p.y()]))
-                .map(|g| g.data)
-                .filter(|&i| buildings[i].footprint.intersects(&p))
-                .min_by(|&a, &b| areas_m2[a].total_cmp(&areas_m2[b]))
-        });
-        match owner {
-            Some(i) => attached[i].push(part),
-            None => orphans.push(part),
+    // Each part's building, found on every thread: by its explicit link when that names a
+    // loaded building (else `true`: the link is reported), else by containment.
+    let owners: Vec<(Option<usize>, bool)> = parts
+        .par_iter()
+        .map(|part| {
+            let linked = part.part_of.as_ref().map(|name| link.get(name).copied());
+            let owner = linked.flatten().or_else(|| {
+                let p = part.footprint.interior_point()?;
+                tree.locate_in_envelope_intersecting(AABB::from_point([p.x(), p.y()]))
+                    .map(|g| g.data)
+                    .filter(|&i| buildings[i].footprint.intersects(&p))
+                    .min_by(|&a, &b| areas_m2[a].total_cmp(&areas_m2[b]))
+            });
+            (owner, linked == Some(None))
+        })
+        .collect();
+    drop((tree, areas_m2, link));
+    let mut parts_of = vec![0usize; buildings.len()];
+    for &(owner, _) in &owners {
+        if let Some(i) = owner {
+            parts_of[i] += 1;
         }
     }
-    // Build the city's buildings.
-    let mut out = Vec::with_capacity(buildings.len() + orphans.len());
-    for (building, parts) in buildings.into_iter().zip(attached) {
-        out.push(make_building(building, parts, &mut report));
+    for (building, &count) in buildings.iter_mut().zip(&parts_of) {
+        building.parts.reserve_exact(count);
     }
+    let mut orphans: Vec<String> = Vec::new();
+    for (part, (owner, unlinked)) in parts.into_iter().zip(owners) {
+        if unlinked {
+            let name = part.part_of.as_deref().unwrap_or_default();
+            report.warnings.push(LoadWarning {
+                file: path.to_path_buf(),
+                source_id: part.source_id.clone(),
+                message: format!(
+                    "part_of names {name:?}, which is not a loaded building; attached by \
+                     containment instead"
+                ),
+            });
+        }
+        match owner {
+            Some(i) => attach_part(&mut buildings[i], own_heights[i], part),
+            None => orphans.push(part.source_id),
+        }
+    }
+    for (building, own) in buildings.iter_mut().zip(&own_heights) {
+        finish_building(building, *own, &mut report);
+    }
+    let out = buildings;
     for orphan in orphans {
         report.warnings.push(LoadWarning {
             file: path.to_path_buf(),
-            source_id: orphan.source_id,
+            source_id: orphan,
             message: "building:part inside no building outline: dropped (it is not counted as \
                       a building, so it cannot be loaded as one)"
                 .into(),
@@ -403,7 +433,7 @@ pub(crate) fn assemble(
 /// coordinate). Areas with a coordinate beyond [`MAX_LOCAL_COORDINATE_M`] of that centre are
 /// outliers; the frame is then at the centre of the bounding box of the other areas, which
 /// all lie within that distance of the new origin too (half a box at most that wide).
-fn make_frame(crs: &SourceCrs, areas: &[RawArea]) -> Option<(Frame, Vec<Option<RejectReason>>)> {
+fn make_frame(crs: &SourceCrs, areas: &RawAreas) -> Option<(Frame, Vec<Option<RejectReason>>)> {
     let none = || vec![None; areas.len()];
     if *crs == SourceCrs::Local {
         return Some((Frame::local(), none()));
@@ -573,37 +603,71 @@ fn clean_polygons(
     clean_footprint(&local)
 }
 
-/// Makes the model's building from a validated building (or orphan part) and its parts.
-fn make_building(building: Area2, parts: Vec<Area2>, report: &mut LoadReport) -> Building {
-    let own = building.heights;
-    // The building's height source: its own when tagged, else the best of its parts'.
-    let mut source = own.source;
-    let mut out_parts: Vec<BuildingPart> = parts
-        .into_iter()
-        .map(|p| {
-            let h = if p.has_own_heights { p.heights } else { own };
-            source = better_source(source, h.source);
-            BuildingPart {
-                source_id: p.source_id,
-                footprint: p.footprint,
-                base_m: h.base_m,
-                top_m: h.top_m,
-            }
-        })
-        .collect();
-    if out_parts.is_empty() {
-        out_parts.push(BuildingPart {
+impl Area2 {
+    /// The model's building, its heights its own until its parts are attached
+    /// ([`attach_part`], [`finish_building`]).
+    fn into_building(self) -> Building {
+        Building {
+            id: BuildingId(0),
+            source_id: self.source_id,
+            footprint: self.footprint,
+            parts: Vec::new(),
+            base_m: self.heights.base_m,
+            top_m: self.heights.top_m,
+            height_source: self.heights.source,
+            mesh: None,
+            tags: self.tags,
+        }
+    }
+
+    /// What a part keeps while its building is looked for (parts carry no tags).
+    fn into_part(self) -> ValidPart {
+        ValidPart {
+            source_id: self.source_id,
+            footprint: self.footprint,
+            heights: self.heights,
+            has_own_heights: self.has_own_heights,
+            part_of: self.part_of,
+        }
+    }
+}
+
+/// Attaches a part to its building (whose own heights are `own`): a part with no heights of
+/// its own takes the building's; the building's height source becomes the best of its own
+/// and its parts'.
+fn attach_part(building: &mut Building, own: ResolvedHeights, part: ValidPart) {
+    let h = if part.has_own_heights {
+        part.heights
+    } else {
+        own
+    };
+    building.height_source = better_source(building.height_source, h.source);
+    building.parts.push(BuildingPart {
+        source_id: part.source_id,
+        footprint: part.footprint,
+        base_m: h.base_m,
+        top_m: h.top_m,
+    });
+}
+
+/// Completes a building once its parts are attached: one without parts is its own single
+/// part; its heights span its parts'. Counts its own heights in the report.
+fn finish_building(building: &mut Building, own: ResolvedHeights, report: &mut LoadReport) {
+    if building.parts.is_empty() {
+        building.parts.push(BuildingPart {
             source_id: building.source_id.clone(),
             footprint: building.footprint.clone(),
             base_m: own.base_m,
             top_m: own.top_m,
         });
     }
-    let base_m = out_parts
+    building.base_m = building
+        .parts
         .iter()
         .map(|p| p.base_m)
         .fold(f32::INFINITY, f32::min);
-    let top_m = out_parts
+    building.top_m = building
+        .parts
         .iter()
         .map(|p| p.top_m)
         .fold(f32::NEG_INFINITY, f32::max);
@@ -614,17 +678,6 @@ fn make_building(building: Area2, parts: Vec<Area2>, report: &mut LoadReport) ->
         HeightSource::Tagged => report.buildings_with_height += 1,
         HeightSource::Estimated => report.buildings_estimated_height += 1,
         HeightSource::Levels | HeightSource::Geometry => {}
-    }
-    Building {
-        id: BuildingId(0),
-        source_id: building.source_id,
-        footprint: building.footprint,
-        parts: out_parts,
-        base_m,
-        top_m,
-        height_source: source,
-        mesh: None,
-        tags: building.tags,
     }
 }
 
@@ -714,7 +767,7 @@ mod tests {
         linked.part_of = Some("nowhere".into());
         let raw = RawCity {
             crs: SourceCrs::Local,
-            areas: vec![
+            areas: [
                 area(
                     "big",
                     AreaKind::Building,
@@ -733,7 +786,9 @@ mod tests {
                 ),
                 inner_part,
                 linked,
-            ],
+            ]
+            .into_iter()
+            .collect(),
             streets: Vec::new(),
             warnings: Vec::new(),
         };
@@ -761,5 +816,85 @@ mod tests {
         );
         assert!(city.report.warnings.iter().any(|w| w.source_id == "q"));
         assert_eq!(city.report.buildings_with_height, 2);
+    }
+
+    /// Parts read chunks after their buildings (the assembly takes the raw areas a chunk at a
+    /// time) find them by link and by containment; warnings come in the order of the areas
+    /// they are about, links before orphans.
+    #[test]
+    fn parts_find_buildings_read_chunks_before_them() {
+        let n = 1500;
+        let mut areas: Vec<RawArea> = (0..n)
+            .map(|i| {
+                let (x, y) = ((i % 50) as f64 * 20.0, (i / 50) as f64 * 20.0);
+                area(
+                    &format!("b{i}"),
+                    AreaKind::Building,
+                    x,
+                    y,
+                    10.0,
+                    &[("height", "10")],
+                )
+            })
+            .collect();
+        for i in (0..n).rev().step_by(3) {
+            let (x, y) = ((i % 50) as f64 * 20.0, (i / 50) as f64 * 20.0);
+            let mut part = area(&format!("p{i}"), AreaKind::Part, x + 1.0, y + 1.0, 2.0, &[]);
+            // Every other part linked; a third of those by a name no building has.
+            part.part_of = match i % 6 {
+                0 => Some(format!("b{i}")),
+                3 => Some(format!("missing{i}")),
+                _ => None,
+            };
+            areas.push(part);
+        }
+        areas.push(area("orphan", AreaKind::Part, -500.0, -500.0, 2.0, &[]));
+        areas.push(area(
+            "unlinked-orphan",
+            AreaKind::Part,
+            -900.0,
+            0.0,
+            2.0,
+            &[],
+        ));
+        areas.last_mut().unwrap().part_of = Some("nobody".into());
+        let raw = RawCity {
+            crs: SourceCrs::Local,
+            areas: areas.into_iter().collect(),
+            streets: Vec::new(),
+            warnings: Vec::new(),
+        };
+        let city = assemble(Path::new("t.geojson"), raw, &LoadOptions::default()).unwrap();
+        city.check_invariants().unwrap();
+        assert_eq!(city.buildings.len(), n);
+        for (i, b) in city.buildings.iter().enumerate() {
+            let expected = if i % 3 == (n - 1) % 3 {
+                format!("p{i}")
+            } else {
+                format!("b{i}")
+            };
+            assert_eq!(b.parts.len(), 1, "{}", b.source_id);
+            assert_eq!(b.parts[0].source_id, expected);
+            assert_eq!(b.top_m, 10.0, "a part without heights takes its building's");
+        }
+        let about: Vec<&str> = city
+            .report
+            .warnings
+            .iter()
+            .map(|w| w.source_id.as_str())
+            .collect();
+        let mut expected: Vec<String> = (0..n)
+            .rev()
+            .step_by(3)
+            .filter(|i| i % 6 == 3)
+            .map(|i| format!("p{i}"))
+            .collect();
+        expected.extend([
+            "unlinked-orphan".into(),
+            "orphan".into(),
+            "unlinked-orphan".into(),
+        ]);
+        assert_eq!(about, expected);
+        assert_eq!(city.report.parts_found, n / 3 + 2);
     }
 }

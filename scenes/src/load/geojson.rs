@@ -54,6 +54,7 @@ use super::assemble::{
     AreaKind, RawArea, RawCity, RawPolygons, RawStreet, SourceCrs, assemble, street_width_m,
 };
 use super::heights::{HeightKeys, TaggedHeights};
+use super::raw_areas::RawAreas;
 use crate::city::{City, GroundClass, StreetClass};
 use crate::report::{LoadError, LoadWarning, RejectReason};
 use crate::tags::Tags;
@@ -185,7 +186,7 @@ fn parse<'de, R: serde_json::de::Read<'de>>(
 }
 
 /// Whether most buildings have a coordinate outside ±180° / ±90°.
-fn mostly_not_lon_lat(areas: &[RawArea]) -> bool {
+fn mostly_not_lon_lat(areas: &RawAreas) -> bool {
     let mut outside = 0usize;
     let mut total = 0usize;
     for a in areas
@@ -240,7 +241,7 @@ struct Top {
 /// Collects the converted features.
 struct Sink<'a> {
     options: &'a LoadOptions,
-    areas: Vec<RawArea>,
+    areas: RawAreas,
     streets: Vec<RawStreet>,
     warnings: Vec<LoadWarning>,
     /// Features that are neither areas nor streets.
@@ -546,7 +547,7 @@ impl<'a> Sink<'a> {
     fn new(options: &'a LoadOptions, index: usize) -> Sink<'a> {
         Sink {
             options,
-            areas: Vec::new(),
+            areas: RawAreas::default(),
             streets: Vec::new(),
             warnings: Vec::new(),
             ignored: 0,
@@ -556,7 +557,7 @@ impl<'a> Sink<'a> {
 
     /// Takes what `next`, the sink of the features after this one's, collected.
     fn append(&mut self, next: Sink<'a>) {
-        self.areas.extend(next.areas);
+        self.areas.append(next.areas);
         self.streets.extend(next.streets);
         self.warnings.extend(next.warnings);
         self.ignored += next.ignored;

@@ -22,6 +22,7 @@ pub mod heights;
 mod mesh_building;
 pub mod obj;
 pub mod osm;
+mod raw_areas;
 
 /// Options shared by the loaders.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

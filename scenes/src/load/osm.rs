@@ -40,6 +40,7 @@ use super::assemble::{
     AreaKind, RawArea, RawCity, RawPolygons, RawStreet, SourceCrs, assemble, street_width_m,
 };
 use super::heights::{HeightKeys, TaggedHeights};
+use super::raw_areas::RawAreas;
 use crate::city::{City, GroundClass, StreetClass};
 use crate::report::{LoadError, LoadWarning, RejectReason};
 use crate::tags::Tags;
@@ -297,7 +298,7 @@ fn read(path: &Path, options: &LoadOptions) -> Result<RawCity, LoadError> {
             .collect()
     };
 
-    let mut areas = Vec::new();
+    let mut areas = RawAreas::default();
     let mut streets = Vec::new();
     let mut warnings: Vec<LoadWarning> = skipped
         .into_iter()

@@ -73,9 +73,8 @@ pub(super) fn parse<'a>(
         })
         .collect::<Option<_>>()?;
     let mut sink = Sink::new(options, 0);
-    // Sized once: grown by doubling, the merged arrays would hold up to twice a million areas.
-    sink.areas
-        .reserve_exact(chunks.iter().map(|c| c.areas.len()).sum());
+    // Sized once: grown by doubling, the merged array would hold up to twice the streets (the
+    // areas' chunks are moved, not copied).
     sink.streets
         .reserve_exact(chunks.iter().map(|c| c.streets.len()).sum());
     for chunk in chunks {
