@@ -133,6 +133,32 @@ fn tile_jobs_merge_to_the_one_runs_package() {
         one == merged,
         "the merged package differs from the one run's"
     );
+    // A merge under a memory budget the load alone exceeds: one thread, the budget reported
+    // as not kept from the load on, the same package.
+    let summary = citywalk(
+        dir,
+        &[
+            "preprocess",
+            "--merge",
+            "city.plan",
+            "--tile-dir",
+            "jobs",
+            "-o",
+            "budgeted.cwk",
+            "--memory-budget-gib",
+            "0.001",
+            "--json",
+        ],
+    );
+    let summary: serde_json::Value = serde_json::from_str(&summary).expect("json summary");
+    assert_eq!(summary["threads"], 1, "{summary}");
+    let report = &summary["memory_budget"];
+    assert_eq!(report["kept"], false, "{report}");
+    assert_eq!(report["first_step_over"], "load", "{report}");
+    assert!(
+        std::fs::read(dir.join("budgeted.cwk")).expect("budgeted merge") == one,
+        "the budget changed the merged package"
+    );
 
     // A tile file with a flipped byte, then none at all.
     let tile = dir.join("jobs/city.plan.tile-1");
