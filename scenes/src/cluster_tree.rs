@@ -250,6 +250,35 @@ impl ClusterNode {
     }
 }
 
+#[cfg(test)]
+impl ClusterNode {
+    /// A node for tests: `children` over `buildings` (a range of the building order), error
+    /// `error_m`, everything else zero or empty.
+    pub(crate) fn bare(children: Vec<u32>, buildings: (u32, u32), error_m: f32) -> ClusterNode {
+        ClusterNode {
+            footprint: Vec::new(),
+            area_m2: 0.0,
+            height_m: 0.0,
+            h_min_m: 0.0,
+            h_max_m: 0.0,
+            delta_h_m: 0.0,
+            delta_a_m2: 0.0,
+            neg_space_box_m: [0.0; 3],
+            geometric_error_m: error_m,
+            colour_error_m: 0.0,
+            bounds_min: [0.0; 3],
+            bounds_max: [0.0; 3],
+            children,
+            buildings,
+            depth: 0,
+            merge_distance: 0.0,
+            landmarks: Vec::new(),
+            mesh: Default::default(),
+            block: None,
+        }
+    }
+}
+
 /// The legibility cluster tree of a city.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ClusterTree {

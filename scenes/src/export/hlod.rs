@@ -250,29 +250,8 @@ mod tests {
     use crate::city::BuildingId;
     use crate::cluster_tree::{ClusterNode, ClusterParams, ClusterStats};
 
-    /// A node with `children` over `buildings`, error `error_m`.
     fn node(children: Vec<u32>, buildings: (u32, u32), error_m: f32) -> ClusterNode {
-        ClusterNode {
-            footprint: Vec::new(),
-            area_m2: 0.0,
-            height_m: 0.0,
-            h_min_m: 0.0,
-            h_max_m: 0.0,
-            delta_h_m: 0.0,
-            delta_a_m2: 0.0,
-            neg_space_box_m: [0.0; 3],
-            geometric_error_m: error_m,
-            colour_error_m: 0.0,
-            bounds_min: [0.0; 3],
-            bounds_max: [0.0; 3],
-            children,
-            buildings,
-            depth: 0,
-            merge_distance: 0.0,
-            landmarks: Vec::new(),
-            mesh: Default::default(),
-            block: None,
-        }
+        ClusterNode::bare(children, buildings, error_m)
     }
 
     /// A complete binary tree over `2^levels` buildings; a node of depth d has error

@@ -1,7 +1,7 @@
 //! The GPU-ready scene section: the combined LOD scene of buildings and cluster meshes
 //! ([`lod_geometry`]) as the GPU reads it — vertices, indices, draw records, cull parts, the
-//! occlusion cull's records ([`cull_records`]) and the draw-id parents ([`draw_id_parents`]) —
-//! computed once by preprocessing, so that opening a package uploads these arrays straight
+//! occlusion cull's records ([`crate::scene_geometry::cull_records`]) and the draw-id parents
+//! ([`draw_id_parents`]) — computed once by preprocessing, so that opening a package uploads these arrays straight
 //! from the memory map instead of extruding and measuring every building again.
 //!
 //! Payload layout (little-endian; every array starts at a multiple of [`ARRAY_ALIGN`] bytes
@@ -30,6 +30,7 @@ use bytemuck::{Pod, Zeroable};
 use citywalk_shaders::constants::NO_PARENT;
 use citywalk_shaders::{BuildingRecord, CullPart, DrawIndexedIndirectArgs, SceneVertex};
 use glam::Vec3;
+use rayon::prelude::*;
 
 use super::map::{MappedPages, RELEASE_PIECE};
 use super::scratch::ScratchMap;
@@ -38,7 +39,7 @@ use crate::cluster_tree::ClusterTree;
 use crate::occluder::OccluderSet;
 use crate::occluder_draws::{OccluderArrays, OccluderArraysView, OccluderRecord};
 use crate::scene_geometry::in_place::{LodLayout, SceneSlices, count_lod_layout, write_lod_layout};
-use crate::scene_geometry::{ArrayCounts, SceneGeometry, cull_records, draw_id_parents};
+use crate::scene_geometry::{ArrayCounts, SceneGeometry, cull_record, draw_id_parents};
 
 // The arrays are the GPU's little-endian layout, read in place.
 #[cfg(target_endian = "big")]
@@ -550,8 +551,9 @@ impl SceneParts<'_> {
         let in_memory = |_: &[u8]| {};
         match tree {
             Some(tree) => {
-                let cull = cull_records(records, n, tree);
-                copy(cull_out, bytemuck::cast_slice(&cull), &in_memory);
+                let per_piece = (RELEASE_PIECE / size_of::<BuildingRecord>()).max(1);
+                let cull_out = bytemuck::cast_slice_mut(cull_out);
+                write_cull_records(cull_out, records, n, tree, per_piece, settle);
                 let parents = draw_id_parents(tree, n);
                 copy(parents_out, bytemuck::cast_slice(&parents), &in_memory);
             }
@@ -576,6 +578,25 @@ impl SceneParts<'_> {
             bytemuck::cast_slice(occluders.records),
             &mapped,
         );
+        settle();
+    }
+}
+
+/// Writes [`crate::scene_geometry::cull_records`] of `records` into `out` (as long), `per_piece`
+/// records at a time, each piece on every thread and then settled: no copy of every record is
+/// made (1.1 GB at ten million buildings).
+fn write_cull_records(
+    out: &mut [BuildingRecord],
+    records: &[BuildingRecord],
+    building_count: u32,
+    tree: &ClusterTree,
+    per_piece: usize,
+    settle: &(dyn Fn() + Sync),
+) {
+    for (p, piece) in out.chunks_mut(per_piece).enumerate() {
+        piece.par_iter_mut().enumerate().for_each(|(i, out)| {
+            *out = cull_record(records, p * per_piece + i, building_count, tree);
+        });
         settle();
     }
 }
@@ -748,4 +769,51 @@ fn split_regions<const N: usize>(
         consumed = end;
         region
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::city::BuildingId;
+    use crate::cluster_tree::{ClusterNode, ClusterParams, ClusterStats};
+    use crate::scene_geometry::cull_records;
+
+    #[test]
+    fn cull_records_written_in_pieces_are_the_whole_arrays() {
+        // Six buildings under two leaves under a root; a record per building, then per node.
+        let mut nodes = vec![
+            ClusterNode::bare(vec![1, 2], (0, 6), 4.0),
+            ClusterNode::bare(Vec::new(), (0, 3), 0.0),
+            ClusterNode::bare(Vec::new(), (3, 6), 0.0),
+        ];
+        nodes[0].bounds_max = [1.0, 1.0, 50.0];
+        let tree = ClusterTree {
+            vertices: Vec::new(),
+            nodes,
+            root: 0,
+            building_order: [5, 0, 3, 1, 4, 2].map(BuildingId).to_vec(),
+            params: ClusterParams::default(),
+            stats: ClusterStats::default(),
+        };
+        let records: Vec<BuildingRecord> = (0..9u32)
+            .map(|i| BuildingRecord {
+                bounds_min_m: [i as f32, -(i as f32), 0.0],
+                bounds_max_m: [i as f32 + 2.0, 1.0, 10.0 + i as f32],
+                first_part: i,
+                part_count: 1 + i % 2,
+                ..BuildingRecord::zeroed()
+            })
+            .collect();
+        let whole = cull_records(&records, 6, &tree);
+        assert_ne!(whole, records, "the clusters' records grow");
+        for per_piece in [1, 2, 4, 9, 100] {
+            let settled = std::sync::atomic::AtomicUsize::new(0);
+            let mut out = vec![BuildingRecord::zeroed(); records.len()];
+            write_cull_records(&mut out, &records, 6, &tree, per_piece, &|| {
+                settled.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            });
+            assert_eq!(out, whole, "{per_piece} per piece");
+            assert_eq!(settled.into_inner(), records.len().div_ceil(per_piece));
+        }
+    }
 }
