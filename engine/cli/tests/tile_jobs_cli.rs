@@ -45,6 +45,9 @@ fn refused<S: AsRef<OsStr>>(dir: &Path, args: &[S]) -> String {
     String::from_utf8_lossy(&out.stderr).into_owned()
 }
 
+/// The merge of the test's plan and tile files (an output to follow).
+const MERGE: [&str; 5] = ["preprocess", "--merge", "city.plan", "--tile-dir", "jobs"];
+
 #[test]
 fn tile_jobs_merge_to_the_one_runs_package() {
     let dir = temp_dir("tile-jobs-cli");
@@ -113,18 +116,7 @@ fn tile_jobs_merge_to_the_one_runs_package() {
     }
     // The merge reads the input again.
     std::fs::rename(dir.join("away.geojson"), dir.join("city.geojson")).expect("move back");
-    citywalk(
-        dir,
-        &[
-            "preprocess",
-            "--merge",
-            "city.plan",
-            "--tile-dir",
-            "jobs",
-            "-o",
-            "merged.cwk",
-        ],
-    );
+    citywalk(dir, &[&MERGE[..], &["-o", "merged.cwk"]].concat());
     let (one, merged) = (
         std::fs::read(dir.join("one.cwk")).expect("one run"),
         std::fs::read(dir.join("merged.cwk")).expect("merged"),
@@ -135,21 +127,14 @@ fn tile_jobs_merge_to_the_one_runs_package() {
     );
     // A merge under a memory budget the load alone exceeds: one thread, the budget reported
     // as not kept from the load on, the same package.
-    let summary = citywalk(
-        dir,
-        &[
-            "preprocess",
-            "--merge",
-            "city.plan",
-            "--tile-dir",
-            "jobs",
-            "-o",
-            "budgeted.cwk",
-            "--memory-budget-gib",
-            "0.001",
-            "--json",
-        ],
-    );
+    let budgeted = [
+        "-o",
+        "budgeted.cwk",
+        "--memory-budget-gib",
+        "0.001",
+        "--json",
+    ];
+    let summary = citywalk(dir, &[&MERGE[..], &budgeted].concat());
     let summary: serde_json::Value = serde_json::from_str(&summary).expect("json summary");
     assert_eq!(summary["threads"], 1, "{summary}");
     let report = &summary["memory_budget"];
@@ -166,15 +151,7 @@ fn tile_jobs_merge_to_the_one_runs_package() {
     let middle = bytes.len() / 2;
     bytes[middle] ^= 1;
     std::fs::write(&tile, &bytes).expect("write");
-    let merge = [
-        "preprocess",
-        "--merge",
-        "city.plan",
-        "--tile-dir",
-        "jobs",
-        "-o",
-        "bad.cwk",
-    ];
+    let merge = [&MERGE[..], &["-o", "bad.cwk"]].concat();
     let err = refused(dir, &merge);
     assert!(
         err.contains("city.plan.tile-1 is damaged: checksum mismatch"),

@@ -250,17 +250,13 @@ mod tests {
     use crate::city::BuildingId;
     use crate::cluster_tree::{ClusterNode, ClusterParams, ClusterStats};
 
-    fn node(children: Vec<u32>, buildings: (u32, u32), error_m: f32) -> ClusterNode {
-        ClusterNode::bare(children, buildings, error_m)
-    }
-
     /// A complete binary tree over `2^levels` buildings; a node of depth d has error
     /// `2^(levels - d)`; leaves in building order.
     fn binary_tree(levels: u32) -> ClusterTree {
         let mut nodes = Vec::new();
         fn build(nodes: &mut Vec<ClusterNode>, lo: u32, hi: u32, levels: u32, depth: u32) -> u32 {
             let index = nodes.len() as u32;
-            nodes.push(node(Vec::new(), (lo, hi), 0.0));
+            nodes.push(ClusterNode::bare(Vec::new(), (lo, hi), 0.0));
             if hi - lo > 1 {
                 let mid = (lo + hi) / 2;
                 let a = build(nodes, lo, mid, levels, depth + 1);

@@ -371,7 +371,6 @@ pub(crate) fn assemble(
     for (building, own) in buildings.iter_mut().zip(&own_heights) {
         finish_building(building, *own, &mut report);
     }
-    let out = buildings;
     for orphan in orphans {
         report.warnings.push(LoadWarning {
             file: path.to_path_buf(),
@@ -381,7 +380,7 @@ pub(crate) fn assemble(
                 .into(),
         });
     }
-    report.buildings_loaded = out.len();
+    report.buildings_loaded = buildings.len();
 
     let mut city_streets = Vec::new();
     if options.load_streets {
@@ -410,12 +409,12 @@ pub(crate) fn assemble(
     report.streets_loaded = city_streets.len();
     report.ground_areas_loaded = ground_areas.len();
 
-    if out.is_empty() {
+    if buildings.is_empty() {
         return Err(LoadError::nothing_loaded(path, &report));
     }
     let mut city = City {
         frame,
-        buildings: out,
+        buildings,
         streets: city_streets,
         ground_areas,
         report,

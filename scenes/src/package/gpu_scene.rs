@@ -1,8 +1,9 @@
 //! The GPU-ready scene section: the combined LOD scene of buildings and cluster meshes
 //! ([`lod_geometry`]) as the GPU reads it — vertices, indices, draw records, cull parts, the
 //! occlusion cull's records ([`crate::scene_geometry::cull_records`]) and the draw-id parents
-//! ([`draw_id_parents`]) — computed once by preprocessing, so that opening a package uploads these arrays straight
-//! from the memory map instead of extruding and measuring every building again.
+//! ([`draw_id_parents`]) — computed once by preprocessing, so that opening a package uploads
+//! these arrays straight from the memory map instead of extruding and measuring every building
+//! again.
 //!
 //! Payload layout (little-endian; every array starts at a multiple of [`ARRAY_ALIGN`] bytes
 //! from the payload's start, which lies at a multiple of the section alignment; gaps are zero):
